@@ -1,0 +1,172 @@
+"""Kinematics of the wheeled PUMA 560, pure numpy (no PyBullet, no state).
+
+Frames and symbols (the paper's, section II):
+
+* World frame O: z up. The platform pose is (x, y, yaw) of the axle centre P_0 on the ground plane; yaw is the
+  heading phi (continuous, not wrapped).
+* P_c, where the arm is mounted, lies `mount_offset` (d) ahead of P_0: p_c = P_0 + d [cos phi, sin phi].
+* The arm's DH frame 0 sits at (p_c, h) rotated by phi about z; its x axis points along the heading.
+* The end-effector point r_a is frame 6's origin plus `tool` along z6.
+
+Actuators, in this order everywhere: u = [theta_dot_1..6, wheel_left_dot, wheel_right_dot] (rad/s).
+Platform: v = r/2 (w_l + w_r), phi_dot = r/(2b) (w_r - w_l) (eq. (5)).
+
+`paper_jacobian` is the paper's J of eq. (6): r_a_dot = [p_c_dot; 0] + J u, so its wheel columns act only
+through the yaw. `whole_body_jacobian` adds the platform's translation: r_a_dot = J_wb u.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from mobman_env.params import RobotParams
+
+N_ARM = 6
+N_ACT = 8
+
+
+def dh_transforms(params: RobotParams, q: np.ndarray) -> np.ndarray:
+    """The 6 link transforms A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i), shape (6, 4, 4)."""
+    ct, st = np.cos(q[:N_ARM]), np.sin(q[:N_ARM])
+    a, d, ca, sa = params.dh_constants
+    A = np.zeros((N_ARM, 4, 4))
+    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
+    A[:, 3, 3] = 1.0
+    return A
+
+
+def dh_frames(params: RobotParams, q: np.ndarray) -> np.ndarray:
+    """The 7 homogeneous frames T_0^0 .. T_0^6 of the arm in its base frame 0, shape (7, 4, 4)."""
+    A = dh_transforms(params, q)
+    frames = np.empty((7, 4, 4))
+    frames[0] = np.eye(4)
+    for i in range(N_ARM):
+        np.matmul(frames[i], A[i], out=frames[i + 1])
+    return frames
+
+
+def arm_point(params: RobotParams, q: np.ndarray) -> np.ndarray:
+    """f(theta): the end-effector point in the arm's base frame 0 (m), shape (3,)."""
+    T = dh_frames(params, q)[-1]
+    return T[:3, 3] + params.tool * T[:3, 2]
+
+
+def arm_point_and_jacobian(params: RobotParams, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """f(theta) (3,) and d f / d theta (3, 6) in frame 0, from one pass over the DH frames.
+
+    Column i is z_{i-1} x (p - o_{i-1}); column 6 is zero: joint 6 turns about the tool axis.
+    """
+    frames = dh_frames(params, q)
+    p = frames[-1, :3, 3] + params.tool * frames[-1, :3, 2]
+    z = frames[:6, :3, 2]
+    v = p - frames[:6, :3, 3]
+    # the cross product written out: np.cross costs ~10x more for these tiny arrays
+    J = np.array([z[:, 1] * v[:, 2] - z[:, 2] * v[:, 1], z[:, 2] * v[:, 0] - z[:, 0] * v[:, 2],
+                  z[:, 0] * v[:, 1] - z[:, 1] * v[:, 0]])
+    return p, J
+
+
+def arm_jacobian(params: RobotParams, q: np.ndarray) -> np.ndarray:
+    """d f / d theta in frame 0, shape (3, 6). Column 6 is zero: joint 6 turns about the tool axis."""
+    return arm_point_and_jacobian(params, q)[1]
+
+
+def _rot_z(yaw: float) -> np.ndarray:
+    c, s = math.cos(yaw), math.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def arm_base_xy(params: RobotParams, base_pose: np.ndarray) -> np.ndarray:
+    """p_c = P_0 + d [cos phi, sin phi] (m), shape (2,)."""
+    x, y, yaw = base_pose
+    return np.array([x + params.mount_offset * math.cos(yaw), y + params.mount_offset * math.sin(yaw)])
+
+
+def ee_position(params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray) -> np.ndarray:
+    """r_a in the world frame (m) from the 6 arm angles and the platform pose (x, y, yaw) of P_0."""
+    pc = arm_base_xy(params, base_pose)
+    g = _rot_z(base_pose[2]) @ arm_point(params, q_arm)
+    return np.array([pc[0] + g[0], pc[1] + g[1], params.shoulder_height + g[2]])
+
+
+def platform_rates(params: RobotParams, wheel_speeds: np.ndarray) -> tuple[float, float]:
+    """(v, phi_dot): forward speed of P_0 (m/s) and yaw rate (rad/s) of the unicycle, eq. (5)."""
+    wl, wr = float(wheel_speeds[0]), float(wheel_speeds[1])
+    r, b = params.wheel_radius, params.half_track
+    return 0.5 * r * (wl + wr), 0.5 * r / b * (wr - wl)
+
+
+def _wheel_maps(params: RobotParams, yaw: float) -> tuple[np.ndarray, np.ndarray]:
+    """d(phi_dot)/d(w_l, w_r) (2,) and d(p_c_dot)/d(w_l, w_r) (2, 2)."""
+    r, b, d = params.wheel_radius, params.half_track, params.mount_offset
+    c, s = math.cos(yaw), math.sin(yaw)
+    dphi = np.array([-0.5 * r / b, 0.5 * r / b])
+    dv = np.array([0.5 * r, 0.5 * r])
+    dpc = np.outer([c, s], dv) + d * np.outer([-s, c], dphi)
+    return dphi, dpc
+
+
+def paper_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
+    """The paper's J of eq. (6), shape (3, 8): r_a_dot = [p_c_dot; 0] + J u.
+
+    Arm columns: R(phi) df/dtheta. Wheel columns: d g / d phi * d phi_dot / d w, with g = R(phi) f(theta).
+    """
+    R = _rot_z(yaw)
+    f, J_arm = arm_point_and_jacobian(params, q_arm)
+    g = R @ f
+    J = np.zeros((3, N_ACT))
+    J[:, :N_ARM] = R @ J_arm
+    dphi, _ = _wheel_maps(params, yaw)
+    dg_dphi = np.array([-g[1], g[0], 0.0])
+    J[:, N_ARM:] = np.outer(dg_dphi, dphi)
+    return J
+
+
+def arm_base_jacobian(params: RobotParams, yaw: float) -> np.ndarray:
+    """d p_c_dot / d u, shape (2, 8): only the wheel columns are non-zero."""
+    J = np.zeros((2, N_ACT))
+    J[:, N_ARM:] = _wheel_maps(params, yaw)[1]
+    return J
+
+
+def whole_body_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
+    """The whole-body Jacobian, shape (3, 8): r_a_dot = J_wb u (platform translation included)."""
+    J = paper_jacobian(params, q_arm, yaw)
+    J[:2] += arm_base_jacobian(params, yaw)
+    return J
+
+
+def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds: np.ndarray, dt: float) -> np.ndarray:
+    """Exact no-slip unicycle motion of P_0 over `dt` with constant wheel speeds; returns (x, y, yaw)."""
+    x, y, yaw = (float(v) for v in base_pose)
+    v, w = platform_rates(params, wheel_speeds)
+    if abs(w * dt) < 1e-9:
+        # second-order series of the arc (exact to float precision for such small turns)
+        mid = yaw + 0.5 * w * dt
+        return np.array([x + v * dt * math.cos(mid), y + v * dt * math.sin(mid), yaw + w * dt])
+    yaw1 = yaw + w * dt
+    rho = v / w
+    return np.array([x + rho * (math.sin(yaw1) - math.sin(yaw)), y - rho * (math.cos(yaw1) - math.cos(yaw)), yaw1])
+
+
+def ee_and_jacobian(params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """r_a (3,), the whole-body Jacobian (3, 8) and d p_c_dot / d u (2, 8) from one FK pass (the hot path of
+    the kinematic simulation)."""
+    yaw = float(base_pose[2])
+    R = _rot_z(yaw)
+    f, J_arm = arm_point_and_jacobian(params, q_arm)
+    g = R @ f
+    dphi, dpc = _wheel_maps(params, yaw)
+    J = np.empty((3, N_ACT))
+    J[:, :N_ARM] = R @ J_arm
+    J[0, N_ARM:] = -g[1] * dphi + dpc[0]
+    J[1, N_ARM:] = g[0] * dphi + dpc[1]
+    J[2, N_ARM:] = 0.0
+    J_pc = np.zeros((2, N_ACT))
+    J_pc[:, N_ARM:] = dpc
+    pc = arm_base_xy(params, base_pose)
+    return np.array([pc[0] + g[0], pc[1] + g[1], params.shoulder_height + g[2]]), J, J_pc

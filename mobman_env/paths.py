@@ -1,0 +1,292 @@
+"""Time-parameterised desired paths r_d(t), fixed in the world frame, starting at a given point.
+
+All paths use the paper's rest-to-rest timing s(t) = sin^2(0.5 pi t / T): s(0) = 0, s(T) = 1 and
+s_dot(0) = s_dot(T) = 0, so the path starts and ends at rest. Each path is a frozen dataclass with analytic
+`position(t)`, `velocity(t)` and `acceleration(t)` and a `to_spec()` / `path_from_spec()` round trip through
+plain dicts. A spec holds no anchor: the start point is given separately (the env uses the end-effector's
+initial position, so the initial error is zero).
+
+Specs (all lengths m, angles rad, durations s):
+
+* `{"type": "circle", "radius": 0.4, "tilt": 0.5236, "yaw": 3.1416, "duration": 20.0}` -- the paper's
+  section IV circle. `yaw` is the direction of the centre seen from the start, in the world x-y plane; the
+  plane of the circle contains that horizontal direction and is tilted by `tilt` about it. With yaw = pi this is
+  exactly the paper's formula: x = l cos(2 pi s) - l + x0, y = l cos(tilt) sin(2 pi s) + y0,
+  z = l sin(tilt) sin(2 pi s) + z0.
+* `{"type": "line", "length": 3.0, "direction": [-1, 0, 0], "duration": 20.0}` -- a straight segment.
+* `{"type": "lemniscate", "width": 0.6, "height": 0.3, "tilt": 0.5236, "yaw": 3.1416, "duration": 20.0}` --
+  a figure eight (lemniscate of Gerono), `width` along `yaw`, `height` across it in the tilted plane.
+* `{"type": "random", "seed": 7, "size": 0.3, "n_terms": 3, "duration": 20.0}` -- per axis a sum of
+  `n_terms` sinusoids of the phase 2 pi s with random amplitudes and phases from `seed`, scaled so each axis
+  moves at most `size` (m) from end to end of its range. A spec without `seed` gets one from the env's RNG.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar, Protocol
+
+import numpy as np
+
+PATH_TYPES = ("circle", "line", "lemniscate", "random")
+
+
+class Path(Protocol):
+    duration: float
+
+    def position(self, t: float) -> np.ndarray: ...
+    def position_velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]: ...
+    def velocity(self, t: float) -> np.ndarray: ...
+    def acceleration(self, t: float) -> np.ndarray: ...
+    def to_spec(self) -> dict: ...
+
+
+def _timing(t: float, T: float) -> tuple[float, float, float]:
+    """s, s_dot, s_ddot of s(t) = sin^2(0.5 pi t / T), held at the ends outside [0, T]."""
+    t = min(max(t, 0.0), T)
+    w = math.pi / T
+    # sin^2(w t / 2) = (1 - cos(w t)) / 2
+    return 0.5 * (1.0 - math.cos(w * t)), 0.5 * w * math.sin(w * t), 0.5 * w * w * math.cos(w * t)
+
+
+def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
+    """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, horizontal tilted up by `tilt`."""
+    e1 = np.array([math.cos(yaw), math.sin(yaw), 0.0])
+    h = np.array([-e1[1], e1[0], 0.0])  # z x e1
+    e2 = math.cos(tilt) * h + math.sin(tilt) * np.array([0.0, 0.0, 1.0])
+    return e1, e2
+
+
+class _PhasePath:
+    """A path p(t) = start + sum_k c_k(phase) v_k with phase = 2 pi s(t); subclasses give the phase
+    functions and their derivatives. The chain rule lives here once."""
+
+    start: np.ndarray
+    duration: float
+
+    def _shape(self, ph: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each (3,)."""
+        raise NotImplementedError
+
+    def _phase(self, t: float) -> tuple[float, float, float]:
+        s, sd, sdd = _timing(t, self.duration)
+        return 2 * math.pi * s, 2 * math.pi * sd, 2 * math.pi * sdd
+
+    def position(self, t: float) -> np.ndarray:
+        ph, _, _ = self._phase(t)
+        return self.start + self._shape(ph)[0]
+
+    def position_velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """position(t) and velocity(t) from one evaluation (the env's hot path)."""
+        ph, phd, _ = self._phase(t)
+        p, d1, _ = self._shape(ph)
+        return self.start + p, d1 * phd
+
+    def velocity(self, t: float) -> np.ndarray:
+        ph, phd, _ = self._phase(t)
+        return self._shape(ph)[1] * phd
+
+    def acceleration(self, t: float) -> np.ndarray:
+        ph, phd, phdd = self._phase(t)
+        _, d1, d2 = self._shape(ph)
+        return d2 * phd * phd + d1 * phdd
+
+
+def _vec3(value: Any, name: str) -> np.ndarray:
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
+    return arr
+
+
+def _positive(value: Any, name: str, kind: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{kind} path: {name} must be a number > 0, got {value!r}") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise ValueError(f"{kind} path: {name} must be a finite number > 0, got {value!r}")
+    return v
+
+
+def _finite(value: Any, name: str, kind: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{kind} path: {name} must be a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise ValueError(f"{kind} path: {name} must be finite, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True, eq=False)
+class CirclePath(_PhasePath):
+    """The paper's circle: starts at `start` and goes once round, the centre at `radius` towards `yaw`."""
+
+    start: np.ndarray
+    radius: float = 0.4
+    tilt: float = math.pi / 6
+    yaw: float = math.pi
+    duration: float = 20.0
+    type: ClassVar[str] = "circle"
+
+    def _shape(self, ph):
+        e1, e2 = _plane_axes(self.yaw, self.tilt)
+        u = -e1  # from the centre to the start
+        c, s = math.cos(ph), math.sin(ph)
+        l = self.radius
+        return l * (c - 1.0) * u + l * s * e2, l * (-s * u + c * e2), l * (-c * u - s * e2)
+
+    def to_spec(self) -> dict:
+        return {"type": "circle", "radius": self.radius, "tilt": self.tilt, "yaw": self.yaw, "duration": self.duration}
+
+
+@dataclass(frozen=True, eq=False)
+class LemniscatePath(_PhasePath):
+    """A figure eight (lemniscate of Gerono): x' = W/2 sin(ph), y' = H/2 sin(2 ph) in the tilted plane."""
+
+    start: np.ndarray
+    width: float = 0.6
+    height: float = 0.3
+    tilt: float = math.pi / 6
+    yaw: float = math.pi
+    duration: float = 20.0
+    type: ClassVar[str] = "lemniscate"
+
+    def _shape(self, ph):
+        e1, e2 = _plane_axes(self.yaw, self.tilt)
+        A, B = 0.5 * self.width, 0.5 * self.height
+        s1, c1, s2, c2 = math.sin(ph), math.cos(ph), math.sin(2 * ph), math.cos(2 * ph)
+        return A * s1 * e1 + B * s2 * e2, A * c1 * e1 + 2 * B * c2 * e2, -A * s1 * e1 - 4 * B * s2 * e2
+
+    def to_spec(self) -> dict:
+        return {
+            "type": "lemniscate",
+            "width": self.width,
+            "height": self.height,
+            "tilt": self.tilt,
+            "yaw": self.yaw,
+            "duration": self.duration,
+        }
+
+
+@dataclass(frozen=True, eq=False)
+class LinePath:
+    """A straight segment of `length` along `direction` (normalised), rest to rest."""
+
+    start: np.ndarray
+    length: float = 3.0
+    direction: tuple[float, float, float] = (-1.0, 0.0, 0.0)
+    duration: float = 20.0
+    type: ClassVar[str] = "line"
+
+    def _unit(self) -> np.ndarray:
+        d = np.asarray(self.direction, dtype=float)
+        return d / np.linalg.norm(d)
+
+    def position(self, t):
+        return self.start + self.length * _timing(t, self.duration)[0] * self._unit()
+
+    def velocity(self, t):
+        return self.length * _timing(t, self.duration)[1] * self._unit()
+
+    def position_velocity(self, t):
+        return self.position(t), self.velocity(t)
+
+    def acceleration(self, t):
+        return self.length * _timing(t, self.duration)[2] * self._unit()
+
+    def to_spec(self) -> dict:
+        return {"type": "line", "length": self.length, "direction": [float(v) for v in self.direction],
+                "duration": self.duration}
+
+
+@dataclass(frozen=True, eq=False)
+class RandomPath(_PhasePath):
+    """Per axis a sum of sinusoids of the phase, zero at the start; each axis spans at most `size`."""
+
+    start: np.ndarray
+    seed: int = 0
+    size: float = 0.3
+    n_terms: int = 3
+    duration: float = 20.0
+    type: ClassVar[str] = "random"
+    _coef: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        rng = np.random.default_rng(self.seed)
+        k = np.arange(1, self.n_terms + 1)
+        amp = rng.uniform(-1.0, 1.0, (3, self.n_terms)) / k  # smoother: higher harmonics smaller
+        phase = rng.uniform(0.0, 2 * math.pi, (3, self.n_terms))
+        # scale each axis so its whole excursion (max - min over one period) is at most `size`
+        grid = np.linspace(0.0, 2 * math.pi, 721)
+        vals = np.einsum("ak,akg->ag", amp, np.sin(k[None, :, None] * grid + phase[..., None]))
+        span = vals.max(axis=1) - vals.min(axis=1)
+        amp = amp * (self.size / np.maximum(span, 1e-12))[:, None]
+        object.__setattr__(self, "_coef", np.stack([amp, phase, np.broadcast_to(k, amp.shape)]))
+
+    def _shape(self, ph):
+        amp, phase, k = self._coef
+        arg = k * ph + phase
+        sin, cos = np.sin(arg), np.cos(arg)
+        return ((amp * (sin - np.sin(phase))).sum(1), (amp * k * cos).sum(1), (-amp * k * k * sin).sum(1))
+
+    def to_spec(self) -> dict:
+        return {"type": "random", "seed": self.seed, "size": self.size, "n_terms": self.n_terms,
+                "duration": self.duration}
+
+
+_FIELDS = {
+    "circle": {"radius": _positive, "tilt": _finite, "yaw": _finite, "duration": _positive},
+    "line": {"length": _positive, "direction": None, "duration": _positive},
+    "lemniscate": {"width": _positive, "height": _positive, "tilt": _finite, "yaw": _finite, "duration": _positive},
+    "random": {"seed": None, "size": _positive, "n_terms": None, "duration": _positive},
+}
+_CLASSES = {"circle": CirclePath, "line": LinePath, "lemniscate": LemniscatePath, "random": RandomPath}
+
+
+def validate_spec(spec: Any) -> dict:
+    """Check a path spec and return a normalised copy (floats, known keys only). Raises `ValueError` naming the
+    bad key or value and the accepted ones."""
+    if not isinstance(spec, dict):
+        raise ValueError(f"a path spec must be a dict such as {{'type': 'circle', 'radius': 0.4}}, got {spec!r}")
+    kind = spec.get("type")
+    if kind not in _FIELDS:
+        raise ValueError(f"unknown path type {kind!r}; known: {', '.join(PATH_TYPES)}")
+    allowed = _FIELDS[kind]
+    unknown = sorted(set(spec) - set(allowed) - {"type"})
+    if unknown:
+        raise ValueError(f"{kind} path: unknown key(s) {unknown}; accepted: {sorted(allowed)}")
+    out: dict[str, Any] = {"type": kind}
+    for key, check in allowed.items():
+        if key not in spec:
+            continue
+        value = spec[key]
+        if key == "direction":
+            d = _vec3(value, "line path: direction")
+            if np.linalg.norm(d) < 1e-9:
+                raise ValueError(f"line path: direction must be non-zero, got {value!r}")
+            out[key] = [float(v) for v in d]
+        elif key in ("seed", "n_terms"):
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (0 if key == "seed" else 1):
+                lo = 0 if key == "seed" else 1
+                raise ValueError(f"random path: {key} must be an integer >= {lo}, got {value!r}")
+            out[key] = int(value)
+        else:
+            out[key] = check(value, key, kind)
+    return out
+
+
+def path_from_spec(spec: dict, start: Any, rng: np.random.Generator | None = None):
+    """Build a path from a spec, anchored at `start` (3,). A random spec without a seed draws one from `rng`."""
+    spec = validate_spec(spec)
+    kind = spec.pop("type")
+    start = _vec3(start, "path start")
+    if kind == "line" and "direction" in spec:
+        spec["direction"] = tuple(spec["direction"])
+    if kind == "random" and "seed" not in spec:
+        if rng is None:
+            raise ValueError("random path: the spec has no 'seed' and no rng was given to draw one")
+        spec["seed"] = int(rng.integers(0, 2**31 - 1))
+    return _CLASSES[kind](start=start, **spec)

@@ -1,0 +1,328 @@
+"""The simulation behind one env: one PyBullet client, the robot body, and the two dynamics modes.
+
+* `"physics"`: velocity-controlled motors with torque limits (`RobotParams.*_torque_limit`); the platform moves
+  by wheel contact and friction, the casters are frictionless. One control step = `n_substeps` PyBullet steps.
+* `"kinematic"`: the paper's idealised model. Joint and wheel angles are integrated exactly from the commanded
+  speeds and the platform pose from the no-slip unicycle model (`kinematics.integrate_unicycle`). No PyBullet
+  call is made per step; the bodies are synced only to render.
+
+Joint limits are enforced in both modes: a command that would push a joint past its limit is replaced by 0 for
+that joint (kinematic mode also clamps the angle to the limit), and each such event is counted.
+
+Every PyBullet call goes through `self.client`; `close()` is safe to call twice.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import sys
+import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mobman_env import kinematics as K
+from mobman_env import urdf
+from mobman_env.params import RobotParams
+
+DYNAMICS_MODES = ("physics", "kinematic")
+GRAVITY = 9.81  # m/s^2
+
+
+def _libc_fflush() -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except Exception:  # pragma: no cover - platforms without a C library handle
+        pass
+
+
+@contextmanager
+def _quiet_stdout():
+    """Keep PyBullet's C-level banners ("pybullet build time", "argv[0]=") off our stdout."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):  # e.g. pytest capture without a real fd
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(fd)
+    try:
+        with open(os.devnull, "w") as devnull:
+            os.dup2(devnull.fileno(), fd)
+        yield
+    finally:
+        _libc_fflush()
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
+with _quiet_stdout():
+    import pybullet
+    import pybullet_data
+    from pybullet_utils import bullet_client
+
+
+@dataclass
+class RobotState:
+    """What the sensors see (noise-free), world frame, SI units."""
+
+    ee_pos: np.ndarray  # (3,) m
+    ee_vel: np.ndarray  # (3,) m/s
+    arm_base_pos: np.ndarray  # (2,) m, p_c
+    arm_base_vel: np.ndarray  # (2,) m/s
+    base_pose: np.ndarray  # (3,) x, y of P_0 (m), yaw (rad, continuous)
+    joint_pos: np.ndarray  # (8,) rad: 6 arm joints, left wheel, right wheel
+    joint_vel: np.ndarray  # (8,) rad/s
+    roll_pitch: tuple[float, float]  # rad, of the platform
+
+
+def display_available() -> bool:
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+class Sim:
+    """One PyBullet client and the robot in it."""
+
+    def __init__(self, dynamics: str, dt: float, n_substeps: int, gui: bool = False):
+        if dynamics not in DYNAMICS_MODES:
+            raise ValueError(f"unknown dynamics mode {dynamics!r}; accepted: {', '.join(DYNAMICS_MODES)}")
+        if gui and not display_available():
+            raise RuntimeError(
+                "render_mode='human' needs a display (DISPLAY is not set) and PyBullet's GUI would kill the "
+                "process without one; use render_mode='rgb_array' for headless rendering"
+            )
+        self.dynamics = dynamics
+        self.dt = float(dt)
+        self.n_substeps = int(n_substeps)
+        self._tmpdir: str | None = None
+        self._closed = False
+        with _quiet_stdout():
+            self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self.client_id = self.client._client
+        self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
+        self.client.setGravity(0, 0, -GRAVITY)
+        self.client.setTimeStep(self.dt / self.n_substeps)
+        # 100 solver iterations (default 50): the zero-command creep of the velocity motors drops ~3x (measured)
+        self.client.setPhysicsEngineParameter(numSubSteps=0, numSolverIterations=100, deterministicOverlappingPairs=1)
+        self.plane = self.client.loadURDF("plane.urdf")
+        self.client.changeDynamics(self.plane, -1, lateralFriction=1.0)
+        self.body: int | None = None
+        self._body_hash: str | None = None
+        self._markers: list[int] = []
+        self.params: RobotParams | None = None
+        # kinematic-mode state
+        self._q = np.zeros(8)
+        self._pose = np.zeros(3)
+        self._u = np.zeros(8)
+        self._yaw = 0.0  # continuous yaw tracked in physics mode
+        self._synced = False
+
+    # --- body ------------------------------------------------------------------------------------------
+    def _load_body(self, params: RobotParams) -> None:
+        h = params.hash()
+        if self.body is not None and self._body_hash == h:
+            return
+        if self.body is not None:
+            self.client.removeBody(self.body)
+        if params == RobotParams.nominal() and urdf.NOMINAL_URDF.exists():
+            path = urdf.NOMINAL_URDF
+        else:
+            if self._tmpdir is None:
+                self._tmpdir = tempfile.mkdtemp(prefix="mobman-urdf-")
+            path = urdf.write_urdf(params, Path(self._tmpdir) / f"robot-{h}.urdf")
+        flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_MAINTAIN_LINK_ORDER
+        self.body = self.client.loadURDF(str(path), [0, 0, params.wheel_radius], flags=flags)
+        self._body_hash = h
+        names = {}
+        for j in range(self.client.getNumJoints(self.body)):
+            info = self.client.getJointInfo(self.body, j)
+            names[info[1].decode()] = j
+            names["link:" + info[12].decode()] = j
+        self.arm_ids = [names[n] for n in urdf.ARM_JOINTS]
+        self.wheel_ids = [names[n] for n in urdf.WHEEL_JOINTS]
+        self.act_ids = self.arm_ids + self.wheel_ids
+        self.ee_id = names["link:" + urdf.EE_LINK]
+        for n in urdf.CASTER_LINKS:
+            self.client.changeDynamics(
+                self.body, names["link:" + n], lateralFriction=0.0, rollingFriction=0.0, spinningFriction=0.0
+            )
+        for w in self.wheel_ids:
+            self.client.changeDynamics(self.body, w, lateralFriction=1.5, rollingFriction=0.0, spinningFriction=0.0)
+        for j in range(-1, self.client.getNumJoints(self.body)):
+            self.client.changeDynamics(self.body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
+        # free the motors' default velocity motors (they would hold the wheels otherwise)
+        self.client.setJointMotorControlArray(
+            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * 8, forces=[0.0] * 8
+        )
+
+    def set_state(self, q: np.ndarray, base_pose: np.ndarray) -> None:
+        """Put the body at joint angles `q` (8) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
+        p = self.params
+        quat = self.client.getQuaternionFromEuler([0.0, 0.0, float(base_pose[2])])
+        self.client.resetBasePositionAndOrientation(
+            self.body, [float(base_pose[0]), float(base_pose[1]), p.wheel_radius], quat
+        )
+        self.client.resetBaseVelocity(self.body, [0, 0, 0], [0, 0, 0])
+        for j, angle in zip(self.act_ids, q):
+            self.client.resetJointState(self.body, j, float(angle), 0.0)
+
+    def reset(self, params: RobotParams, q0: np.ndarray, base_pose: np.ndarray) -> None:
+        """Start an episode with the robot `params` at joint angles `q0` (8) and platform pose (3)."""
+        self.params = params
+        self._lower = np.array(params.joint_lower)
+        self._upper = np.array(params.joint_upper)
+        self._q = np.asarray(q0, dtype=float).copy()
+        self._pose = np.asarray(base_pose, dtype=float).copy()
+        self._u = np.zeros(8)
+        self._yaw = float(base_pose[2])
+        self._synced = False
+        if self.dynamics == "physics":
+            self._load_body(params)
+            self.set_state(self._q, self._pose)
+            self._synced = True
+
+    # --- stepping --------------------------------------------------------------------------------------
+    def _limit(self, q_arm: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, int]:
+        """Zero the arm speeds that would push a joint past its limit; returns (u, number zeroed)."""
+        push = ((q_arm >= self._upper) & (u[:6] > 0)) | ((q_arm <= self._lower) & (u[:6] < 0))
+        if not push.any():
+            return u, 0
+        u = u.copy()
+        u[:6][push] = 0.0
+        return u, int(push.sum())
+
+    def step(self, u: np.ndarray) -> int:
+        """Apply the joint/wheel speeds `u` (8, rad/s) for one control step; returns joint-limit hits."""
+        if self.dynamics == "kinematic":
+            return self._step_kinematic(u)
+        return self._step_physics(u)
+
+    def _step_kinematic(self, u: np.ndarray) -> int:
+        u, hits = self._limit(self._q[:6], u)
+        q = self._q + u * self.dt
+        over = (q[:6] > self._upper) | (q[:6] < self._lower)
+        if over.any():
+            q[:6] = np.clip(q[:6], self._lower, self._upper)
+            u = u.copy()
+            # the joint reached its limit inside the step: it stops there
+            u[:6][over] = 0.0
+            hits += int(over.sum())
+        self._pose = K.integrate_unicycle(self.params, self._pose, u[6:], self.dt)
+        self._q = q
+        self._u = u
+        self._synced = False
+        return hits
+
+    def _step_physics(self, u: np.ndarray) -> int:
+        c = self.client
+        q_arm = np.array([s[0] for s in c.getJointStates(self.body, self.arm_ids)])
+        u, hits = self._limit(q_arm, u)
+        forces = [*self.params.arm_torque_limit, self.params.wheel_torque_limit, self.params.wheel_torque_limit]
+        c.setJointMotorControlArray(self.body, self.act_ids, pybullet.VELOCITY_CONTROL,
+                                    targetVelocities=u.tolist(), forces=forces)
+        for _ in range(self.n_substeps):
+            c.stepSimulation()
+        return hits
+
+    # --- state -----------------------------------------------------------------------------------------
+    def state(self) -> RobotState:
+        if self.dynamics == "kinematic":
+            return self._state_kinematic()
+        return self._state_physics()
+
+    def _state_kinematic(self) -> RobotState:
+        p, q, pose, u = self.params, self._q, self._pose, self._u
+        ee_pos, J, J_pc = K.ee_and_jacobian(p, q[:6], pose)
+        return RobotState(
+            ee_pos=ee_pos,
+            ee_vel=J @ u,
+            arm_base_pos=K.arm_base_xy(p, pose),
+            arm_base_vel=J_pc @ u,
+            base_pose=pose.copy(),
+            joint_pos=q.copy(),
+            joint_vel=u.copy(),
+            roll_pitch=(0.0, 0.0),
+        )
+
+    def _state_physics(self) -> RobotState:
+        c, p = self.client, self.params
+        js = c.getJointStates(self.body, self.act_ids)
+        q = np.array([s[0] for s in js])
+        qd = np.array([s[1] for s in js])
+        ls = c.getLinkState(self.body, self.ee_id, computeLinkVelocity=1, computeForwardKinematics=1)
+        pos, orn = c.getBasePositionAndOrientation(self.body)
+        lin, ang = c.getBaseVelocity(self.body)
+        roll, pitch, yaw_wrapped = c.getEulerFromQuaternion(orn)
+        # continuous yaw: the wrapped angle's nearest representative to the last one
+        self._yaw += (yaw_wrapped - self._yaw + math.pi) % (2 * math.pi) - math.pi
+        yaw = self._yaw
+        d = p.mount_offset
+        cy, sy = math.cos(yaw), math.sin(yaw)
+        return RobotState(
+            ee_pos=np.array(ls[0]),
+            ee_vel=np.array(ls[6]),
+            arm_base_pos=np.array([pos[0] + d * cy, pos[1] + d * sy]),
+            arm_base_vel=np.array([lin[0] - d * ang[2] * sy, lin[1] + d * ang[2] * cy]),
+            base_pose=np.array([pos[0], pos[1], yaw]),
+            joint_pos=q,
+            joint_vel=qd,
+            roll_pitch=(roll, pitch),
+        )
+
+    # --- rendering -------------------------------------------------------------------------------------
+    def sync_bodies(self) -> None:
+        """Kinematic mode: put the PyBullet body where the integrated state is (only needed to render)."""
+        if self.dynamics == "kinematic" and not self._synced and self.params is not None:
+            self._load_body(self.params)
+            self.set_state(self._q, self._pose)
+            self._synced = True
+
+    def draw_path(self, points: np.ndarray) -> None:
+        """Show the desired path as small visual-only spheres (debug lines do not show headless)."""
+        for m in self._markers:
+            self.client.removeBody(m)
+        self._markers = []
+        if len(points) == 0:
+            return
+        shape = self.client.createVisualShape(pybullet.GEOM_SPHERE, radius=0.012, rgbaColor=[0.1, 0.8, 0.2, 1])
+        for pt in points:
+            self._markers.append(
+                self.client.createMultiBody(baseMass=0, baseVisualShapeIndex=shape, basePosition=[float(v) for v in pt])
+            )
+
+    def render(self, target: np.ndarray, width: int = 480, height: int = 360) -> np.ndarray:
+        """An RGB image (height, width, 3) uint8 from TinyRenderer, looking at `target`."""
+        self.sync_bodies()
+        c = self.client
+        view = c.computeViewMatrixFromYawPitchRoll(
+            cameraTargetPosition=[float(v) for v in target], distance=2.6, yaw=50.0, pitch=-25.0, roll=0.0, upAxisIndex=2
+        )
+        proj = c.computeProjectionMatrixFOV(fov=50.0, aspect=width / height, nearVal=0.05, farVal=20.0)
+        img = c.getCameraImage(width, height, view, proj, renderer=pybullet.ER_TINY_RENDERER)
+        rgba = np.reshape(np.asarray(img[2], dtype=np.uint8), (height, width, 4))
+        return rgba[:, :, :3].copy()
+
+    # --- teardown --------------------------------------------------------------------------------------
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            if pybullet.isConnected(physicsClientId=self.client_id):
+                self.client.disconnect()
+        finally:
+            if self._tmpdir is not None:
+                shutil.rmtree(self._tmpdir, ignore_errors=True)
+                self._tmpdir = None
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:
+            pass

@@ -1,0 +1,187 @@
+"""Write the URDF of the wheeled PUMA 560 from `RobotParams`, so the simulation and `kinematics.py` share
+one source of numbers (a test checks PyBullet's end-effector against the numpy FK).
+
+Layout (link names are looked up by name in `sim.py`):
+
+* `base_link`: the platform. Its frame is the axle centre P_0 at wheel-axle height r, x along the heading; its
+  inertial origin is its link origin (PyBullet reports base poses at the inertial frame). Visual: the deck and
+  the pedestal up to the shoulder.
+* `wheel_left` (+y) and `wheel_right` (-y): driven wheels on continuous joints about y at +-b.
+* `caster_front`, `caster_rear`: passive casters, modelled as fixed spheres whose contact is made
+  frictionless in `sim.py` (lateral friction 0), so they carry weight but never resist motion.
+* `link1`..`link6`: the arm. Standard DH puts the joint rotation first (A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha)),
+  URDF puts a fixed transform first, so joint i's origin is the fixed part (Tz Tx Rx) of link i-1 and link i's
+  frame is DH frame i-1 turned by theta_i.
+* `ee`: massless, at `tool` along z6; its inertial origin is its link origin, so `getLinkState(...)[0]` is the
+  end-effector point.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from mobman_env.params import RobotParams
+
+ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 7))
+WHEEL_JOINTS = ("wheel_left_joint", "wheel_right_joint")
+EE_LINK = "ee"
+CASTER_LINKS = ("caster_front", "caster_rear")
+
+CASTER_RADIUS = 0.05  # m, ours
+CASTER_X = 0.35  # m, ahead of and behind P_0, ours
+DECK = (0.9, 0.5, 0.2)  # m, platform box length, width, height (ours; inside the wheels at b = 0.32)
+DECK_BOTTOM = 0.12  # m above the ground, ours
+WHEEL_WIDTH = 0.06  # m, ours
+ARM_RADIUS = 0.045  # m, drawn radius of the arm links (visual only)
+
+
+def _f(values) -> str:
+    return " ".join(f"{float(v):.10g}" for v in values)
+
+
+def _inertial(mass: float, xyz=(0, 0, 0), rpy=(0, 0, 0), diag=(0, 0, 0)) -> str:
+    ixx, iyy, izz = diag
+    return (
+        f'<inertial><origin xyz="{_f(xyz)}" rpy="{_f(rpy)}"/><mass value="{mass:.10g}"/>'
+        f'<inertia ixx="{ixx:.10g}" iyy="{iyy:.10g}" izz="{izz:.10g}" ixy="0" ixz="0" iyz="0"/></inertial>'
+    )
+
+
+def _segment(p0, p1, radius: float, material: str) -> str:
+    """A visual cylinder from p0 to p1 (link frame); nothing when they coincide."""
+    p0, p1 = np.asarray(p0, float), np.asarray(p1, float)
+    v = p1 - p0
+    L = float(np.linalg.norm(v))
+    if L < 1e-6:
+        return ""
+    u = v / L
+    # rotate z onto u: pitch about y then yaw about z (rpy = roll, pitch, yaw)
+    pitch = math.acos(max(-1.0, min(1.0, u[2])))
+    yaw = math.atan2(u[1], u[0])
+    mid = 0.5 * (p0 + p1)
+    return (
+        f'<visual><origin xyz="{_f(mid)}" rpy="0 {pitch:.10g} {yaw:.10g}"/>'
+        f'<geometry><cylinder radius="{radius}" length="{L:.10g}"/></geometry><material name="{material}"/></visual>'
+    )
+
+
+def _dh_fixed(a: float, d: float, alpha: float) -> tuple[tuple, tuple]:
+    """xyz and rpy of Tz(d) Tx(a) Rx(alpha)."""
+    return (a, 0.0, d), (alpha, 0.0, 0.0)
+
+
+def urdf_string(params: RobotParams) -> str:
+    """The URDF text of the robot with these parameters."""
+    r, b, h = params.wheel_radius, params.half_track, params.shoulder_height
+    dl, dw, dh = DECK
+    deck_z = DECK_BOTTOM - r + dh / 2  # deck centre relative to the axle
+    top = DECK_BOTTOM + dh - r  # deck top relative to the axle
+    shoulder = h - r  # shoulder above the axle
+    m = params.platform_mass
+    deck_inertia = (m / 12 * (dw**2 + dh**2), m / 12 * (dl**2 + dh**2), m / 12 * (dl**2 + dw**2))
+    parts = [
+        '<?xml version="1.0"?>',
+        '<robot name="wheeled_puma560">',
+        '<material name="deck"><color rgba="0.25 0.3 0.35 1"/></material>',
+        '<material name="arm"><color rgba="0.85 0.85 0.8 1"/></material>',
+        '<material name="joint"><color rgba="0.9 0.5 0.1 1"/></material>',
+        '<material name="tire"><color rgba="0.1 0.1 0.1 1"/></material>',
+        '<material name="tool"><color rgba="0.8 0.1 0.1 1"/></material>',
+        '<link name="base_link">',
+        _inertial(m, diag=deck_inertia),
+        f'<visual><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry>'
+        '<material name="deck"/></visual>',
+        _segment((params.mount_offset, 0, top), (params.mount_offset, 0, shoulder), 0.08, "deck"),
+        f'<collision><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry></collision>',
+        "</link>",
+    ]
+    # wheels
+    for name, side in (("wheel_left", 1.0), ("wheel_right", -1.0)):
+        wheel_inertia = (
+            params.wheel_mass / 12 * (3 * r * r + WHEEL_WIDTH**2),
+            params.wheel_mass / 2 * r * r,
+            params.wheel_mass / 12 * (3 * r * r + WHEEL_WIDTH**2),
+        )
+        geom = f'<geometry><cylinder radius="{r:.10g}" length="{WHEEL_WIDTH}"/></geometry>'
+        # collision: a sphere of the wheel's radius, so the contact is one point right under the hub (a
+        # cylinder touches at both rims, which widens the track and makes the turn rate differ from eq. (5))
+        ball = f'<geometry><sphere radius="{r:.10g}"/></geometry>'
+        parts += [
+            f'<link name="{name}">',
+            _inertial(params.wheel_mass, diag=wheel_inertia),
+            f'<visual><origin rpy="{math.pi / 2:.10g} 0 0"/>{geom}<material name="tire"/></visual>',
+            f"<collision>{ball}</collision>",
+            "</link>",
+            f'<joint name="{name}_joint" type="continuous"><parent link="base_link"/><child link="{name}"/>'
+            f'<origin xyz="0 {side * b:.10g} 0"/><axis xyz="0 1 0"/>'
+            f'<limit effort="{params.wheel_torque_limit}" velocity="{params.wheel_speed_limit}"/></joint>',
+        ]
+    # casters: fixed frictionless spheres touching the ground
+    for name, x in zip(CASTER_LINKS, (CASTER_X, -CASTER_X)):
+        geom = f'<geometry><sphere radius="{CASTER_RADIUS}"/></geometry>'
+        parts += [
+            f'<link name="{name}">',
+            _inertial(0.5, diag=(1e-4, 1e-4, 1e-4)),
+            f"<visual>{geom}<material name=\"tire\"/></visual><collision>{geom}</collision>",
+            '<contact><lateral_friction value="0"/><rolling_friction value="0"/><spinning_friction value="0"/>'
+            "</contact>",
+            "</link>",
+            f'<joint name="{name}_joint" type="fixed"><parent link="base_link"/><child link="{name}"/>'
+            f'<origin xyz="{x} 0 {CASTER_RADIUS - r:.10g}"/></joint>',
+        ]
+    # arm: the mount frame is DH frame 0 (at P_c, shoulder height, x along the heading)
+    a, d, alpha = params.dh_a, params.dh_d, params.dh_alpha
+    parent = "base_link"
+    origin_xyz, origin_rpy = (params.mount_offset, 0.0, shoulder), (0.0, 0.0, 0.0)
+    for i in range(6):
+        name = f"link{i + 1}"
+        fx, frpy = _dh_fixed(a[i], d[i], alpha[i])
+        # this link's frame: DH frame i-1 turned by theta_i; DH frame i is Tz(d) Tx(a) Rx(alpha) from it
+        com_i = np.asarray(params.coms[i])
+        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
+        Rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
+        com = np.asarray(fx) + Rx @ com_i
+        end = np.asarray(fx)
+        visuals = _segment((0, 0, 0), (0, 0, d[i]), ARM_RADIUS, "arm") + _segment(
+            (0, 0, d[i]), end, ARM_RADIUS, "arm"
+        )
+        if i == 5:  # link6 carries the tool: frame 6 plus `tool` along z6
+            ee_xyz = np.asarray(fx) + Rx @ np.array([0.0, 0.0, params.tool])
+            visuals += _segment(end, ee_xyz, ARM_RADIUS * 0.5, "tool")
+        joint_ball = f'<visual><geometry><sphere radius="{ARM_RADIUS * 1.3}"/></geometry><material name="joint"/></visual>'
+        parts += [
+            f'<link name="{name}">',
+            _inertial(params.masses[i], com, frpy, params.inertias[i]),
+            joint_ball,
+            visuals,
+            "</link>",
+            f'<joint name="joint{i + 1}" type="revolute"><parent link="{parent}"/><child link="{name}"/>'
+            f'<origin xyz="{_f(origin_xyz)}" rpy="{_f(origin_rpy)}"/><axis xyz="0 0 1"/>'
+            f'<limit lower="{params.joint_lower[i]:.10g}" upper="{params.joint_upper[i]:.10g}" '
+            f'effort="{params.arm_torque_limit[i]}" velocity="{params.arm_speed_limit[i]}"/></joint>',
+        ]
+        parent, origin_xyz, origin_rpy = name, fx, frpy
+    # end-effector: the point `tool` along z6, oriented like DH frame 6
+    parts += [
+        f'<link name="{EE_LINK}">',
+        _inertial(0.0),
+        f'<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
+        "</link>",
+        f'<joint name="ee_joint" type="fixed"><parent link="link6"/><child link="{EE_LINK}"/>'
+        f'<origin xyz="{_f(ee_xyz)}" rpy="{_f(origin_rpy)}"/></joint>',
+        "</robot>",
+    ]
+    return "\n".join(p for p in parts if p)
+
+
+def write_urdf(params: RobotParams, path: str | Path) -> Path:
+    """Write the URDF of `params` to `path` and return it."""
+    path = Path(path)
+    path.write_text(urdf_string(params))
+    return path
+
+
+NOMINAL_URDF = Path(__file__).parent / "assets" / "wheeled_puma560.urdf"
