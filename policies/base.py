@@ -1,0 +1,152 @@
+"""The policy contract shared by every controller and agent: SB3's `predict`, plus `reset`.
+
+```python
+class Policy(Protocol):
+    def reset(self, obs, info=None, *, seed=None) -> None: ...
+    def predict(self, observation, state=None, episode_start=None, deterministic=True) -> tuple[np.ndarray, Any]: ...
+```
+
+* `predict` accepts an unbatched observation dict or one batched with a leading axis of length 1 (what a
+  `DummyVecEnv` passes) and returns an action of the matching shape, in the env's normalised action space.
+  Controllers are single-env: a longer batch raises `ValueError`.
+* `episode_start[0] == True` re-initialises the controller from that observation exactly like `reset(obs)`
+  (SB3's `evaluate_policy` never calls `reset`). A controller that was never reset initialises itself on its
+  first `predict`.
+* Model-free controllers are built from a frozen `EnvFacts` (control period, action scale, observation keys),
+  never from the env, so they cannot read a model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+@runtime_checkable
+class Policy(Protocol):
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None: ...
+
+    def predict(
+        self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True
+    ) -> tuple[np.ndarray, Any]: ...
+
+
+def unwrap_env(env: Any) -> Any:
+    """The `WheeledPumaEnv` inside a gym.Env (wrappers) or an SB3 VecEnv with one sub-env of the same kind
+    (attributes are read through `get_attr`, which works for subprocess envs too)."""
+    if hasattr(env, "get_attr") and hasattr(env, "num_envs"):  # SB3 VecEnv
+        return _VecEnvView(env)
+    return getattr(env, "unwrapped", env)
+
+
+class _VecEnvView:
+    """Attribute access to the first sub-env of a VecEnv (`get_attr` works across processes)."""
+
+    def __init__(self, venv: Any):
+        self._venv = venv
+
+    def __getattr__(self, name: str) -> Any:
+        if name == "observation_space":
+            return self._venv.observation_space
+        return self._venv.get_attr(name, indices=[0])[0]
+
+
+@dataclass(frozen=True)
+class EnvFacts:
+    """What a model-free controller may know about the env: nothing about the robot's geometry.
+
+    dt: control period, s. action_scale: speed limits of the 8 actuators, rad/s (action = u / action_scale).
+    obs_keys: the observation dict's keys.
+    """
+
+    dt: float
+    action_scale: tuple[float, ...]
+    obs_keys: tuple[str, ...]
+
+    @classmethod
+    def from_env(cls, env: Any) -> EnvFacts:
+        """Read the facts from a gym.Env (any wrappers) or a VecEnv, touching no model attribute."""
+        base = unwrap_env(env)
+        try:
+            dt = float(base.dt)
+            scale = tuple(float(v) for v in np.asarray(base.action_scale, dtype=float))
+        except AttributeError as exc:
+            raise TypeError(
+                f"{type(env).__name__} does not look like a mobman env (needs .dt and .action_scale): {exc}"
+            ) from None
+        keys = tuple(getattr(base.observation_space, "spaces", {}).keys())
+        return cls(dt=dt, action_scale=scale, obs_keys=keys)
+
+    @property
+    def scale(self) -> np.ndarray:
+        return np.asarray(self.action_scale, dtype=float)
+
+
+def unbatch(observation: dict) -> tuple[dict, bool]:
+    """Return (single observation with 1-D float64 arrays, whether the input was a batch of one)."""
+    if not isinstance(observation, dict):
+        raise ValueError(f"observation must be a dict (the env's Dict observation), got {type(observation).__name__}")
+    first = np.asarray(observation.get("ee_pos", next(iter(observation.values()))))
+    batched = first.ndim == 2
+    if batched and first.shape[0] != 1:
+        raise ValueError(
+            f"controllers are single-env: got a batch of {first.shape[0]} observations; use one env (DummyVecEnv "
+            f"with n_envs=1) or one controller per env"
+        )
+    if batched:
+        return {k: np.asarray(v, dtype=float)[0] for k, v in observation.items()}, True
+    return {k: np.asarray(v, dtype=float) for k, v in observation.items()}, False
+
+
+def first_flag(episode_start: Any) -> bool:
+    if episode_start is None:
+        return False
+    return bool(np.asarray(episode_start).reshape(-1)[0])
+
+
+class ControllerPolicy:
+    """Base class of the controllers: handles batching, `episode_start` and the per-controller RNG.
+
+    Subclasses implement `_reset(obs)` (re-initialise all state from the first observation) and `_act(obs)`
+    (return the actuator speeds u in rad/s for one unbatched observation). The base class clips u to the speed
+    limits, records it as `self.last_u` (the command actually issued) and returns u / action_scale.
+    """
+
+    name = "controller"
+
+    def __init__(self, facts: EnvFacts, seed: int | None = None):
+        self.facts = facts
+        self._scale = facts.scale
+        self._seed = seed
+        self.rng = np.random.default_rng(seed)
+        self._initialised = False
+        self.last_u = np.zeros(len(self._scale))
+
+    # --- contract --------------------------------------------------------------------------------------
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
+        if seed is not None:
+            self.rng = np.random.default_rng(seed)
+        single, _ = unbatch(obs)
+        self.last_u = np.zeros(len(self._scale))
+        self._reset(single)
+        self._initialised = True
+
+    def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        single, batched = unbatch(observation)
+        if first_flag(episode_start) or not self._initialised:
+            self.last_u = np.zeros(len(self._scale))
+            self._reset(single)
+            self._initialised = True
+        u = np.clip(self._act(single), -self._scale, self._scale)
+        self.last_u = u
+        action = (u / self._scale).astype(np.float32)
+        return (action[None] if batched else action), state
+
+    # --- to implement ----------------------------------------------------------------------------------
+    def _reset(self, obs: dict) -> None:
+        raise NotImplementedError
+
+    def _act(self, obs: dict) -> np.ndarray:
+        raise NotImplementedError
