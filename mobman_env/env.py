@@ -269,7 +269,8 @@ class WheeledPumaEnv(gym.Env):
         self._params_hash = self.true_params.hash()
         if self.render_mode is not None:
             ts = np.linspace(0.0, self._path.duration, 60)
-            self._sim.draw_path(np.array([self._path.position(t) for t in ts]))
+            self._path_points = np.array([self._path.position(t) for t in ts])
+            self._sim.draw_path(self._path_points)
         obs = self._observation(state, 0.0, *self._path.position_velocity(0.0))
         info = {
             "task": self._task,
@@ -341,12 +342,13 @@ class WheeledPumaEnv(gym.Env):
             return None
         if self._path is None:
             raise RuntimeError("call reset() before render()")
-        # look between the platform and the middle of the path
-        mid = self._path.position(0.5 * self._path.duration)
+        # look at the middle of the box holding the path and the platform
         base = self._sim.state().base_pose
-        target = 0.5 * (mid + np.array([base[0], base[1], 0.8]))
+        pts = np.vstack([self._path_points, [base[0], base[1], 0.3], [base[0], base[1], 1.0]])
+        target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+        distance = 1.2 + 1.2 * float(np.ptp(pts[:, :2], axis=0).max())
         if self.render_mode == "rgb_array":
-            return self._sim.render(target)
+            return self._sim.render(target, distance)
         self._sim.sync_bodies()
         return None
 

@@ -51,9 +51,10 @@ def _timing(t: float, T: float) -> tuple[float, float, float]:
 
 
 def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
-    """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, horizontal tilted up by `tilt`."""
+    """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, tilted up by `tilt` from the horizontal
+    e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane)."""
     e1 = np.array([math.cos(yaw), math.sin(yaw), 0.0])
-    h = np.array([-e1[1], e1[0], 0.0])  # z x e1
+    h = np.array([e1[1], -e1[0], 0.0])  # e1 x z
     e2 = math.cos(tilt) * h + math.sin(tilt) * np.array([0.0, 0.0, 1.0])
     return e1, e2
 
@@ -220,10 +221,10 @@ class RandomPath(_PhasePath):
         amp = rng.uniform(-1.0, 1.0, (3, self.n_terms)) / k  # smoother: higher harmonics smaller
         phase = rng.uniform(0.0, 2 * math.pi, (3, self.n_terms))
         # scale each axis so its whole excursion (max - min over one period) is at most `size`
-        grid = np.linspace(0.0, 2 * math.pi, 721)
+        grid = np.linspace(0.0, 2 * math.pi, 3601)
         vals = np.einsum("ak,akg->ag", amp, np.sin(k[None, :, None] * grid + phase[..., None]))
         span = vals.max(axis=1) - vals.min(axis=1)
-        amp = amp * (self.size / np.maximum(span, 1e-12))[:, None]
+        amp = amp * (0.999 * self.size / np.maximum(span, 1e-12))[:, None]  # 0.1% margin for the grid
         object.__setattr__(self, "_coef", np.stack([amp, phase, np.broadcast_to(k, amp.shape)]))
 
     def _shape(self, ph):

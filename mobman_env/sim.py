@@ -296,12 +296,12 @@ class Sim:
                 self.client.createMultiBody(baseMass=0, baseVisualShapeIndex=shape, basePosition=[float(v) for v in pt])
             )
 
-    def render(self, target: np.ndarray, width: int = 480, height: int = 360) -> np.ndarray:
-        """An RGB image (height, width, 3) uint8 from TinyRenderer, looking at `target`."""
+    def render(self, target: np.ndarray, distance: float = 2.6, width: int = 480, height: int = 360) -> np.ndarray:
+        """An RGB image (height, width, 3) uint8 from TinyRenderer, looking at `target` from `distance` m."""
         self.sync_bodies()
         c = self.client
         view = c.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=[float(v) for v in target], distance=2.6, yaw=50.0, pitch=-25.0, roll=0.0, upAxisIndex=2
+            cameraTargetPosition=[float(v) for v in target], distance=distance, yaw=40.0, pitch=-20.0, roll=0.0, upAxisIndex=2
         )
         proj = c.computeProjectionMatrixFOV(fov=50.0, aspect=width / height, nearVal=0.05, farVal=20.0)
         img = c.getCameraImage(width, height, view, proj, renderer=pybullet.ER_TINY_RENDERER)

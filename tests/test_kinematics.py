@@ -1,0 +1,114 @@
+"""Kinematics against finite differences, the URDF against the numpy FK, and the RobotParams rules."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from mobman_env import kinematics as K
+from mobman_env.params import PERTURBED_FIELDS, RobotParams
+from mobman_env.sim import Sim
+
+NOMINAL = RobotParams.nominal()
+PERTURBED = NOMINAL.perturbed(np.random.default_rng(3), 0.05)
+
+
+def _random_config(rng, params):
+    q = rng.uniform(params.joint_lower, params.joint_upper)
+    pose = np.r_[rng.uniform(-2, 2, 2), rng.uniform(-4, 4)]
+    return q, pose
+
+
+@pytest.mark.parametrize("params", [NOMINAL, PERTURBED], ids=["nominal", "perturbed"])
+def test_jacobians_match_finite_differences(params):
+    rng = np.random.default_rng(0)
+    h = 1e-6
+    for _ in range(20):
+        q, pose = _random_config(rng, params)
+        u = rng.uniform(-1, 1, 8)
+        # whole body: move every actuator for h seconds with the exact unicycle
+        q1 = q + u[:6] * h
+        pose1 = K.integrate_unicycle(params, pose, u[6:], h)
+        fd = (K.ee_position(params, q1, pose1) - K.ee_position(params, q, pose)) / h
+        J = K.whole_body_jacobian(params, q, pose[2])
+        np.testing.assert_allclose(J @ u, fd, atol=2e-6)
+        # paper's J: r_a_dot = [p_c_dot; 0] + J u
+        pc_dot = (K.arm_base_xy(params, pose1) - K.arm_base_xy(params, pose)) / h
+        Jp = K.paper_jacobian(params, q, pose[2])
+        np.testing.assert_allclose(Jp @ u + np.r_[pc_dot, 0.0], fd, atol=2e-6)
+        np.testing.assert_allclose(K.arm_base_jacobian(params, pose[2]) @ u, pc_dot, atol=2e-6)
+        # the fused hot-path function agrees with the separate ones
+        e, Jwb, Jpc = K.ee_and_jacobian(params, q, pose)
+        np.testing.assert_allclose(e, K.ee_position(params, q, pose), atol=1e-12)
+        np.testing.assert_allclose(Jwb, J, atol=1e-12)
+
+
+def test_joint6_never_moves_the_point():
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        q, pose = _random_config(rng, NOMINAL)
+        assert np.abs(K.whole_body_jacobian(NOMINAL, q, pose[2])[:, 5]).max() < 1e-12
+
+
+def test_unicycle_integration_is_exact_for_constant_wheel_speeds():
+    pose = np.array([0.3, -0.2, 1.0])
+    w = np.array([2.0, 5.0])
+    one = K.integrate_unicycle(NOMINAL, pose, w, 1.0)
+    many = pose
+    for _ in range(1000):
+        many = K.integrate_unicycle(NOMINAL, many, w, 1e-3)
+    np.testing.assert_allclose(one, many, atol=1e-10)
+    # straight line and spin on the spot
+    np.testing.assert_allclose(K.integrate_unicycle(NOMINAL, np.zeros(3), [3.0, 3.0], 2.0), [1.2, 0, 0], atol=1e-12)
+    spin = K.integrate_unicycle(NOMINAL, np.zeros(3), [-1.0, 1.0], 1.0)
+    np.testing.assert_allclose(spin, [0, 0, 0.2 / 0.32], atol=1e-12)
+
+
+@pytest.mark.parametrize("params", [NOMINAL, PERTURBED], ids=["nominal", "perturbed"])
+def test_urdf_matches_numpy_fk(params):
+    """PyBullet's `ee` link equals the numpy FK at 50 random configurations and base poses to 1e-6 m."""
+    sim = Sim("physics", 0.01, 2)
+    try:
+        sim.reset(params, np.zeros(8), np.zeros(3))
+        rng = np.random.default_rng(7)
+        for _ in range(50):
+            q, pose = _random_config(rng, params)
+            sim.set_state(np.r_[q, rng.uniform(-3, 3, 2)], pose)
+            ls = sim.client.getLinkState(sim.body, sim.ee_id, computeForwardKinematics=1)
+            np.testing.assert_allclose(ls[0], K.ee_position(params, q, pose), atol=1e-6)
+    finally:
+        sim.close()
+
+
+def test_perturbed_rule():
+    rng = np.random.default_rng(0)
+    draws = [NOMINAL.perturbed(rng, 0.05) for _ in range(300)]
+    for name in PERTURBED_FIELDS:
+        ratios = np.array([getattr(p, name) / getattr(NOMINAL, name) for p in draws])
+        assert ratios.min() >= 1 - 0.15 - 1e-12 and ratios.max() <= 1 + 0.15 + 1e-12
+        assert 0.035 < ratios.std() < 0.065
+    # masses, limits and the shoulder height never change
+    unchanged = [f.name for f in dataclasses.fields(RobotParams) if f.name not in PERTURBED_FIELDS]
+    for p in draws[:5]:
+        for name in unchanged:
+            assert getattr(p, name) == getattr(NOMINAL, name)
+    assert NOMINAL.perturbed(rng, 0.0) == NOMINAL
+    with pytest.raises(ValueError, match="rel_std"):
+        NOMINAL.perturbed(rng, -0.1)
+    assert NOMINAL.hash() != draws[0].hash() and NOMINAL.hash() == RobotParams().hash()
+
+
+def test_initial_geometry_of_the_paper_task():
+    """theta(0) puts the tool point 0.675 m above the shoulder and slightly behind it; facing the circle
+    (heading pi), the far side of the 0.4 m circle stays inside the arm's reach."""
+    q0 = np.array([0, math.pi / 4, 0, 2 * math.pi / 3, -math.pi / 4, 0])
+    f = K.arm_point(NOMINAL, q0)
+    reach = math.hypot(NOMINAL.d3, NOMINAL.a2 + math.hypot(NOMINAL.a3, NOMINAL.d4 + NOMINAL.tool))
+    start = K.ee_position(NOMINAL, q0, np.array([0, 0, math.pi]))
+    far = start - np.array([0.8, 0, 0])
+    shoulder = np.r_[K.arm_base_xy(NOMINAL, np.array([0, 0, math.pi])), NOMINAL.shoulder_height]
+    assert np.linalg.norm(far - shoulder) < 0.95 * reach
+    assert 0.6 < f[2] < 0.7
