@@ -112,3 +112,12 @@ def test_initial_geometry_of_the_paper_task():
     shoulder = np.r_[K.arm_base_xy(NOMINAL, np.array([0, 0, math.pi])), NOMINAL.shoulder_height]
     assert np.linalg.norm(far - shoulder) < 0.95 * reach
     assert 0.6 < f[2] < 0.7
+
+
+def test_shipped_nominal_urdf_is_generated_from_the_params():
+    from mobman_env import urdf
+
+    assert urdf.NOMINAL_URDF.read_text() == urdf.urdf_string(NOMINAL), (
+        "mobman_env/assets/wheeled_puma560.urdf is stale: regenerate it with "
+        "python -c 'from mobman_env import urdf, RobotParams; urdf.write_urdf(RobotParams(), urdf.NOMINAL_URDF)'"
+    )
