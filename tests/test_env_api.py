@@ -261,3 +261,16 @@ def test_docstring_arguments_table_matches_signature():
     for section in ("Description", "Action Space", "Observation Space", "Rewards", "Starting State",
                     "Episode End", "Arguments", "Version History"):
         assert f"## {section}" in doc
+
+
+@pytest.mark.parametrize("model_error", [0.05, 0.0])
+def test_episode_does_not_depend_on_earlier_episodes(make_env, model_error):
+    """Physics mode: an episode run after another one is bit-identical to the same episode in a fresh env
+    (what `--workers N` relies on); with model_error 0 the loaded body is reused across resets."""
+    fresh = _rollout(make_env(dynamics="physics", model_error=model_error), 5, n=100)
+    used = make_env(dynamics="physics", model_error=model_error)
+    _rollout(used, 3, n=100)
+    again = _rollout(used, 5, n=100)
+    for x, y in zip(fresh, again):
+        for k in x:
+            assert np.array_equal(x[k], y[k]), k
