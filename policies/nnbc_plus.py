@@ -1,0 +1,265 @@
+"""`nnbc-plus`: a model-free controller that keeps NNBC's promise (no kinematic model, only measurements) and
+tracks every task: the Jacobian is a moving state estimated by a Kalman filter, not a rank-one ZNN update.
+
+Why the paper's NNBC fails
+--------------------------
+u = J_hat^+ v lies in the row space of J_hat, and eq. (15) adds only multiples of u^T to J_hat, so the row
+space fixed by J_hat(0) never changes: only the direction of the current u is ever re-learnt, the others go
+stale as the arm moves, and J_hat's smallest singular value collapses while the true one does not.
+
+What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
+-------------------------------------------------------------------------------
+1. **Measure** one linear equation per task axis: y = J(t_k) x, with x the measured actuator speeds
+   (`joint_vel`, 8) and y the measured end-effector velocity (`ee_vel`, 3; minus `[arm_base_vel; 0]` in the
+   paper's formulation). With `measurement="position"` they are finite differences of `joint_pos` and
+   `ee_pos` over the last step instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt,
+   which holds at the interval's middle), for robots without velocity sensors.
+2. **Estimate** J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
+   Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)); the three rows see the
+   same regressor, so they share one 16x16 covariance and one gain. Exponential forgetting (`forgetting` per
+   step) keeps the estimate fresh, so every direction of J follows the arm, not only the current one.
+3. **Excite** the directions the task does not use: a small random-sign dither (`dither`, rad/s) projected into
+   the null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it
+   the unexcited directions of J would only be known through the rate model.
+4. **Control** with the estimate extrapolated half a step (the command is held over [t_k, t_k+1]):
+   u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_a), J_c = J_hat + dt/2 J_dot_hat,
+   J_c^+ a damped (`damping`), actuator-weighted pseudo-inverse and z the null-space motion: dither plus a pull
+   of the arm joints back to their initial angles (`posture_gain`), which keeps the arm away from the reach
+   limit and lets the platform drive (Line-v0 is 3 m long).
+5. **J_hat(0)** comes from a short probe at the start: each actuator in turn at +probe_speed for one step,
+   then -probe_speed (back to where it was), 16 steps = 0.16 s at 100 Hz, counted in the episode like every
+   other step; J_hat(0) is the least-squares fit of the measured (x, y) pairs. `j0_noise` perturbs it by a
+   random matrix of that fraction of its Frobenius norm, drawn from the controller's own RNG (robustness test).
+
+The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from typing import Any
+
+import numpy as np
+
+from policies.base import ControllerPolicy, EnvFacts
+
+FORMULATIONS = ("whole_body", "paper")
+MEASUREMENTS = ("velocity", "position")
+
+
+@dataclass(frozen=True)
+class NNBCPlusConfig:
+    """Gains of `NNBCPlus`; defaults tuned on development seeds 0-999 only (see the module docstring)."""
+
+    gamma: float = 10.0
+    """Task-space feedback gain, 1/s: v = r_d_dot + gamma (r_d - r_a) (the paper's gamma)."""
+    formulation: str = "whole_body"
+    """"whole_body": J_hat maps u to the whole r_a_dot (the platform's translation is learnt, so it can drive);
+    "paper": J_hat maps u to r_a_dot - [p_c_dot; 0] and the measured p_c_dot is subtracted in the control law, as
+    in the paper's eq. (11)."""
+    measurement: str = "velocity"
+    """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "position": from
+    finite differences of ee_pos (arm_base_pos) against joint_pos over the last step (for sensor sets without
+    velocities)."""
+    forgetting: float = 0.92
+    """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
+    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting)."""
+    meas_std: float = 1e-3
+    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R)."""
+    p0_jacobian: float = 1.0
+    """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted."""
+    p0_rate: float = 1.0
+    """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
+    p_max: float = 1.0
+    """Upper bound on the covariance trace (divided by the 16 states): stops the forgetting from winding it up
+    when the excitation is poor."""
+    damping: float = 3e-4
+    """Damping of the pseudo-inverse, m^2/rad^2 ... added to J_c W J_c^T before inversion (safe near
+    singularities and when J_hat is poor)."""
+    dither: float = 0.05
+    """Amplitude of the random-sign null-space excitation, rad/s per actuator (0 turns it off)."""
+    task_dither: float = 0.0
+    """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
+    added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
+    task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
+    posture_gain: float = 0.0
+    """Null-space pull of the 6 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
+    weighting: str = "none"
+    """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
+    "scale" (W = diag(action_scale^2) / max: fast actuators take more of the motion)."""
+    probe_speed: float = 0.05
+    """Probe amplitude, rad/s (one step at + then one at - per actuator)."""
+    j0_noise: float = 0.0
+    """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
+    test); drawn from the controller's RNG."""
+    lookahead: bool = True
+    """Control with J_hat and r_d_dot extrapolated half a step (the command is held for the whole step)."""
+
+    def __post_init__(self):
+        if self.formulation not in FORMULATIONS:
+            raise ValueError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
+        if self.measurement not in MEASUREMENTS:
+            raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
+        if self.weighting not in ("none", "scale"):
+            raise ValueError(f"weighting must be 'none' or 'scale', got {self.weighting!r}")
+        if not 0.0 < self.forgetting <= 1.0:
+            raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting!r}")
+        for f in fields(self):
+            v = getattr(self, f.name)
+            if isinstance(v, float) and not (v >= 0.0 and np.isfinite(v)):
+                raise ValueError(f"{f.name} must be a finite number >= 0, got {v!r}")
+
+
+N_ACT = 8
+
+
+class NNBCPlus(ControllerPolicy):
+    """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring."""
+
+    name = "nnbc-plus"
+    Config = NNBCPlusConfig
+
+    def __init__(self, facts: EnvFacts, config: NNBCPlusConfig | None = None, seed: int | None = None, **extra: Any):
+        if extra:
+            raise TypeError(f"NNBCPlus takes no extra arguments (it is model-free), got {sorted(extra)}")
+        super().__init__(facts, seed=seed)
+        self.config = config if config is not None else NNBCPlusConfig()
+        c = self.config
+        dt = facts.dt
+        self._dt = dt
+        n2 = 2 * N_ACT
+        F = np.eye(n2)
+        F[:N_ACT, N_ACT:] = dt * np.eye(N_ACT)
+        self._F = F
+        self._FT = F.T.copy()
+        self._inv_lambda = 1.0 / c.forgetting
+        self._r = c.meas_std**2
+        self._trace_max = c.p_max * n2
+        w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(N_ACT)
+        self._w = w
+        self._damp = c.damping * np.eye(3)
+        self._whole = c.formulation == "whole_body"
+        self._use_vel = c.measurement == "velocity"
+        # probe schedule: actuator i at +a on step 2i, -a on step 2i + 1
+        self._n_probe = 2 * N_ACT
+        self.J_hat = np.zeros((3, N_ACT))
+        self.Jdot_hat = np.zeros((3, N_ACT))
+
+    # --- episode start ---------------------------------------------------------------------------------
+    def _reset(self, obs: dict) -> None:
+        self._k = 0
+        self._q0 = obs["joint_pos"][:6].copy()
+        self._probe_x: list[np.ndarray] = []
+        self._probe_y: list[np.ndarray] = []
+        self._prev_q = obs["joint_pos"].copy()
+        self._prev_r = self._task_pos(obs)
+        self._prev_vd = obs["target_vel"].copy()
+        self.X = np.zeros((3, 2 * N_ACT))  # rows of [J_hat | J_dot_hat]
+        c = self.config
+        self.P = np.diag(np.r_[np.full(N_ACT, c.p0_jacobian), np.full(N_ACT, c.p0_rate)])
+        self.J_hat = self.X[:, :N_ACT]
+        self.Jdot_hat = self.X[:, N_ACT:]
+
+    def _task_pos(self, obs: dict) -> np.ndarray:
+        r = obs["ee_pos"]
+        if self._whole:
+            return r.copy()
+        pc = obs["arm_base_pos"]
+        return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
+
+    def _measure(self, obs: dict) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y): actuator speeds (8) and task velocity (3) with y = J x (see `measurement`)."""
+        if self._use_vel:
+            x = obs["joint_vel"]
+            y = obs["ee_vel"]
+            if not self._whole:
+                v = obs["arm_base_vel"]
+                y = np.array([y[0] - v[0], y[1] - v[1], y[2]])
+            return x, y
+        q = obs["joint_pos"]
+        r = self._task_pos(obs)
+        x = (q - self._prev_q) / self._dt
+        y = (r - self._prev_r) / self._dt
+        self._prev_q = q.copy()
+        self._prev_r = r
+        return x, y
+
+    def _finish_probe(self) -> None:
+        X = np.array(self._probe_x).T  # (8, n)
+        Y = np.array(self._probe_y).T  # (3, n)
+        A = X @ X.T
+        J0 = np.linalg.solve(A + 1e-9 * np.trace(A) / N_ACT * np.eye(N_ACT), X @ Y.T).T
+        if self.config.j0_noise > 0:
+            noise = self.rng.standard_normal(J0.shape)
+            J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
+        self.X[:, :N_ACT] = J0
+        self.X[:, N_ACT:] = 0.0
+
+    # --- one step --------------------------------------------------------------------------------------
+    def _act(self, obs: dict) -> np.ndarray:
+        k = self._k
+        self._k = k + 1
+        dt = self._dt
+        c = self.config
+        x, y = self._measure(obs)
+        if k <= self._n_probe:
+            if k > 0:
+                self._probe_x.append(np.array(x, dtype=float))
+                self._probe_y.append(np.array(y, dtype=float))
+            if k < self._n_probe:
+                u = np.zeros(N_ACT)
+                u[k // 2] = c.probe_speed if k % 2 == 0 else -c.probe_speed
+                return u
+            self._finish_probe()
+        else:
+            # --- Kalman filter: predict (constant rate, forgetting), then update with y = [J | J_dot] h
+            P = self._F @ self.P @ self._FT
+            P *= self._inv_lambda
+            X = self.X
+            X[:, :N_ACT] += dt * X[:, N_ACT:]
+            if self._use_vel:
+                h = np.concatenate((x, np.zeros(N_ACT)))
+            else:
+                h = np.concatenate((x, -0.5 * dt * x))  # the finite difference holds at the interval's middle
+            Ph = P @ h
+            s = h @ Ph + self._r
+            K = Ph / s
+            innov = y - X @ h
+            X += np.outer(innov, K)
+            P -= np.outer(K, Ph)
+            P += P.T
+            P *= 0.5
+            tr = np.trace(P)
+            if tr > self._trace_max:
+                P *= self._trace_max / tr
+            self.P = P
+        # --- control
+        J = self.X[:, :N_ACT]
+        vd = obs["target_vel"]
+        if c.lookahead:
+            Jc = J + (0.5 * dt) * self.X[:, N_ACT:]
+            v = vd + 0.5 * (vd - self._prev_vd)
+        else:
+            Jc = J
+            v = vd.copy()
+        self._prev_vd = vd.copy()
+        r = obs["ee_pos"]
+        v += c.gamma * (obs["target_pos"] - r)
+        if not self._whole:
+            pv = obs["arm_base_vel"]
+            v[0] -= pv[0]
+            v[1] -= pv[1]
+        if c.task_dither > 0:
+            if k % 2 == 0:
+                self._td = c.task_dither * (2.0 * self.rng.integers(0, 2, 3) - 1.0)
+                v += self._td
+            else:
+                v -= self._td
+        z = np.zeros(N_ACT)
+        if c.dither > 0:
+            z += c.dither * (2.0 * self.rng.integers(0, 2, N_ACT) - 1.0)
+        if c.posture_gain > 0:
+            z[:6] -= c.posture_gain * (obs["joint_pos"][:6] - self._q0)
+        JW = Jc * self._w
+        lam = np.linalg.solve(JW @ Jc.T + self._damp, v - Jc @ z)
+        return z + JW.T @ lam
