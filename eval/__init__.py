@@ -1,1 +1,18 @@
-"""placeholder package; filled by its issue."""
+"""eval: benchmark policies on the wheeled PUMA 560 envs side by side, on identical episodes.
+
+```python
+from eval import EvalConfig, run
+result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinematic",)),
+             policies={"mine": MyController()})   # your own objects with reset/predict, beside the specs
+result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
+```
+
+Command line: `mobman-eval run|paper|speed` (`eval.cli.main(argv)`). Modules: `rollout` (the one rollout
+loop), `metrics` (pure functions), `runner` (checks, workers, `run`), `report` (results.json / csv / summary.md,
+atomic writes), `plots`, `video`, `paper` (section IV of the paper), `speed` (the speed benchmark).
+"""
+
+from eval.config import EvalConfig, EvalError
+from eval.runner import RunResult, run
+
+__all__ = ["EvalConfig", "EvalError", "RunResult", "run"]

@@ -113,9 +113,13 @@ def episode_metrics(
     action_scale: Sequence[float],
     tolerance: float = DEFAULT_TOLERANCE,
     tipped_over: bool = False,
+    err: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """All per-episode tracking metrics of one completed rollout, as a dict of plain floats."""
-    err = error_norm(r_d, r_a)
+    """All per-episode tracking metrics of one completed rollout, as a dict of plain floats.
+
+    `err` is the error norm per sample if it was recorded (the env's exact `info["tracking_error"]`);
+    otherwise it is computed from `r_d` and `r_a`."""
+    err = error_norm(r_d, r_a) if err is None else np.asarray(err, float)
     joint_peak, wheel_peak = peak_speeds(actions, action_scale)
     m = max_error(err)
     return {

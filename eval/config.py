@@ -1,0 +1,109 @@
+"""`EvalConfig`: everything one `mobman-eval run` needs, as a frozen dataclass (the CLI parses into it)."""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from eval.metrics import DEFAULT_TOLERANCE
+from eval.rollout import FLAG_KWARGS
+
+DYNAMICS_CHOICES = ("physics", "kinematic")
+SAVE_ARRAYS_CHOICES = ("all", "first", "none")
+
+
+class EvalError(ValueError):
+    """A bad configuration found before any rollout (unknown env id or policy, existing --out, ...)."""
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """One benchmark run: every (env, dynamics, policy) pair faces the same `episodes` episodes.
+
+    Episode k (0-based) of every pair uses `env.reset(seed=seed + k)` and `policy.reset(..., seed=seed + k)`.
+    """
+
+    envs: tuple[str, ...] = ("WheeledPuma-Circle-v0",)
+    """Gymnasium env ids (registered ones; `mobman_env.ENV_IDS` lists ours)."""
+    policies: tuple[str, ...] = ("nnbc", "jmpi", "oracle")
+    """Policy specs for `policies.make` (`name[:key=value,...]`, `sb3:PATH`, `module:attr`)."""
+    episodes: int = 5
+    """Episodes per (env, dynamics, policy)."""
+    seed: int = 10_000
+    """Seed of episode 0 (reported results use seeds >= 10,000; tune on 0-999)."""
+    out: str | None = None
+    """Output directory; None: runs/<command>-<UTC timestamp>."""
+    overwrite: bool = False
+    """Write into an existing non-empty `out` (files of the same name are replaced atomically)."""
+    workers: int = 1
+    """Processes for the episodes (one PyBullet client each); 1 runs in this process."""
+    dynamics: tuple[str, ...] = ("physics",)
+    """Dynamics modes to run ("physics", "kinematic"); each is a separate condition."""
+    model_error: float | None = None
+    """Relative std of the true robot's lengths (env argument); None: the env's default (0.05)."""
+    obs_noise: float | None = None
+    """Std of the position sensor noise, m (env argument); None: the env's default (0)."""
+    env_kwargs: dict = field(default_factory=dict)
+    """Further env constructor arguments, e.g. {"path": {...}, "n_substeps": 4}."""
+    tolerance: float = DEFAULT_TOLERANCE
+    """Success threshold on the max tracking error, m (the paper's 6 mm)."""
+    video: bool = False
+    """Also write a video of episode 0 of each policy (first env and dynamics mode)."""
+    plots: bool = True
+    """Write the PNG plots."""
+    save_arrays: str = "all"
+    """Per-step arrays in episodes.npz: "all" episodes, the "first" of each condition, or "none"."""
+    progress: bool = True
+    """Show a progress bar (stderr) and the final table (stdout)."""
+    command: str = "run"
+    """Name used for the default output directory."""
+
+    def __post_init__(self):
+        for name in ("envs", "policies", "dynamics"):
+            value = getattr(self, name)
+            if isinstance(value, str):
+                value = (value,)
+            object.__setattr__(self, name, tuple(value))
+        object.__setattr__(self, "env_kwargs", dict(self.env_kwargs or {}))
+
+    def validate(self) -> None:
+        """Raise `EvalError` naming the bad value, the accepted ones and the fix."""
+        if not self.envs:
+            raise EvalError("no env given; pass at least one --env, e.g. --env WheeledPuma-Circle-v0")
+        if isinstance(self.episodes, bool) or not isinstance(self.episodes, int) or self.episodes < 1:
+            raise EvalError(f"episodes must be an integer >= 1, got {self.episodes!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
+            raise EvalError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
+            raise EvalError(f"workers must be an integer >= 1, got {self.workers!r}")
+        if not self.dynamics:
+            raise EvalError("no dynamics mode given; accepted: physics, kinematic")
+        for d in self.dynamics:
+            if d not in DYNAMICS_CHOICES:
+                raise EvalError(f"unknown dynamics mode {d!r}; accepted: {', '.join(DYNAMICS_CHOICES)}")
+        if len(set(self.dynamics)) != len(self.dynamics):
+            raise EvalError(f"dynamics modes repeated: {list(self.dynamics)}")
+        if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance) and self.tolerance > 0):
+            raise EvalError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
+        if self.save_arrays not in SAVE_ARRAYS_CHOICES:
+            raise EvalError(f"save_arrays must be one of {', '.join(SAVE_ARRAYS_CHOICES)}, got {self.save_arrays!r}")
+        if not isinstance(self.env_kwargs, dict):
+            raise EvalError(f"env_kwargs must be a dict (JSON object), got {self.env_kwargs!r}")
+        clash = sorted(set(self.env_kwargs) & (set(FLAG_KWARGS) | {"render_mode"}))
+        if clash:
+            raise EvalError(
+                f"--env-kwargs sets {clash}; use the flags --dynamics / --model-error / --obs-noise instead "
+                f"(render_mode is set by --video)"
+            )
+        try:
+            json.dumps(self.env_kwargs)
+        except (TypeError, ValueError) as exc:
+            raise EvalError(f"env_kwargs must be plain JSON data: {exc}") from None
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        for k in ("envs", "policies", "dynamics"):
+            d[k] = list(d[k])
+        return d

@@ -1,0 +1,159 @@
+"""One rollout loop for every policy: controllers, SB3 agents and the user's own objects alike.
+
+```
+obs, info = env.reset(seed=S + k)
+policy.reset(obs, info, seed=S + k)          # if the object has `reset` (SB3-only objects do not)
+repeat: action, state = policy.predict(obs, state)   # timed with perf_counter, whole call
+        obs, reward, terminated, truncated, info = env.step(action)
+```
+
+Per step it records (SI units, float64 unless noted):
+
+| array | shape | meaning |
+|---|---|---|
+| t | (n+1,) | time of each sample, s (t_0 = 0 is the state after reset) |
+| r_d | (n+1, 3) | desired position r_d(t) (`obs["target_pos"]`, float32 precision), m |
+| r_a | (n+1, 3) | true end-effector position (`info["ee_pos_true"]`, noise-free), m |
+| p_c | (n+1, 2) | arm mount position p_c as observed (`obs["arm_base_pos"]`), m |
+| error | (n+1,) | tracking error `info["tracking_error"]` (noise-free), m |
+| action | (n, 8) | normalised action the env applied (after clipping to [-1, 1]) |
+| predict_us | (n,) | wall time of each `predict` call, microseconds |
+
+A crash anywhere in the episode (env or policy) is caught: the record gets `status: "failed"` and the
+traceback, its metrics are None, and the caller goes on with the next episode.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import traceback
+from typing import Any, Callable
+
+import gymnasium as gym
+import numpy as np
+
+from eval import metrics as M
+
+#: Keys of the per-step arrays one rollout returns (see the module docstring).
+ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
+
+#: Env constructor arguments that the eval flags set (--dynamics, --model-error, --obs-noise); --env-kwargs may
+#: not set them too.
+FLAG_KWARGS = ("dynamics", "model_error", "obs_noise")
+
+
+def make_env(env_id: str, dynamics: str | None = None, model_error: float | None = None,
+             obs_noise: float | None = None, env_kwargs: dict | None = None, render_mode: str | None = None):
+    """`gym.make(env_id, **kwargs)` with the eval flags (None: the env's default) and extra constructor kwargs."""
+    import mobman_env  # noqa: F401  (registers the ids)
+
+    kwargs = dict(env_kwargs or {})
+    for name, value in (("dynamics", dynamics), ("model_error", model_error), ("obs_noise", obs_noise)):
+        if value is not None:
+            kwargs[name] = value
+    if render_mode is not None:
+        kwargs["render_mode"] = render_mode
+    return gym.make(env_id, **kwargs)
+
+
+def _metrics_none() -> dict[str, Any]:
+    return {
+        "max_error_m": None, "rms_error_m": None, "final_error_m": None, "axis_max_error_m": None,
+        "effort": None, "peak_joint_speed": None, "peak_wheel_speed": None, "success": False,
+    }
+
+
+def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
+            meta: dict | None = None, on_step: Callable[[int], None] | None = None) -> tuple[dict, dict | None]:
+    """Run one episode of `policy` on `env` from `env.reset(seed=seed)`.
+
+    Returns (record, arrays): the episode record of the `results.json` schema (without the fields only the
+    caller knows, which it passes in `meta`: env, policy, episode) and the per-step arrays (None if the episode
+    failed before its first step). `on_step(k)` is called after the reset (k = 0) and after each step k (used
+    to grab video frames)."""
+    base = env.unwrapped
+    rec: dict[str, Any] = dict(meta or {})
+    rec.update({
+        "seed": int(seed),
+        "dynamics": getattr(base, "dynamics", None),
+        "model_error": getattr(base, "model_error", None),
+        "obs_noise": getattr(base, "obs_noise", None),
+        "control_freq": getattr(base, "control_freq", None),
+        "path": None,
+        "start": None,
+        "true_params_hash": None,
+        "status": "ok",
+        "error": None,
+    })
+    rec.update(_metrics_none())
+    rec.update({"n_steps": 0, "joint_limit_hits": 0, "n_clipped": 0, "tipped_over": False, "terminated": False,
+                "predict_us_median": None, "predict_us_p99": None})
+    dt = float(base.dt)
+    scale = np.asarray(base.action_scale, float)
+    arrays = None
+    k = 0
+    wall0 = time.perf_counter()
+    try:
+        obs, info = env.reset(seed=seed)
+        task = info["task"]
+        rec["path"] = task["path"]
+        rec["start"] = task["start"]
+        rec["true_params_hash"] = info["true_params_hash"]
+        n = int(task["n_steps"])
+        r_d = np.empty((n + 1, 3))
+        r_a = np.empty((n + 1, 3))
+        p_c = np.empty((n + 1, 2))
+        err = np.empty(n + 1)
+        act = np.empty((n, 8))
+        us = np.empty(n)
+        r_d[0], r_a[0], p_c[0], err[0] = obs["target_pos"], info["ee_pos_true"], obs["arm_base_pos"], info["tracking_error"]
+        arrays = {"t": np.arange(n + 1) * dt, "r_d": r_d[:1], "r_a": r_a[:1], "p_c": p_c[:1], "error": err[:1],
+                  "action": act[:0], "predict_us": us[:0]}
+        reset = getattr(policy, "reset", None)
+        if reset is not None:
+            reset(obs, info, seed=seed)
+        predict = policy.predict
+        if on_step is not None:
+            on_step(0)
+        state = None
+        clock = time.perf_counter
+        while k < n:
+            t0 = clock()
+            action, state = predict(obs, state=state, episode_start=None, deterministic=True)
+            us[k] = (clock() - t0) * 1e6
+            a = np.asarray(action, dtype=np.float32)
+            if a.shape == (1, 8):  # a batch of one back from an SB3-style object
+                a = a[0]
+            obs, _, terminated, truncated, info = env.step(a)
+            act[k] = np.clip(a, -1.0, 1.0)
+            k += 1
+            r_d[k], r_a[k], p_c[k], err[k] = obs["target_pos"], info["ee_pos_true"], obs["arm_base_pos"], info["tracking_error"]
+            if on_step is not None:
+                on_step(k)
+            if terminated or truncated:
+                rec["terminated"] = bool(terminated)
+                break
+        rec["n_steps"] = k
+        rec["joint_limit_hits"] = int(info.get("joint_limit_hits", 0))
+        rec["n_clipped"] = int(info.get("n_clipped", 0))
+        rec["tipped_over"] = bool(info.get("tipped_over", False))
+        arrays = _trim(arrays, r_d, r_a, p_c, err, act, us, k)
+        rec.update(M.episode_metrics(arrays["r_d"], arrays["r_a"], arrays["action"], dt, scale, tolerance,
+                                     tipped_over=rec["tipped_over"], err=arrays["error"]))
+        rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
+    except Exception:
+        rec["status"] = "failed"
+        rec["error"] = traceback.format_exc()
+        rec["n_steps"] = k
+        rec.update(_metrics_none())
+        if arrays is not None:
+            arrays = _trim(arrays, r_d, r_a, p_c, err, act, us, k)
+    rec["wall_s"] = time.perf_counter() - wall0
+    rec["pid"] = os.getpid()
+    return rec, arrays
+
+
+def _trim(arrays, r_d, r_a, p_c, err, act, us, k):
+    return {"t": arrays["t"][: k + 1], "r_d": r_d[: k + 1], "r_a": r_a[: k + 1], "p_c": p_c[: k + 1],
+            "error": err[: k + 1], "action": act[:k], "predict_us": us[:k]}
