@@ -1,0 +1,138 @@
+"""Model-based baselines: JMPI (the paper's comparison, open loop on the nominal model) and the oracle.
+
+Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:6]`, `base_yaw`), and
+invert it with the same damped pseudo-inverse as NNBC (`policies.nnbc.damped_pinv_apply`; the damping is zero
+away from singularities, so these are the plain pseudo-inverse methods on this task).
+
+* `jmpi` - the conventional Jacobian pseudo-inverse method the paper compares against:
+  u = J_nom^+ (r_d_dot - [p_c_dot; 0]) with J_nom the paper's Jacobian of eq. (6) for the *nominal* robot.
+  Open loop: no position feedback, so the error of the nominal model (the env draws a "worn" true robot with
+  5% error by default) and the integration drift accumulate. `jmpi-full`: u = J_wb,nom^+ r_d_dot with the
+  whole-body Jacobian (the platform's translation modelled, nothing measured subtracted).
+* `oracle` - eq. (10) with the *true* robot's Jacobian: u = J^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a)).
+  The known-model bound: what a perfect model plus the paper's feedback achieves. The true parameters come
+  from a `params_provider` callable, called once at every episode start (the env draws a new robot per reset).
+  `oracle-full` uses the whole-body Jacobian: u = J_wb^+ (r_d_dot + gamma (r_d - r_a)).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from mobman_env import kinematics as K
+from policies.base import ControllerPolicy, EnvFacts
+from policies.nnbc import damped_pinv_apply
+
+
+def _check_positive(obj: Any, names: tuple[str, ...], allow_zero: tuple[str, ...] = ()) -> None:
+    for name in names:
+        value = getattr(obj, name)
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise ValueError(f"{type(obj).__name__}.{name} must be a finite number, got {value!r}")
+        if value < 0 or (value == 0 and name not in allow_zero):
+            raise ValueError(f"{type(obj).__name__}.{name} must be > 0, got {value!r}")
+
+
+@dataclass(frozen=True)
+class JMPIConfig:
+    """Options of the open-loop Jacobian pseudo-inverse method. Spec keys: `jmpi:full=false,...`."""
+
+    full: bool = False
+    """False: the paper's J of eq. (6) and the measured p_c_dot subtracted. True: the whole-body Jacobian."""
+    damping: float = 0.02
+    """Maximum damping of the pseudo-inverse, m/rad (acts only when sigma_min < sigma_threshold)."""
+    sigma_threshold: float = 0.02
+    """Smallest singular value below which damping starts, m/rad."""
+
+    def __post_init__(self):
+        _check_positive(self, ("damping", "sigma_threshold"))
+
+
+@dataclass(frozen=True)
+class OracleConfig:
+    """Options of the known-model oracle, eq. (10). Spec keys: `oracle:gamma=10,full=false,...`."""
+
+    gamma: float = 10.0
+    """Position feedback gain of eq. (10), 1/s (the paper's gamma)."""
+    full: bool = False
+    """False: the paper's J of eq. (6) with the measured p_c_dot subtracted. True: the whole-body Jacobian."""
+    damping: float = 0.02
+    """Maximum damping of the pseudo-inverse, m/rad (acts only when sigma_min < sigma_threshold)."""
+    sigma_threshold: float = 0.02
+    """Smallest singular value below which damping starts, m/rad."""
+
+    def __post_init__(self):
+        _check_positive(self, ("gamma", "damping", "sigma_threshold"), allow_zero=("gamma",))
+
+
+class _ModelPolicy(ControllerPolicy):
+    """Shared body of JMPI and the oracle: a model Jacobian at the measured state, a velocity command v."""
+
+    def __init__(self, facts: EnvFacts, config: Any, seed: int | None):
+        super().__init__(facts, seed)
+        self.config = config
+        self._jac = K.whole_body_jacobian if config.full else K.paper_jacobian
+        self.params = None
+
+    def _command(self, obs: dict, v: np.ndarray) -> np.ndarray:
+        J = self._jac(self.params, obs["joint_pos"][:6], float(obs["base_yaw"][0]))
+        return damped_pinv_apply(J, v, self.config.damping, self.config.sigma_threshold)
+
+
+class JMPI(_ModelPolicy):
+    """Open-loop Jacobian pseudo-inverse on the nominal model: u = J_nom^+ (r_d_dot - [p_c_dot; 0]).
+
+    `JMPI(facts, config=None, seed=None, *, nominal_params)`.
+    """
+
+    name = "jmpi"
+
+    def __init__(self, facts: EnvFacts, config: JMPIConfig | None = None, seed: int | None = None, *,
+                 nominal_params: Any = None, **extra: Any):
+        if extra:
+            raise TypeError(f"JMPI got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
+        if nominal_params is None:
+            raise ValueError("JMPI needs nominal_params (a RobotParams: the catalogue model it inverts)")
+        super().__init__(facts, config or JMPIConfig(), seed)
+        self.params = nominal_params
+
+    def _reset(self, obs: dict) -> None:
+        pass
+
+    def _act(self, obs: dict) -> np.ndarray:
+        v = obs["target_vel"].copy()
+        if not self.config.full:
+            v[:2] -= obs["arm_base_vel"]
+        return self._command(obs, v)
+
+
+class Oracle(_ModelPolicy):
+    """Eq. (10) with the true robot's Jacobian (closed loop, gain gamma): the known-model bound.
+
+    `Oracle(facts, config=None, seed=None, *, params_provider)`: `params_provider()` returns the current true
+    `RobotParams`; it is called at every episode start (reset or `episode_start`).
+    """
+
+    name = "oracle"
+
+    def __init__(self, facts: EnvFacts, config: OracleConfig | None = None, seed: int | None = None, *,
+                 params_provider: Callable[[], Any] | None = None, **extra: Any):
+        if extra:
+            raise TypeError(f"Oracle got unexpected keyword argument(s) {sorted(extra)}; accepted: params_provider")
+        if params_provider is None or not callable(params_provider):
+            raise ValueError("Oracle needs params_provider: a callable returning the env's current true RobotParams")
+        super().__init__(facts, config or OracleConfig(), seed)
+        self._provider = params_provider
+
+    def _reset(self, obs: dict) -> None:
+        self.params = self._provider()
+
+    def _act(self, obs: dict) -> np.ndarray:
+        v = obs["target_vel"] + self.config.gamma * (obs["target_pos"] - obs["ee_pos"])
+        if not self.config.full:
+            v[:2] -= obs["arm_base_vel"]
+        return self._command(obs, v)

@@ -1,0 +1,332 @@
+"""NNBC: the paper's model-free controller (eqs. (7)-(15)), implemented exactly as published.
+
+The controller never sees a kinematic parameter. It keeps an estimate J_hat (3 x 8) of the Jacobian and
+
+* issues, at every control step, eq. (11):
+
+      u = J_hat^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a))                          (11)
+
+* and updates J_hat with the zeroing-neural-network law eq. (15), which drives the residual of eq. (12),
+  eps = r_a_dot - [p_c_dot; 0] - J_hat u, to zero like eps_dot = -mu eps:
+
+      J_hat_dot = (r_a_ddot - [p_c_ddot; 0] - J_hat u_dot + mu (r_a_dot - [p_c_dot; 0] - J_hat u)) u^+   (15)
+
+Everything below is a decision the paper leaves open; each one is written down where it is made.
+
+Measured signals
+----------------
+Write y = r_a_dot - [p_c_dot; 0] (the part of the end-effector velocity the paper's J explains; `nnbc-full`
+uses y = r_a_dot, see below). All of it is read from the observation: `ee_vel` (r_a_dot), `arm_base_vel`
+(p_c_dot), `ee_pos` (r_a), `target_pos`/`target_vel` (r_d, r_d_dot). The observation at step k is taken at
+t_k, *after* the command u_{k-1} was held over [t_{k-1}, t_k]: y_k is the response to u_{k-1}. So eq. (12)
+pairs y_k with u_{k-1}, the command this controller issued one step earlier (`self.last_u`: after its own
+clipping to the speed limits, not the measured joint speeds).
+
+Discretisation of eq. (15) (explicit Euler, backward differences)
+-----------------------------------------------------------------
+With y_dot ~ (y_k - y_{k-1}) / dt and u_dot ~ (u_{k-1} - u_{k-2}) / dt, one Euler step of (15) is
+
+      J_k = J_{k-1} + [ (y_k - y_{k-1}) - J_{k-1} (u_{k-1} - u_{k-2}) + mu dt eps_{k-1} ] u_{k-1}^+
+      eps_k = y_k - J_k u_{k-1}                                            (a-posteriori residual)
+
+Multiplying by u_{k-1} (with u^+ u = 1) gives eps_k = (1 - mu dt) eps_{k-1}: the exact discrete image of
+eps_dot = -mu eps. The derivative terms are what makes this so: without them (J_k = J_{k-1} + mu dt eps u^+)
+the estimate chases a moving target and keeps a lag bias of order |y_dot| / mu that does not shrink with dt.
+
+The pseudo-inverse of a vector is regularised, u^+ = u^T / (u^T u + eps_u) with eps_u = 1e-6 (rad/s)^2 by
+default: for |u| >> 1 mrad/s it is the exact u^T / |u|^2, and as u -> 0 the update fades to zero instead of
+dividing by zero. At the first step r_d_dot(0) = 0 and e(0) = 0, so u = 0 and J_hat is left alone.
+
+Row space (a structural property of the paper's method)
+-------------------------------------------------------
+u = J_hat^+ v lies in the row space of J_hat, and (15) adds only multiples of u^T, so the row space of J_hat
+never changes after J_hat(0) (as long as no clipping alters u): the eight actuators only ever move inside one
+3-D subspace fixed at the start. `tests/test_policies.py` checks this numerically. It is why the method fails on
+long paths: the update refreshes J_hat only along the current u, and the other directions go stale as the arm
+moves; on the paper's 0.4 m circle J_hat's smallest singular value collapses after about 5 s. This module
+keeps the paper's method exactly; an improved controller lives beside it (`nnbc-plus`).
+
+p_c_dot in eq. (11) closes a loop through the yaw
+-------------------------------------------------
+The paper subtracts the measured arm-base velocity p_c_dot, not a prediction of it. p_c_dot(t_k) is the result
+of the previous command's wheel speeds: the platform's forward speed plus d * phi_dot sideways (d: the arm mount's
+offset ahead of the axle). J_hat (the paper's J) models only how the yaw swings the arm about P_c; the motion of
+P_c itself appears one step later in the measurement, and the next command compensates it - partly again
+with the wheels, whose yaw moves P_c again. This is a discrete feedback loop through the platform's yaw with a
+one-step delay. Its gain is about d / (lever of the end-effector about P_c) times the share of the wheels in
+J_hat^+ - well below one for this robot, so it converges, but it is part of the closed loop and shows up as a
+small extra transient whenever the yaw rate changes.
+
+J_hat(0)
+--------
+* `probe` (default, model-free): during the first 2 x 8 control steps each actuator in turn gets a doublet,
+  +a_i for one step then -a_i for one step (a_i = `probe_amp` x its speed limit; the doublet brings the robot
+  back where it was in kinematic mode). Column i is (y_+ - y_-) / (2 a_i) from the two measured responses.
+  These steps are part of the episode: the target keeps moving (slowly: every path starts at rest) and the
+  metrics count them. The ZNN law starts at step 16.
+* `nominal`: the paper's Jacobian of the *nominal* model at the first observation (`nominal_params` must be
+  given: this is model knowledge, so `nnbc:j0=nominal` is not model-free).
+* a given 3 x 8 matrix (`J0=` in the Python API).
+
+Damped pseudo-inverse of J_hat
+------------------------------
+J_hat^+ = J_hat^T (J_hat J_hat^T + lambda^2 I)^{-1} with the damping of Nakamura & Hanafusa / Chiaverini:
+lambda^2 = 0 while the smallest singular value sigma_min >= `sigma_threshold`, and
+lambda^2 = damping^2 (1 - (sigma_min / sigma_threshold)^2) below it. Both default to 0.02 m/rad, far below the
+true Jacobian's smallest singular value on the benchmark's paths (about 0.2): damping only bounds the speeds
+when J_hat itself has become nearly singular; it never acts while J_hat is well conditioned, and it keeps u in
+the row space of J_hat.
+
+`nnbc-full`
+-----------
+J_hat maps u to the whole r_a_dot (y = r_a_dot, no p_c_dot subtraction in (11), (12), (15)), so the wheel
+columns include the platform's translation and the platform can drive (needed for the 3 m line).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from policies.base import ControllerPolicy, EnvFacts
+
+#: Observation keys NNBC reads.
+NNBC_OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_vel", "target_pos", "target_vel")
+J0_MODES = ("probe", "nominal")
+
+
+def sigma_min_3(A: list) -> float:
+    """Smallest eigenvalue of a symmetric 3 x 3 matrix given as nested lists (closed form, Smith 1961).
+
+    Used on A = J J^T, so it returns sigma_min(J)^2. Pure-Python floats: ~3x faster than `eigvalsh` here.
+    """
+    a00, a01, a02 = A[0]
+    a11, a12 = A[1][1], A[1][2]
+    a22 = A[2][2]
+    p1 = a01 * a01 + a02 * a02 + a12 * a12
+    q = (a00 + a11 + a22) / 3.0
+    b00, b11, b22 = a00 - q, a11 - q, a22 - q
+    p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1
+    if p2 <= 1e-30 * (q * q + 1e-300):
+        return q
+    p = math.sqrt(p2 / 6.0)
+    det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02))
+    r = det / (2.0 * p * p * p)
+    r = -1.0 if r < -1.0 else (1.0 if r > 1.0 else r)
+    phi = math.acos(r) / 3.0
+    return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
+
+
+def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
+    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in the module docstring.
+
+    J J^T + lambda^2 I is inverted in closed form (cofactors, pure-Python floats): exact for 3 x 3 and several
+    times faster than `np.linalg.solve` for such a small system.
+    """
+    A = (J @ J.T).tolist()
+    s2 = sigma_min_3(A)
+    t2 = sigma_threshold * sigma_threshold
+    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
+    a00, a01, a02 = A[0]
+    a11, a12 = A[1][1], A[1][2]
+    a22 = A[2][2]
+    a00 += lam2
+    a11 += lam2
+    a22 += lam2
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    if det == 0.0 or not math.isfinite(det):
+        # exactly singular with no damping (damping=0 and a rank-deficient J): least-squares fallback
+        return np.linalg.lstsq(J, v, rcond=None)[0]
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    v0, v1, v2 = float(v[0]), float(v[1]), float(v[2])
+    inv = 1.0 / det
+    w = np.array([(c00 * v0 + c01 * v1 + c02 * v2) * inv,
+                  (c01 * v0 + c11 * v1 + c12 * v2) * inv,
+                  (c02 * v0 + c12 * v1 + c22 * v2) * inv])
+    return w @ J
+
+
+def damped_pinv(J: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
+    """The damped pseudo-inverse matrix itself (n x 3), same damping rule (for diagnostics and tests)."""
+    JJt = J @ J.T
+    s2 = sigma_min_3(JJt.tolist())
+    t2 = sigma_threshold * sigma_threshold
+    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
+    return J.T @ np.linalg.inv(JJt + lam2 * np.eye(3))
+
+
+@dataclass(frozen=True)
+class NNBCConfig:
+    """Gains and choices of the paper's NNBC. Spec keys: `nnbc:gamma=10,mu=10,j0=probe,...`."""
+
+    gamma: float = 10.0
+    """Position feedback gain of eq. (8)/(11), 1/s (the paper: 10)."""
+    mu: float = 10.0
+    """Convergence rate of the Jacobian estimator, eq. (13)/(15), 1/s (the paper: 10)."""
+    j0: str = "probe"
+    """Initial J_hat: "probe" (model-free, measured in the first 16 steps) or "nominal" (the nominal model's
+    Jacobian at the first observation: model knowledge). A matrix is given through the Python API (`J0=`)."""
+    probe_amp: float = 0.02
+    """Probe doublet amplitude as a fraction of each actuator's speed limit (0.02: 0.06 rad/s for joints 1-3,
+    0.2 rad/s for the wheels; the end-effector moves about 0.5 mm during the probe)."""
+    eps_u: float = 1e-6
+    """Regularisation of the vector pseudo-inverse u^+ = u^T / (u^T u + eps_u), (rad/s)^2."""
+    damping: float = 0.02
+    """Maximum damping lambda of J_hat's pseudo-inverse, m/rad (see the module docstring)."""
+    sigma_threshold: float = 0.02
+    """Smallest singular value of J_hat below which damping starts, m/rad."""
+    full: bool = False
+    """False: the paper's formulation (J_hat explains r_a_dot - [p_c_dot; 0]). True: `nnbc-full`, J_hat explains
+    the whole r_a_dot and the platform's translation is learned too."""
+
+    def __post_init__(self):
+        for name in ("gamma", "mu", "probe_amp", "eps_u", "damping", "sigma_threshold"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+                raise ValueError(f"NNBCConfig.{name} must be a finite number, got {value!r}")
+        for name in ("gamma", "mu", "probe_amp", "eps_u", "damping", "sigma_threshold"):
+            if getattr(self, name) <= 0:
+                raise ValueError(f"NNBCConfig.{name} must be > 0, got {getattr(self, name)!r}")
+        if self.j0 not in J0_MODES:
+            raise ValueError(
+                f"NNBCConfig.j0 must be one of {', '.join(J0_MODES)} (a matrix goes through the Python API, "
+                f"NNBC(facts, J0=...)), got {self.j0!r}"
+            )
+
+
+class NNBC(ControllerPolicy):
+    """The paper's model-free controller; see the module docstring for every discretisation choice.
+
+    `NNBC(facts, config=None, seed=None, *, J0=None, nominal_params=None)`: `facts` is the `EnvFacts` of the
+    env (dt, speed limits, observation keys); `J0` an optional 3 x 8 initial estimate; `nominal_params` is only
+    needed (and only allowed to matter) with `config.j0 == "nominal"`.
+
+    Diagnostics: `J_hat` (the current estimate, 3 x 8), `residual` (eps of eq. (12) after the last update),
+    `probing` (True while J_hat(0) is being measured), `step_count` (controller steps this episode).
+    """
+
+    name = "nnbc"
+
+    def __init__(self, facts: EnvFacts, config: NNBCConfig | None = None, seed: int | None = None, *,
+                 J0: Any = None, nominal_params: Any = None, **extra: Any):
+        if extra:
+            raise TypeError(f"NNBC got unexpected keyword argument(s) {sorted(extra)}; accepted: J0, nominal_params")
+        super().__init__(facts, seed)
+        self.config = config or NNBCConfig()
+        n = len(self._scale)
+        missing = [k for k in NNBC_OBS_KEYS if facts.obs_keys and k not in facts.obs_keys]
+        if missing:
+            raise ValueError(f"NNBC needs the observation keys {list(NNBC_OBS_KEYS)}; the env lacks {missing}")
+        if J0 is not None:
+            if self.config.j0 == "nominal":
+                raise ValueError("give either J0=<matrix> or config.j0='nominal', not both")
+            J0 = np.array(J0, dtype=float)
+            if J0.shape != (3, n) or not np.all(np.isfinite(J0)):
+                raise ValueError(f"J0 must be a finite 3 x {n} matrix, got shape {J0.shape}")
+            self.j0_source = "matrix"
+        else:
+            self.j0_source = self.config.j0
+        if self.j0_source == "nominal" and nominal_params is None:
+            raise ValueError("NNBC with j0='nominal' needs nominal_params (the registry passes the env's nominal "
+                             "model); use j0='probe' for the model-free start")
+        self._J0 = J0
+        self._nominal = nominal_params if self.j0_source == "nominal" else None
+        self._full = bool(self.config.full)
+        self._dt = facts.dt
+        self._probe_u = self.config.probe_amp * self._scale  # rad/s per actuator
+        self._n_probe = 2 * n if self.j0_source == "probe" else 0
+        self.J_hat = np.zeros((3, n))
+        self.residual = np.zeros(3)
+        self.step_count = 0
+
+    @property
+    def probing(self) -> bool:
+        return self._initialised and self.step_count < self._n_probe
+
+    # --- helpers -------------------------------------------------------------------------------------
+    def _measured_y(self, obs: dict) -> np.ndarray:
+        """y = r_a_dot - [p_c_dot; 0] (paper) or r_a_dot (full)."""
+        y = obs["ee_vel"].copy()
+        if not self._full:
+            y[:2] -= obs["arm_base_vel"]
+        return y
+
+    def _initial_jacobian(self, obs: dict) -> np.ndarray:
+        if self.j0_source == "matrix":
+            return self._J0.copy()
+        from mobman_env import kinematics as K  # only for j0="nominal": model knowledge by choice
+
+        q, yaw = obs["joint_pos"][:6], float(obs["base_yaw"][0])
+        fn = K.whole_body_jacobian if self._full else K.paper_jacobian
+        return fn(self._nominal, q, yaw)
+
+    # --- ControllerPolicy ----------------------------------------------------------------------------
+    def _reset(self, obs: dict) -> None:
+        n = len(self._scale)
+        self.step_count = 0
+        self._u_km2 = np.zeros(n)  # u_{k-2}
+        self._y_prev = self._measured_y(obs)
+        self._y_plus = np.zeros(3)
+        if self._n_probe:
+            self.J_hat = np.zeros((3, n))
+            self.residual = np.zeros(3)
+        else:
+            self.J_hat = self._initial_jacobian(obs)
+            # eps_0 = y_0 - J_hat u_{-1} with u_{-1} = 0 (nothing issued yet)
+            self.residual = self._y_prev.copy()
+
+    def _act(self, obs: dict) -> np.ndarray:
+        k = self.step_count
+        self.step_count = k + 1
+        y = self._measured_y(obs)
+        u1 = self.last_u  # u_{k-1}: the command issued (and clipped) at the previous step
+        if k < self._n_probe:
+            return self._probe_step(k, y)
+        if k == self._n_probe and self._n_probe:
+            self._finish_probe(y)
+            self.residual = y - self.J_hat @ u1  # eps_k0 with the measured J_hat(0)
+        elif k > 0:
+            self._znn_update(y, u1)
+        self._u_km2 = u1
+        self._y_prev = y
+        c = self.config
+        v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
+        if not self._full:
+            v[:2] -= obs["arm_base_vel"]
+        return damped_pinv_apply(self.J_hat, v, c.damping, c.sigma_threshold)
+
+    def _znn_update(self, y: np.ndarray, u1: np.ndarray) -> None:
+        """One explicit-Euler step of eq. (15) with backward differences (module docstring)."""
+        J = self.J_hat
+        b = (y - self._y_prev) - J @ (u1 - self._u_km2) + (self.config.mu * self._dt) * self.residual
+        J += np.outer(b, u1 / (u1 @ u1 + self.config.eps_u))
+        self.residual = y - J @ u1
+
+    def _probe_step(self, k: int, y: np.ndarray) -> np.ndarray:
+        """Steps 0..15: +a_i at step 2i, -a_i at step 2i+1; the responses arrive one step later."""
+        if k > 0:
+            i_prev, minus = divmod(k - 1, 2)  # the command issued at step k-1 and its sign
+            if minus == 0:
+                self._y_plus = y
+            else:
+                self._set_probe_column(i_prev, y)
+        i, minus = divmod(k, 2)
+        u = np.zeros(len(self._scale))
+        u[i] = -self._probe_u[i] if minus else self._probe_u[i]
+        self._u_km2 = self.last_u
+        self._y_prev = y
+        return u
+
+    def _set_probe_column(self, i: int, y_minus: np.ndarray) -> None:
+        self.J_hat[:, i] = (self._y_plus - y_minus) / (2.0 * self._probe_u[i])
+
+    def _finish_probe(self, y: np.ndarray) -> None:
+        self._set_probe_column(len(self._scale) - 1, y)

@@ -1,0 +1,240 @@
+"""Policy specs -> policy objects: `policies.make(spec, env)`.
+
+Spec grammar (one string, as the CLI takes it):
+
+* `name[:key=value,...]` - a built-in controller; keys are the fields of its config dataclass; values are
+  parsed as bool (`true`/`false`), int, float, or else kept as a string: `nnbc:gamma=20,mu=20,j0=probe`.
+* `sb3:PATH` - a Stable-Baselines3 agent; the whole rest of the string is the path (a `model.zip` or its run
+  folder), or the alias `sb3:sac-circle` (the baseline shipped inside the `train` package).
+* `module:attr` - your own policy: `attr` (dotted for nested attributes) in the importable `module` is a
+  Policy object, or a class / factory that is called with the env if its signature accepts one positional
+  argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
+
+Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `zero`, `random`) are built from
+`EnvFacts.from_env(env)` only. `jmpi` (and `nnbc:j0=nominal`) receive the env's `nominal_params`. The oracle
+receives a provider that reads the env's current `true_params` at each episode start - the only code in this
+package that touches `true_params`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+import inspect
+import typing
+from dataclasses import dataclass
+from typing import Any, Callable
+
+from policies.base import EnvFacts, unwrap_env
+
+
+@dataclass(frozen=True)
+class _Entry:
+    description: str
+    module: str  # imported lazily, when the spec is built
+    cls: str
+    config_cls: str
+    preset: dict
+    model: str  # "none" (model-free), "nominal" (nominal_params) or "true" (params_provider)
+
+
+_REGISTRY: dict[str, _Entry] = {
+    "nnbc": _Entry("the paper's model-free NNBC, eqs. (7)-(15) (J_hat of r_a_dot - [p_c_dot; 0])",
+                   "policies.nnbc", "NNBC", "NNBCConfig", {}, "none"),
+    "nnbc-full": _Entry("NNBC with J_hat of the whole r_a_dot (the platform can drive)",
+                        "policies.nnbc", "NNBC", "NNBCConfig", {"full": True}, "none"),
+    "nnbc-plus": _Entry("improved model-free controller beside the paper's NNBC (see policies.nnbc_plus)",
+                        "policies.nnbc_plus", "NNBCPlus", "NNBCPlusConfig", {}, "none"),
+    "jmpi": _Entry("open-loop Jacobian pseudo-inverse on the nominal model (the paper's comparison)",
+                   "policies.jmpi", "JMPI", "JMPIConfig", {}, "nominal"),
+    "jmpi-full": _Entry("open-loop pseudo-inverse of the nominal whole-body Jacobian",
+                        "policies.jmpi", "JMPI", "JMPIConfig", {"full": True}, "nominal"),
+    "oracle": _Entry("eq. (10) with the true robot's Jacobian: the known-model bound",
+                     "policies.jmpi", "Oracle", "OracleConfig", {}, "true"),
+    "oracle-full": _Entry("eq. (10) with the true whole-body Jacobian",
+                          "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"),
+    "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
+    "random": _Entry("uniform random actions from the policy's own seed",
+                     "policies.simple", "Random", "RandomConfig", {}, "none"),
+}
+
+#: name -> one-line description of every built-in policy name (for the CLI's help and error messages).
+KNOWN_POLICIES: dict[str, str] = {name: e.description for name, e in _REGISTRY.items()}
+
+#: The two spec forms that are not names.
+SPEC_FORMS: dict[str, str] = {
+    "sb3:PATH": "a Stable-Baselines3 agent: DIR/model.zip of a mobman-train run (or the alias sb3:sac-circle)",
+    "module:attr": "your own Policy object, class or factory, importable as module:attr",
+}
+
+
+def _known_text() -> str:
+    return ", ".join([*_REGISTRY, *SPEC_FORMS])
+
+
+def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
+    """Split `name[:key=value,...]` into (name, {key: value}); values parsed as bool, int, float or str."""
+    name, _, rest = spec.partition(":")
+    kwargs: dict[str, Any] = {}
+    for item in filter(None, (s.strip() for s in rest.split(","))):
+        key, eq, text = item.partition("=")
+        key, text = key.strip(), text.strip()
+        if not eq or not key or not text:
+            raise ValueError(f"bad option {item!r} in policy spec {spec!r}: write key=value pairs separated by "
+                             f"commas, e.g. 'nnbc:gamma=20,mu=20,j0=probe'")
+        if key in kwargs:
+            raise ValueError(f"option {key!r} given twice in policy spec {spec!r}")
+        kwargs[key] = _parse_value(text)
+    return name.strip(), kwargs
+
+
+def _parse_value(text: str) -> Any:
+    low = text.lower()
+    if low in ("true", "false"):
+        return low == "true"
+    for conv in (int, float):
+        try:
+            return conv(text)
+        except ValueError:
+            pass
+    return text
+
+
+def _coerce(cfg_cls: type, key: str, value: Any, hint: Any, spec: str) -> Any:
+    """Convert a parsed spec value to the config field's type (int -> float allowed), or fail clearly."""
+    is_num = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if hint is float and is_num:
+        return float(value)
+    if hint is int and isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if (hint is bool and isinstance(value, bool)) or (hint is str and isinstance(value, str)):
+        return value
+    if hint not in (float, int, bool, str):
+        return value
+    raise ValueError(f"option {key}={value!r} in policy spec {spec!r} must be a {hint.__name__} "
+                     f"({cfg_cls.__name__}.{key})")
+
+
+def build_config(cfg_cls: type, options: dict[str, Any], spec: str = "") -> Any:
+    """Build a config dataclass from spec options; unknown keys fail listing the fields."""
+    fields = {f.name: f for f in dataclasses.fields(cfg_cls)}
+    unknown = sorted(set(options) - set(fields))
+    if unknown:
+        known = ", ".join(fields) or "(none: this policy has no options)"
+        raise ValueError(f"unknown option(s) {unknown} in policy spec {spec!r}; {cfg_cls.__name__} accepts: {known}")
+    hints = typing.get_type_hints(cfg_cls)
+    kwargs = {k: _coerce(cfg_cls, k, v, hints.get(k), spec) for k, v in options.items()}
+    return cfg_cls(**kwargs)
+
+
+def _load_entry(name: str, entry: _Entry) -> tuple[type, type]:
+    try:
+        module = importlib.import_module(entry.module)
+    except ModuleNotFoundError as exc:
+        if exc.name == entry.module:
+            raise ValueError(f"policy {name!r} is not available in this install: module {entry.module} is "
+                             f"missing") from None
+        raise
+    return getattr(module, entry.cls), getattr(module, entry.config_cls)
+
+
+def make(spec: str, env: Any, seed: int | None = None) -> Any:
+    """Build the policy named by `spec` for `env` (a gym.Env, any wrappers, or an SB3 VecEnv with one env).
+
+    `seed` seeds the policy's own Generator (controllers re-seed on `reset(seed=...)`). Returns an object with
+    `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).
+    """
+    if not isinstance(spec, str) or not spec.strip():
+        raise TypeError(f"policy spec must be a non-empty string such as 'nnbc' or 'sb3:runs/x/model.zip', "
+                        f"got {spec!r}; known: {_known_text()}")
+    spec = spec.strip()
+    if spec.startswith("sb3:"):
+        from policies.sb3 import SB3Policy
+
+        policy = SB3Policy(spec[4:])
+        policy.check_compatible(EnvFacts.from_env(env))
+        return policy
+    name, _, rest = spec.partition(":")
+    if name in _REGISTRY:
+        return _make_builtin(spec, env, seed)
+    if rest and "=" not in rest:
+        return _make_user(name, rest, env, spec)
+    hint = difflib.get_close_matches(name, list(_REGISTRY), n=1)
+    did = f" (did you mean {hint[0]!r}?)" if hint else ""
+    raise ValueError(f"unknown policy {name!r} in spec {spec!r}{did}; known: {_known_text()}")
+
+
+def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
+    name, options = parse_spec(spec)
+    entry = _REGISTRY[name]
+    cls, cfg_cls = _load_entry(name, entry)
+    config = build_config(cfg_cls, {**entry.preset, **options}, spec)
+    facts = EnvFacts.from_env(env)
+    extra: dict[str, Any] = {}
+    if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
+        extra["nominal_params"] = unwrap_env(env).nominal_params
+    elif entry.model == "true":
+        extra["params_provider"] = true_params_provider(env)
+    return cls(facts, config, seed, **extra)
+
+
+def true_params_provider(env: Any) -> Callable[[], Any]:
+    """A callable returning the env's current true robot (read through `get_attr` for a VecEnv).
+
+    The oracle calls it at every episode start; nothing else in `policies` reads `true_params`.
+    """
+    base = unwrap_env(env)
+
+    def provider() -> Any:
+        return base.true_params
+
+    return provider
+
+
+def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.split(".")[0] == exc.name.split(".")[0] and module_name.startswith(exc.name):
+            raise ValueError(f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
+                             f"module; known: {_known_text()}") from None
+        raise
+    obj: Any = module
+    for part in attr.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise ValueError(f"policy spec {spec!r}: module {module_name!r} has no attribute {attr!r}") from None
+    if not inspect.isclass(obj) and _is_policy(obj):
+        return obj
+    if not callable(obj):
+        raise TypeError(f"policy spec {spec!r}: {attr!r} is neither a policy (reset + predict) nor a class or "
+                        f"factory")
+    try:
+        sig = inspect.signature(obj)
+    except (TypeError, ValueError):
+        sig = None
+    if sig is not None and _binds(sig, env):
+        policy = obj(env)
+    elif sig is None or _binds(sig):
+        policy = obj()
+    else:
+        raise TypeError(f"policy spec {spec!r}: {attr}{sig} can be called neither with (env) nor with no arguments")
+    if not _is_policy(policy):
+        raise TypeError(f"policy spec {spec!r}: {attr} returned a {type(policy).__name__}, which lacks "
+                        f"reset(obs, info=None, *, seed=None) and/or predict(observation, state=None, "
+                        f"episode_start=None, deterministic=True); see policies.base.Policy")
+    return policy
+
+
+def _binds(sig: inspect.Signature, *args: Any) -> bool:
+    try:
+        sig.bind(*args)
+    except TypeError:
+        return False
+    return True
+
+
+def _is_policy(obj: Any) -> bool:
+    return callable(getattr(obj, "reset", None)) and callable(getattr(obj, "predict", None))
