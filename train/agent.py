@@ -1,0 +1,62 @@
+"""`Agent`: a trained SB3 model plus its observation processing, behind the project's `Policy` contract.
+
+It is the in-process twin of `policies.sb3.SB3Policy` (which rebuilds the same thing from a run folder): the
+raw env observation goes through the named observation wrappers, is reduced to `obs_keys`, normalised with
+VecNormalize's statistics (never updated here) and handed to `model.predict`. Used for the periodic
+evaluation while training, where the live model and normaliser are evaluated without a round trip to disk.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from train.wrappers import transform_observation
+
+
+class Agent:
+    """Policy protocol over an SB3 model. `normalizer`: a VecNormalize (its `normalize_obs` is used) or None."""
+
+    def __init__(self, model: Any, normalizer: Any, wrappers: Sequence[str], obs_keys: Sequence[str]):
+        self.model = model
+        self.normalizer = normalizer
+        self.wrappers = tuple(wrappers)
+        self.obs_keys = tuple(obs_keys)
+
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
+        """Stateless agent (MLP policies): nothing to re-initialise."""
+
+    def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        obs = transform_observation(observation, self.wrappers, self.obs_keys)
+        batched = np.asarray(obs[self.obs_keys[0]]).ndim == 2
+        obs = {k: np.asarray(v, dtype=np.float32) for k, v in obs.items()}
+        if self.normalizer is not None:
+            obs = self.normalizer.normalize_obs(obs)
+        action, _ = self.model.predict(obs, deterministic=deterministic)
+        action = np.asarray(action, dtype=np.float32)
+        if batched and action.ndim == 1:
+            action = action[None]
+        return action, state
+
+
+def load_agent(run_dir: str | Path, device: str = "cpu") -> Agent:
+    """Rebuild the agent of a run folder: `model.zip`, `vecnormalize.pkl` (if present) and `config.json`."""
+    import pickle
+
+    from train import algos
+
+    run_dir = Path(run_dir)
+    cfg_path = run_dir / "config.json"
+    if not cfg_path.exists():
+        raise ValueError(f"{run_dir} has no config.json; pass a mobman-train run folder")
+    cfg = json.loads(cfg_path.read_text())
+    model = algos.get(cfg["algo"]).load_class().load(run_dir / "model.zip", device=device)
+    normalizer = None
+    if (run_dir / "vecnormalize.pkl").exists():
+        with open(run_dir / "vecnormalize.pkl", "rb") as f:
+            normalizer = pickle.load(f)
+        normalizer.training = False
+    return Agent(model, normalizer, cfg.get("wrappers", []), cfg["obs_keys"])

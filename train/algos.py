@@ -1,0 +1,184 @@
+"""The algorithm table: name -> SB3 class and default hyperparameters (rl-baselines3-zoo style).
+
+Hyperparameters are plain data (JSON/YAML-able) so the resolved set is saved in the run's `config.json`;
+`build_kwargs` turns the few non-plain entries into SB3 objects:
+
+* `policy_kwargs.activation_fn`: a name from `ACTIVATIONS` ("relu", "tanh", "elu", "leaky_relu").
+* `action_noise` (TD3, SAC): `{"type": "normal" | "ornstein_uhlenbeck", "sigma": float}` (sigma in the normalised
+  action units, the same for every actuator).
+
+The defaults were chosen for the tracking task (`WheeledPuma-*-v0`, 100 Hz, 2000-step episodes) on development
+seeds, starting from the zoo's PyBullet settings: a short horizon (gamma 0.98, about 0.5 s) because the reward
+is the instantaneous tracking error, and small networks because the policy is close to a linear map from the
+error to the joint speeds. They are what the shipped baseline used; the docstring of `train` gives the runs.
+"""
+
+from __future__ import annotations
+
+import copy
+import inspect
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
+NOISE_TYPES = ("normal", "ornstein_uhlenbeck")
+
+
+@dataclass(frozen=True)
+class AlgoSpec:
+    """One row of the table. class_path: "module:Class" of the SB3 algorithm (imported lazily, so importing
+    `train.algos` does not load torch). off_policy: has a replay buffer (saved with checkpoints for `--resume`).
+    defaults: hyperparameters passed to the class (plain data). normalize_reward: whether VecNormalize also
+    normalises the reward (on-policy only: off-policy value targets are fine with the raw, bounded reward)."""
+
+    class_path: str
+    off_policy: bool
+    defaults: dict
+    normalize_reward: bool
+
+    def load_class(self) -> type:
+        import importlib
+
+        module, name = self.class_path.split(":")
+        return getattr(importlib.import_module(module), name)
+
+
+ALGOS: dict[str, AlgoSpec] = {
+    "sac": AlgoSpec(
+        class_path="stable_baselines3:SAC",
+        off_policy=True,
+        normalize_reward=False,
+        defaults={
+            "learning_rate": 7.3e-4,
+            "buffer_size": 300_000,
+            "batch_size": 256,
+            "learning_starts": 2_000,
+            "gamma": 0.98,
+            "tau": 0.02,
+            "train_freq": 8,
+            "gradient_steps": 8,
+            "ent_coef": "auto",
+            "policy_kwargs": {"net_arch": [256, 256]},
+        },
+    ),
+    "td3": AlgoSpec(
+        class_path="stable_baselines3:TD3",
+        off_policy=True,
+        normalize_reward=False,
+        defaults={
+            "learning_rate": 1e-3,
+            "buffer_size": 300_000,
+            "batch_size": 256,
+            "learning_starts": 2_000,
+            "gamma": 0.98,
+            "tau": 0.005,
+            "train_freq": 8,
+            "gradient_steps": 8,
+            "action_noise": {"type": "normal", "sigma": 0.1},
+            "policy_kwargs": {"net_arch": [256, 256]},
+        },
+    ),
+    "ppo": AlgoSpec(
+        class_path="stable_baselines3:PPO",
+        off_policy=False,
+        normalize_reward=True,
+        defaults={
+            "learning_rate": 3e-4,
+            "n_steps": 2048,
+            "batch_size": 256,
+            "n_epochs": 10,
+            "gamma": 0.98,
+            "gae_lambda": 0.95,
+            "clip_range": 0.2,
+            "ent_coef": 0.0,
+            "max_grad_norm": 0.5,
+            "policy_kwargs": {"net_arch": {"pi": [256, 256], "vf": [256, 256]}, "log_std_init": -1.0,
+                              "activation_fn": "tanh"},
+        },
+    ),
+}
+
+#: Keys `TrainConfig` / the run function set themselves; a hyperparameter file may not contain them.
+RESERVED = ("policy", "env", "seed", "verbose", "tensorboard_log", "device", "_init_setup_model")
+
+
+def algo_names() -> tuple[str, ...]:
+    return tuple(ALGOS)
+
+
+def get(name: str) -> AlgoSpec:
+    try:
+        return ALGOS[name]
+    except KeyError:
+        raise ValueError(f"unknown algorithm {name!r}; known: {', '.join(ALGOS)}") from None
+
+
+def accepted_keys(name: str) -> tuple[str, ...]:
+    """The constructor arguments of the algorithm a hyperparameter file may set."""
+    params = inspect.signature(get(name).load_class().__init__).parameters
+    return tuple(k for k in params if k not in ("self",) + RESERVED)
+
+
+def resolve(name: str, overrides: dict | None = None) -> dict:
+    """The algorithm's defaults updated with `overrides` (top-level keys replace; `policy_kwargs` is merged
+    key by key). Checks value shapes that are cheap to check without importing SB3."""
+    spec = get(name)
+    hp = copy.deepcopy(spec.defaults)
+    for key, value in (overrides or {}).items():
+        if key in RESERVED:
+            raise ValueError(
+                f"hyperparameter {key!r} is set by mobman-train itself; remove it from the hyperparameter file "
+                f"(use --seed, --tensorboard or TrainConfig fields instead)"
+            )
+        if key == "policy_kwargs" and isinstance(value, dict):
+            hp["policy_kwargs"] = {**hp.get("policy_kwargs", {}), **copy.deepcopy(value)}
+        else:
+            hp[key] = copy.deepcopy(value)
+    act = hp.get("policy_kwargs", {}).get("activation_fn")
+    if act is not None and act not in ACTIVATIONS:
+        raise ValueError(f"unknown activation_fn {act!r}; known: {', '.join(ACTIVATIONS)}")
+    noise = hp.get("action_noise")
+    if noise is not None:
+        if spec.off_policy is False:
+            raise ValueError(f"action_noise is for off-policy algorithms (sac, td3), not {name!r}; remove it")
+        if not isinstance(noise, dict) or noise.get("type") not in NOISE_TYPES or not isinstance(
+            noise.get("sigma"), (int, float)
+        ):
+            raise ValueError(
+                f"action_noise must be {{'type': one of {list(NOISE_TYPES)}, 'sigma': float}}, got {noise!r}"
+            )
+    return hp
+
+
+def check_keys(name: str, hp: dict) -> None:
+    """Fail (listing the accepted keys) if a hyperparameter is not an argument of the algorithm's class."""
+    accepted = accepted_keys(name)
+    unknown = sorted(set(hp) - set(accepted))
+    if unknown:
+        raise ValueError(
+            f"unknown hyperparameter(s) {unknown} for {name}; accepted: {', '.join(accepted)}"
+        )
+
+
+def build_kwargs(name: str, hp: dict, n_actions: int) -> dict[str, Any]:
+    """Turn the plain-data hyperparameters into the keyword arguments of the SB3 class."""
+    import torch.nn as nn
+    from stable_baselines3.common.noise import NormalActionNoise, OrnsteinUhlenbeckActionNoise
+
+    kwargs = copy.deepcopy(hp)
+    pk = kwargs.get("policy_kwargs")
+    if pk and "activation_fn" in pk:
+        pk["activation_fn"] = {"relu": nn.ReLU, "tanh": nn.Tanh, "elu": nn.ELU, "leaky_relu": nn.LeakyReLU}[
+            pk["activation_fn"]
+        ]
+    if isinstance(pk, dict) and isinstance(pk.get("net_arch"), dict):
+        pk["net_arch"] = {k: list(v) for k, v in pk["net_arch"].items()}
+    noise = kwargs.get("action_noise")
+    if isinstance(noise, dict):
+        cls = NormalActionNoise if noise["type"] == "normal" else OrnsteinUhlenbeckActionNoise
+        kwargs["action_noise"] = cls(mean=np.zeros(n_actions), sigma=float(noise["sigma"]) * np.ones(n_actions))
+    if isinstance(kwargs.get("train_freq"), list):
+        kwargs["train_freq"] = tuple(kwargs["train_freq"])
+    return kwargs

@@ -1,0 +1,154 @@
+"""SB3 callbacks of a training run: checkpoints and the periodic evaluation / learning curve."""
+
+from __future__ import annotations
+
+import csv
+import json
+import logging
+import os
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+from stable_baselines3.common.callbacks import BaseCallback
+
+log = logging.getLogger("train")
+
+CURVE_FIELDS = ("timesteps", "wall_s", "median_rms_error_m", "max_rms_error_m", "median_max_error_m",
+                "max_max_error_m", "success_rate")
+
+
+def atomic_write(path: Path, data: bytes | str) -> None:
+    """Write to a temporary name in the same folder, then rename (readers never see a half-written file)."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp.write_bytes(data.encode() if isinstance(data, str) else data)
+    os.replace(tmp, path)
+
+
+class CheckpointSaver(BaseCallback):
+    """Every `freq` env steps call `save(model)` (which writes model, normaliser and replay buffer)."""
+
+    def __init__(self, freq: int, save: Callable[[Any], None]):
+        super().__init__()
+        self.freq = freq
+        self.save = save
+        self._last = 0
+
+    def _on_training_start(self) -> None:
+        self._last = self.model.num_timesteps
+
+    def _on_step(self) -> bool:
+        if self.freq and self.model.num_timesteps - self._last >= self.freq:
+            self._last = self.model.num_timesteps
+            self.save(self.model)
+        return True
+
+
+class PeriodicEval(BaseCallback):
+    """Every `freq` env steps: `evaluate(model) -> summary dict`; append a row to `curve_csv`, redraw the PNG.
+
+    The first evaluation runs at the start of training (step 0, or the resumed step), so the curve starts from
+    the untrained agent."""
+
+    def __init__(self, freq: int, evaluate: Callable[[Any], dict], curve_csv: Path, curve_png: Path,
+                 reference: dict | None, t0: float, wall_offset: float = 0.0):
+        super().__init__()
+        self.freq = freq
+        self.evaluate = evaluate
+        self.curve_csv = Path(curve_csv)
+        self.curve_png = Path(curve_png)
+        self.reference = reference
+        self.t0 = t0
+        self.wall_offset = wall_offset
+        self._last = -1
+
+    def _on_training_start(self) -> None:
+        if self.freq:
+            self._run()
+
+    def _on_step(self) -> bool:
+        if self.freq and self.model.num_timesteps - self._last >= self.freq:
+            self._run()
+        return True
+
+    def _run(self) -> None:
+        self._last = self.model.num_timesteps
+        summary = self.evaluate(self.model)
+        row = {"timesteps": self.model.num_timesteps, "wall_s": round(self.wall_offset + time.time() - self.t0, 1),
+               **{k: summary[k] for k in CURVE_FIELDS[2:]}}
+        append_curve_row(self.curve_csv, row)
+        log.info(
+            "eval @ %d steps: median RMS %.1f mm, median max %.1f mm, success %.0f%%",
+            row["timesteps"], 1e3 * row["median_rms_error_m"], 1e3 * row["median_max_error_m"],
+            100 * row["success_rate"],
+        )
+        if self.logger is not None:
+            self.logger.record("eval/median_rms_error_m", row["median_rms_error_m"])
+            self.logger.record("eval/median_max_error_m", row["median_max_error_m"])
+            self.logger.record("eval/success_rate", row["success_rate"])
+        write_curve_png(self.curve_csv, self.curve_png, self.reference)
+
+
+def read_curve(path: Path) -> list[dict]:
+    if not Path(path).exists():
+        return []
+    with open(path, newline="") as f:
+        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
+
+
+def append_curve_row(path: Path, row: dict) -> None:
+    rows = read_curve(path) + [row]
+    lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
+    atomic_write(path, "\n".join(lines) + "\n")
+
+
+def truncate_curve(path: Path, max_timesteps: int) -> None:
+    """Drop rows after `max_timesteps` (a resumed run continues from its last checkpoint)."""
+    rows = [r for r in read_curve(path) if r["timesteps"] <= max_timesteps]
+    if Path(path).exists():
+        lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
+        atomic_write(path, "\n".join(lines) + "\n")
+
+
+def curve_figure(rows: list[dict], reference: dict | None = None, title: str = ""):
+    """Tracking error (mm, log scale) vs env steps: median RMS and median max error over the evaluation seeds,
+    the band between median and worst RMS, and the stand-still (`zero`) RMS as a reference."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4.2), dpi=110)
+    ax = fig.add_subplot(1, 1, 1)
+    x = [r["timesteps"] for r in rows]
+    ax.plot(x, [1e3 * r["median_rms_error_m"] for r in rows], "o-", label="median RMS error")
+    ax.fill_between(x, [1e3 * r["median_rms_error_m"] for r in rows], [1e3 * r["max_rms_error_m"] for r in rows],
+                    alpha=0.2, label="median..worst RMS")
+    ax.plot(x, [1e3 * r["median_max_error_m"] for r in rows], "s--", label="median max error")
+    if reference:
+        ax.axhline(1e3 * reference["median_rms_error_m"], color="k", ls=":", label="zero policy RMS")
+        ax.axhline(1e3 * reference["median_rms_error_m"] / 4, color="r", ls=":", label="zero / 4 (\"learns\")")
+    ax.set_yscale("log")
+    ax.set_xlabel("env steps")
+    ax.set_ylabel("tracking error (mm)")
+    ax.set_title(title)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def write_curve_png(curve_csv: Path, png: Path, reference: dict | None, title: str = "") -> None:
+    import io
+
+    rows = read_curve(curve_csv)
+    if not rows:
+        return
+    buf = io.BytesIO()
+    curve_figure(rows, reference, title or Path(curve_csv).parent.name).savefig(buf, format="png")
+    atomic_write(png, buf.getvalue())
+
+
+def write_json(path: Path, data: dict) -> None:
+    atomic_write(path, json.dumps(data, indent=2, sort_keys=True) + "\n")

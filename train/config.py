@@ -1,0 +1,209 @@
+"""`TrainConfig`: everything one training run needs, frozen, with a JSON round trip.
+
+The CLI parses into it and calls `train.run.run(config)`; the run folder's `config.json` holds `to_dict()` plus
+the resolved hyperparameters and the keys `policies.sb3.SB3Policy` reads ("algo", "env_id", "env_kwargs",
+"obs_keys", "wrappers").
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from train import algos
+from train.wrappers import check_wrappers
+
+#: Env arguments chosen for learning (not for evaluation): a reward in units of 5 cm of error (tracking weight
+#: 20, the env's effort/tracking ratio of 1e-3 kept) and episodes that end once the error passes 10 cm, so
+#: early experience stays near the path instead of 2000 steps of flailing. Dropped by every evaluation.
+LEARNING_ENV_KWARGS: dict = {"reward_weights": {"tracking": 20.0, "effort": 0.02}, "error_bound": 0.1}
+#: The env arguments that only shape learning; evaluation (periodic and final) uses the env's defaults instead.
+LEARNING_ONLY_KEYS = ("reward_weights", "error_bound")
+#: Observation the agent sees (after the "pos_error" wrapper): the error and the desired velocity (what the
+#: paper's controllers feed back), the joint state (the Jacobian depends on it), heading and time.
+DEFAULT_OBS_KEYS = ("pos_error", "target_vel", "ee_vel", "joint_pos", "joint_vel", "base_yaw", "time")
+#: Development seeds (DESIGN "Seeds"): periodic evaluation must stay below this.
+DEV_SEED_END = 1000
+#: First reported seed: the final evaluation starts here by default.
+REPORTED_SEED_START = 10_000
+_ENV_ARGS_NOT_ALLOWED = {"dynamics": "use --dynamics / TrainConfig.dynamics", "render_mode": "training renders nothing"}
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    algo: str = "sac"
+    """Algorithm name from `train.algos.ALGOS` (ppo, sac, td3)."""
+    env_id: str = "WheeledPuma-Circle-v0"
+    """Registered env id (`mobman_env.ENV_IDS`); worker processes make it as `mobman_env:<env_id>`."""
+    timesteps: int = 100_000
+    """Total env steps to train for (over all envs). With `--resume`, the new total."""
+    n_envs: int = 1
+    """Parallel envs: `SubprocVecEnv` when > 1, `DummyVecEnv` otherwise (a cheap env gains little on 2 cores)."""
+    seed: int = 0
+    """Seed of the algorithm (torch, numpy) and of the training envs (env i is reset with seed + i once)."""
+    out: str | None = None
+    """Run folder; None: `runs/train-<algo>-<task>-<UTC timestamp>`. An existing non-empty folder is refused
+    unless `overwrite`."""
+    overwrite: bool = False
+    """Allow writing into an existing non-empty `out` (its files are replaced)."""
+    dynamics: str = "kinematic"
+    """Env dynamics mode for training and for every evaluation of this run ("kinematic" or "physics")."""
+    env_kwargs: dict = field(default_factory=lambda: json.loads(json.dumps(LEARNING_ENV_KWARGS)))
+    """Extra env constructor arguments for training (not `dynamics`). Defaults: `LEARNING_ENV_KWARGS`. The
+    learning-only keys (`LEARNING_ONLY_KEYS`) are dropped for evaluation; the others (e.g. `model_error`,
+    `obs_noise`, `path`) define the task and are kept."""
+    alive_bonus: float = 2.0
+    """Reward added per step during training (a wrapper, not the env). Set to tracking weight x error_bound,
+    so that every step inside the bound earns >= 0 and ending the episode early never pays."""
+    wrappers: tuple[str, ...] = ("pos_error",)
+    """Observation wrappers (names from `train.wrappers.OBS_WRAPPERS`) applied before `obs_keys` is taken."""
+    obs_keys: tuple[str, ...] = DEFAULT_OBS_KEYS
+    """Observation keys the agent sees, in order (after the wrappers)."""
+    hyperparams: dict = field(default_factory=dict)
+    """Overrides of the algorithm's defaults (`train.algos`), e.g. from `--hyperparams FILE` (YAML or JSON)."""
+    normalize_obs: bool = True
+    """Normalise observations with VecNormalize's running mean and std (saved as `vecnormalize.pkl`)."""
+    normalize_reward: bool | None = None
+    """Normalise rewards with VecNormalize; None: the algorithm's choice (PPO yes, SAC/TD3 no)."""
+    eval_freq: int = 10_000
+    """Evaluate every this many env steps on the held-out development seeds (0: never)."""
+    eval_seed: int = 900
+    """First development seed of the periodic evaluation; episode k uses reset(seed=eval_seed + k)."""
+    eval_episodes: int = 3
+    """Episodes per periodic evaluation."""
+    final_eval_seed: int = REPORTED_SEED_START
+    """First seed of the final evaluation (reported seeds start at 10,000)."""
+    final_eval_episodes: int = 5
+    """Episodes of the final evaluation with the benchmark's env settings (0: skip)."""
+    tolerance: float = 0.006
+    """Success threshold of the evaluations, m (max tracking error); eval's default, the paper's 6 mm."""
+    checkpoint_freq: int = 25_000
+    """Save a checkpoint (model, normaliser, replay buffer) every this many env steps (0: only at the end or
+    on Ctrl-C)."""
+    torch_threads: int = 1
+    """`torch.set_num_threads`: one thread is as fast on 2 cores and far faster when anything else runs."""
+    device: str = "cpu"
+    """Torch device ("cpu", "cuda", "auto")."""
+    tensorboard: bool = False
+    """Write TensorBoard logs to `<out>/tensorboard`."""
+    progress_bar: bool = True
+    """Show SB3's progress bar."""
+    verbose: int = 0
+    """SB3 verbosity (0, 1, 2)."""
+
+    def __post_init__(self) -> None:
+        algos.get(self.algo)
+        _check_int(self.timesteps, "timesteps", 1, "e.g. --timesteps 100000")
+        _check_int(self.n_envs, "n_envs", 1, "e.g. --n-envs 1")
+        _check_int(self.seed, "seed", 0, "use a development seed 0-999")
+        for name in ("eval_freq", "eval_episodes", "final_eval_episodes", "checkpoint_freq", "final_eval_seed"):
+            _check_int(getattr(self, name), name, 0, "use 0 to disable")
+        _check_int(self.eval_seed, "eval_seed", 0, "use a development seed 0-999")
+        _check_int(self.torch_threads, "torch_threads", 1, "1 is best on a shared 2-core machine")
+        if self.eval_freq and self.eval_seed + self.eval_episodes > DEV_SEED_END:
+            raise ValueError(
+                f"periodic evaluation seeds {self.eval_seed}..{self.eval_seed + self.eval_episodes - 1} leave the "
+                f"development range 0-{DEV_SEED_END - 1} (reported seeds are never used while training); "
+                f"lower eval_seed"
+            )
+        from mobman_env.sim import DYNAMICS_MODES
+
+        if self.dynamics not in DYNAMICS_MODES:
+            raise ValueError(f"unknown dynamics {self.dynamics!r}; accepted: {', '.join(DYNAMICS_MODES)}")
+        _check_env_id(self.env_id)
+        if not isinstance(self.env_kwargs, dict):
+            raise ValueError(f"env_kwargs must be a dict (JSON object), got {self.env_kwargs!r}")
+        _check_env_kwargs(self.env_kwargs)
+        if not isinstance(self.hyperparams, dict):
+            raise ValueError(f"hyperparams must be a dict, got {self.hyperparams!r}")
+        algos.resolve(self.algo, self.hyperparams)
+        if not (isinstance(self.alive_bonus, (int, float)) and math.isfinite(self.alive_bonus)):
+            raise ValueError(f"alive_bonus must be a finite number, got {self.alive_bonus!r}")
+        if not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
+            raise ValueError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
+        object.__setattr__(self, "wrappers", tuple(self.wrappers))
+        object.__setattr__(self, "obs_keys", tuple(self.obs_keys))
+        check_wrappers(self.wrappers)
+        if not self.obs_keys:
+            raise ValueError("obs_keys is empty; the agent must see at least one observation key")
+        if self.device not in ("cpu", "cuda", "auto") and not str(self.device).startswith("cuda:"):
+            raise ValueError(f"unknown device {self.device!r}; accepted: cpu, cuda, cuda:N, auto")
+
+    # --- derived --------------------------------------------------------------------------------------
+    @property
+    def train_env_kwargs(self) -> dict:
+        """Constructor arguments of the training envs."""
+        return {**self.env_kwargs, "dynamics": self.dynamics}
+
+    @property
+    def eval_env_kwargs(self) -> dict:
+        """Constructor arguments of the evaluation envs: the training ones minus the learning-only keys."""
+        kw = {k: v for k, v in self.env_kwargs.items() if k not in LEARNING_ONLY_KEYS}
+        return {**kw, "dynamics": self.dynamics}
+
+    @property
+    def resolved_hyperparams(self) -> dict:
+        return algos.resolve(self.algo, self.hyperparams)
+
+    @property
+    def do_normalize_reward(self) -> bool:
+        return algos.get(self.algo).normalize_reward if self.normalize_reward is None else bool(self.normalize_reward)
+
+    # --- JSON -----------------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["wrappers"] = list(self.wrappers)
+        d["obs_keys"] = list(self.obs_keys)
+        return json.loads(json.dumps(d))
+
+    @classmethod
+    def from_dict(cls, data: dict, *, ignore_extra: bool = False) -> TrainConfig:
+        """Build from `to_dict()` output. Unknown keys fail (listing the fields) unless `ignore_extra` (used
+        for a run folder's config.json, which holds more than the config)."""
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(data) - names)
+        if unknown and not ignore_extra:
+            raise ValueError(f"unknown TrainConfig field(s) {unknown}; fields: {', '.join(sorted(names))}")
+        return cls(**{k: v for k, v in data.items() if k in names})
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), indent=2, sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> TrainConfig:
+        return cls.from_dict(json.loads(text))
+
+    def replace(self, **changes: Any) -> TrainConfig:
+        return dataclasses.replace(self, **changes)
+
+
+def _check_int(value: Any, name: str, minimum: int, hint: str) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r} ({hint})")
+
+
+def _check_env_id(env_id: str) -> None:
+    import gymnasium as gym
+
+    import mobman_env  # noqa: F401  (registers the ids)
+
+    if env_id not in gym.registry:
+        raise ValueError(f"unknown env id {env_id!r}; known: {', '.join(mobman_env.ENV_IDS)}")
+
+
+def _check_env_kwargs(kwargs: dict) -> None:
+    from mobman_env.env import WheeledPumaEnv
+
+    for key, why in _ENV_ARGS_NOT_ALLOWED.items():
+        if key in kwargs:
+            raise ValueError(f"env_kwargs may not contain {key!r}: {why}")
+    accepted = [p for p in inspect.signature(WheeledPumaEnv.__init__).parameters if p != "self"]
+    unknown = sorted(set(kwargs) - set(accepted))
+    if unknown:
+        raise ValueError(
+            f"unknown env argument(s) {unknown}; accepted: {', '.join(a for a in accepted if a not in _ENV_ARGS_NOT_ALLOWED)}"
+        )

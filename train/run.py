@@ -1,0 +1,374 @@
+"""`run(config)`: train one agent into a run folder; `resume(run_dir)`: continue it.
+
+Run folder (DESIGN "train"):
+
+| file | content |
+|---|---|
+| `model.zip` | the final (or last saved) SB3 model |
+| `vecnormalize.pkl` | VecNormalize statistics (when `normalize_obs`) |
+| `config.json` | `TrainConfig.to_dict()` plus "hyperparams_resolved", "env_make_kwargs", "eval_env_kwargs", "versions"; the keys SB3Policy reads: "algo", "env_id", "env_kwargs", "obs_keys", "wrappers" |
+| `checkpoints/` | `model_<N>_steps.zip`, `vecnormalize_<N>_steps.pkl`, the latest `replay_buffer.pkl` (SAC, TD3), `latest.json` |
+| `learning_curve.csv`, `learning_curve.png` | tracking error on the development seeds vs env steps |
+| `monitor.csv` | training episodes (return, length) |
+| `final_eval.json` | the final evaluation with the benchmark's env settings on the reported seeds, and `zero`'s |
+| `summary.json` | status (done / interrupted), steps, wall time, final metrics |
+| `train.log`, `tensorboard/` | log; TensorBoard events with `--tensorboard` |
+
+Ctrl-C during training saves a checkpoint and the model, then raises `TrainingInterrupted`; `resume(run_dir)`
+continues from the latest checkpoint up to `config.timesteps` (or a new total).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import logging
+import signal
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from train import algos
+from train.callbacks import (CheckpointSaver, PeriodicEval, truncate_curve, write_curve_png, write_json)
+from train.config import TrainConfig
+from train.evaluation import ZeroPolicy
+from train.wrappers import AgentObservation, AliveBonus
+
+log = logging.getLogger("train")
+CONFIG_SCHEMA = 1
+
+
+class TrainingInterrupted(Exception):
+    """Training stopped by Ctrl-C after saving a checkpoint; `.run_dir`, `.timesteps`."""
+
+    def __init__(self, run_dir: Path, timesteps: int):
+        super().__init__(f"interrupted at {timesteps} steps; checkpoint saved in {run_dir}; continue with "
+                         f"`mobman-train --resume {run_dir}`")
+        self.run_dir = run_dir
+        self.timesteps = timesteps
+
+
+# --- envs -------------------------------------------------------------------------------------------------
+def _make_env(env_id: str, env_kwargs: dict, wrappers: tuple, obs_keys: tuple, alive_bonus: float,
+              in_subprocess: bool) -> gym.Env:
+    if in_subprocess:  # Ctrl-C goes to the whole process group: only the parent handles it
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    env = gym.make(f"mobman_env:{env_id}", **env_kwargs)
+    env = AgentObservation(env, wrappers, obs_keys)
+    if alive_bonus:
+        env = AliveBonus(env, alive_bonus)
+    return env
+
+
+def make_vec_env(config: TrainConfig, seed_offset: int = 0):
+    """The training VecEnv (VecMonitor inside; VecNormalize is added by the caller)."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    sub = config.n_envs > 1
+    fns = [functools.partial(_make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys,
+                             config.alive_bonus, sub) for _ in range(config.n_envs)]
+    venv = SubprocVecEnv(fns) if sub else DummyVecEnv(fns)
+    venv.seed(config.seed + seed_offset)
+    return venv
+
+
+def probe_envs(config: TrainConfig) -> None:
+    """Build the training and evaluation envs once and reset them, so bad env arguments fail before training."""
+    for kwargs in (config.train_env_kwargs, config.eval_env_kwargs):
+        try:
+            env = _make_env(config.env_id, kwargs, config.wrappers, config.obs_keys, 0.0, False)
+        except (TypeError, ValueError, KeyError) as exc:
+            raise ValueError(f"bad env arguments {kwargs}: {exc}") from None
+        try:
+            env.reset(seed=0)
+        finally:
+            env.close()
+
+
+# --- run folder -------------------------------------------------------------------------------------------
+def default_out(config: TrainConfig) -> Path:
+    task = config.env_id.split("-")[1].lower() if "-" in config.env_id else config.env_id
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
+    return Path("runs") / f"train-{config.algo}-{task}-{stamp}"
+
+
+def prepare_out(config: TrainConfig) -> Path:
+    out = Path(config.out) if config.out else default_out(config)
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out} exists and is not a folder; choose another --out")
+    if out.is_dir() and any(out.iterdir()) and not config.overwrite:
+        raise ValueError(f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
+                         f"continue it with --resume {out}")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def versions() -> dict:
+    import numpy
+    import stable_baselines3
+    import torch
+
+    return {"python": sys.version.split()[0], "stable_baselines3": stable_baselines3.__version__,
+            "torch": torch.__version__, "gymnasium": gym.__version__, "numpy": numpy.__version__}
+
+
+def run_config_dict(config: TrainConfig) -> dict:
+    """What `config.json` holds."""
+    return {"schema": CONFIG_SCHEMA, **config.to_dict(), "hyperparams_resolved": config.resolved_hyperparams,
+            "env_make_kwargs": config.train_env_kwargs, "eval_env_kwargs": config.eval_env_kwargs,
+            "versions": versions()}
+
+
+def load_run_config(run_dir: Path | str) -> TrainConfig:
+    path = Path(run_dir) / "config.json"
+    if not path.exists():
+        raise ValueError(f"{run_dir} is not a run folder (no config.json); pass the --out folder of a mobman-train run")
+    return TrainConfig.from_dict(json.loads(path.read_text()), ignore_extra=True)
+
+
+def latest_checkpoint(run_dir: Path) -> dict | None:
+    path = Path(run_dir) / "checkpoints" / "latest.json"
+    return json.loads(path.read_text()) if path.exists() else None
+
+
+def _setup_logging(out: Path, verbose: bool = True) -> None:
+    log.setLevel(logging.INFO)
+    for h in list(log.handlers):
+        log.removeHandler(h)
+        h.close()
+    fh = logging.FileHandler(out / "train.log")
+    fh.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
+    log.addHandler(fh)
+    sh = logging.StreamHandler(sys.stderr)
+    sh.setFormatter(logging.Formatter("[train] %(message)s"))
+    log.addHandler(sh)
+    log.propagate = False
+
+
+# --- saving -----------------------------------------------------------------------------------------------
+def save_checkpoint(model: Any, out: Path, off_policy: bool) -> dict:
+    """Model, normaliser and (off-policy) replay buffer at the current step; `latest.json` points at them."""
+    import os
+
+    ckpt = out / "checkpoints"
+    ckpt.mkdir(exist_ok=True)
+    n = int(model.num_timesteps)
+    entry = {"steps": n, "model": f"model_{n}_steps.zip", "vecnormalize": None, "replay_buffer": None}
+    model.save(ckpt / entry["model"])
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        entry["vecnormalize"] = f"vecnormalize_{n}_steps.pkl"
+        vn.save(ckpt / entry["vecnormalize"])
+    if off_policy:
+        tmp = ckpt / ".replay_buffer.tmp.pkl"
+        model.save_replay_buffer(tmp)
+        os.replace(tmp, ckpt / "replay_buffer.pkl")
+        entry["replay_buffer"] = "replay_buffer.pkl"
+    write_json(ckpt / "latest.json", entry)
+    log.info("checkpoint at %d steps", n)
+    return entry
+
+
+def save_final(model: Any, out: Path) -> None:
+    model.save(out / "model.zip")
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        vn.save(out / "vecnormalize.pkl")
+
+
+# --- evaluation hooks -------------------------------------------------------------------------------------
+def _periodic_evaluator(config: TrainConfig):
+    from train.agent import Agent
+    from train.evaluation import evaluate
+
+    def _evaluate(model: Any) -> dict:
+        agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys)
+        return evaluate(config.env_id, config.eval_env_kwargs, agent, config.eval_seed, config.eval_episodes,
+                        config.tolerance)
+
+    return _evaluate
+
+
+def final_evaluation(config: TrainConfig, out: Path) -> dict:
+    """Evaluate the saved agent (`out/model.zip`) and `zero` with the benchmark's env settings on the reported
+    seeds; write `final_eval.json`."""
+    from train.agent import load_agent
+    from train.evaluation import evaluate
+
+    agent = load_agent(out)
+    n, s = config.final_eval_episodes, config.final_eval_seed
+    result = {
+        "env_id": config.env_id, "env_kwargs": config.eval_env_kwargs, "first_seed": s, "episodes": n,
+        "tolerance_m": config.tolerance,
+        "agent": evaluate(config.env_id, config.eval_env_kwargs, agent, s, n, config.tolerance),
+        "zero": evaluate(config.env_id, config.eval_env_kwargs, ZeroPolicy(), s, n, config.tolerance),
+        "eval_command": eval_command(config, out),
+    }
+    write_json(out / "final_eval.json", result)
+    return result
+
+
+def eval_command(config: TrainConfig, out: Path) -> str:
+    """The `mobman-eval run` command that evaluates this agent on the same seeds and env settings."""
+    extra = {k: v for k, v in config.eval_env_kwargs.items() if k != "dynamics"}
+    cmd = (f"mobman-eval run --env {config.env_id} --policy sb3:{out / 'model.zip'} --policy zero "
+           f"--episodes {config.final_eval_episodes} --seed {config.final_eval_seed} --dynamics {config.dynamics}")
+    if extra:
+        cmd += f" --env-kwargs '{json.dumps(extra)}'"
+    return cmd
+
+
+# --- training ---------------------------------------------------------------------------------------------
+def _build_model(config: TrainConfig, venv: Any, out: Path) -> Any:
+    spec = algos.get(config.algo)
+    kwargs = algos.build_kwargs(config.algo, config.resolved_hyperparams, venv.action_space.shape[0])
+    return spec.load_class()(
+        "MultiInputPolicy", venv, seed=config.seed, device=config.device, verbose=config.verbose,
+        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None, **kwargs,
+    )
+
+
+def _wrap_normalize(config: TrainConfig, venv: Any) -> Any:
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    if not (config.normalize_obs or config.do_normalize_reward):
+        return venv
+    return VecNormalize(venv, norm_obs=config.normalize_obs, norm_reward=config.do_normalize_reward,
+                        gamma=float(config.resolved_hyperparams.get("gamma", 0.99)))
+
+
+def _prepare(config: TrainConfig) -> None:
+    """Every check that can fail before training: hyperparameter names, env arguments."""
+    algos.check_keys(config.algo, config.resolved_hyperparams)
+    probe_envs(config)
+
+
+def run(config: TrainConfig) -> dict:
+    """Train `config.algo` on `config.env_id` into the run folder; return the summary (also `summary.json`)."""
+    import torch
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    _prepare(config)
+    out = prepare_out(config)
+    _setup_logging(out)
+    write_json(out / "config.json", run_config_dict(config))
+    torch.set_num_threads(config.torch_threads)
+    venv = _wrap_normalize(config, VecMonitor(make_vec_env(config), str(out / "monitor.csv")))
+    model = _build_model(config, venv, out)
+    log.info("training %s on %s (%s) for %d steps, %d env(s), seed %d -> %s", config.algo, config.env_id,
+             config.dynamics, config.timesteps, config.n_envs, config.seed, out)
+    return _train(config, model, out, wall_offset=0.0)
+
+
+def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool | None = None) -> dict:
+    """Continue a run from its latest checkpoint up to `timesteps` (default: the run's own total)."""
+    import torch
+    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+
+    out = Path(run_dir)
+    config = load_run_config(out)
+    changes: dict = {"out": str(out), "overwrite": True}
+    if timesteps is not None:
+        changes["timesteps"] = timesteps
+    if progress_bar is not None:
+        changes["progress_bar"] = progress_bar
+    config = config.replace(**changes)
+    ckpt = latest_checkpoint(out)
+    if ckpt is None:
+        raise ValueError(f"{out} has no checkpoint (checkpoints/latest.json) to resume from; start a new run")
+    if ckpt["steps"] >= config.timesteps:
+        raise ValueError(f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
+                         f"--timesteps to train further")
+    _prepare(config)
+    _setup_logging(out)
+    write_json(out / "config.json", run_config_dict(config))
+    torch.set_num_threads(config.torch_threads)
+    venv = VecMonitor(make_vec_env(config, seed_offset=ckpt["steps"]), str(out / f"monitor_{ckpt['steps']}.csv"))
+    if ckpt["vecnormalize"]:
+        venv = VecNormalize.load(str(out / "checkpoints" / ckpt["vecnormalize"]), venv)
+        venv.training = True
+    spec = algos.get(config.algo)
+    model = spec.load_class().load(
+        out / "checkpoints" / ckpt["model"], env=venv, device=config.device,
+        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+    )
+    if ckpt["replay_buffer"]:
+        model.load_replay_buffer(out / "checkpoints" / ckpt["replay_buffer"])
+    truncate_curve(out / "learning_curve.csv", ckpt["steps"])
+    prev = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
+    log.info("resuming %s at %d steps, up to %d", out, ckpt["steps"], config.timesteps)
+    return _train(config, model, out, wall_offset=float(prev.get("wall_s", 0.0)))
+
+
+def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> dict:
+    from stable_baselines3.common.callbacks import CallbackList
+
+    from train.evaluation import evaluate
+
+    off_policy = algos.get(config.algo).off_policy
+    reference = evaluate(config.env_id, config.eval_env_kwargs, ZeroPolicy(), config.eval_seed,
+                         max(config.eval_episodes, 1), config.tolerance)
+    t0 = time.time()
+    start_steps = int(model.num_timesteps)
+    callbacks = CallbackList([
+        CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
+        PeriodicEval(config.eval_freq, _periodic_evaluator(config), out / "learning_curve.csv",
+                     out / "learning_curve.png", reference, t0, wall_offset),
+    ])
+    status = "done"
+    try:
+        model.learn(total_timesteps=config.timesteps - model.num_timesteps, callback=callbacks,
+                    progress_bar=config.progress_bar, reset_num_timesteps=False, tb_log_name=config.algo)
+    except KeyboardInterrupt:
+        status = "interrupted"
+        log.info("Ctrl-C at %d steps: saving", model.num_timesteps)
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not corrupt the save
+    try:
+        save_checkpoint(model, out, off_policy)
+        save_final(model, out)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        model.get_env().close()
+    wall = wall_offset + time.time() - t0
+    summary: dict[str, Any] = {"status": status, "timesteps": int(model.num_timesteps), "wall_s": round(wall, 1),
+                               "run_dir": str(out),
+                               "steps_per_s_this_session": round((model.num_timesteps - start_steps) / max(time.time() - t0, 1e-9), 1)}
+    if status == "done":
+        if config.eval_freq:
+            _final_curve_point(config, out, model, reference, t0, wall_offset)
+        if config.final_eval_episodes:
+            fe = final_evaluation(config, out)
+            summary["final_eval"] = {"agent": _drop_episodes(fe["agent"]), "zero": _drop_episodes(fe["zero"]),
+                                     "first_seed": fe["first_seed"], "episodes": fe["episodes"]}
+            log.info("final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, "
+                     "success %.0f%%", fe["first_seed"], fe["first_seed"] + fe["episodes"] - 1, config.dynamics,
+                     1e3 * fe["agent"]["median_rms_error_m"], 1e3 * fe["zero"]["median_rms_error_m"],
+                     1e3 * fe["agent"]["median_max_error_m"], 100 * fe["agent"]["success_rate"])
+    write_json(out / "summary.json", summary)
+    if status == "interrupted":
+        raise TrainingInterrupted(out, int(model.num_timesteps))
+    return summary
+
+
+def _final_curve_point(config, out, model, reference, t0, wall_offset) -> None:
+    """Add the last step to the learning curve unless the last evaluation was already there."""
+    from train.callbacks import append_curve_row, read_curve
+
+    rows = read_curve(out / "learning_curve.csv")
+    if rows and int(rows[-1]["timesteps"]) == model.num_timesteps:
+        return
+    s = _periodic_evaluator(config)(model)
+    append_curve_row(out / "learning_curve.csv", {
+        "timesteps": model.num_timesteps, "wall_s": round(wall_offset + time.time() - t0, 1),
+        **{k: s[k] for k in ("median_rms_error_m", "max_rms_error_m", "median_max_error_m", "max_max_error_m",
+                             "success_rate")}})
+    write_curve_png(out / "learning_curve.csv", out / "learning_curve.png", reference)
+
+
+def _drop_episodes(summary: dict) -> dict:
+    return {k: v for k, v in summary.items() if k != "episodes"}
+
