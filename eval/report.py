@@ -254,7 +254,10 @@ def print_table(results: dict, out: Path | None = None) -> None:
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
         table = Table(title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m); errors in mm")
         for h in CONSOLE_HEADER:
-            table.add_column(h, justify="left" if h == "policy" else "right")
+            if h == "policy":
+                table.add_column(h, justify="left", no_wrap=True)
+            else:
+                table.add_column(h, justify="right")
         for a in rows:
             table.add_row(*console_row(a))
         console.print(table)
