@@ -8,8 +8,6 @@ evaluation while training, where the live model and normaliser are evaluated wit
 
 from __future__ import annotations
 
-import json
-from pathlib import Path
 from typing import Any, Sequence
 
 import numpy as np
@@ -41,22 +39,3 @@ class Agent:
             action = action[None]
         return action, state
 
-
-def load_agent(run_dir: str | Path, device: str = "cpu") -> Agent:
-    """Rebuild the agent of a run folder: `model.zip`, `vecnormalize.pkl` (if present) and `config.json`."""
-    import pickle
-
-    from train import algos
-
-    run_dir = Path(run_dir)
-    cfg_path = run_dir / "config.json"
-    if not cfg_path.exists():
-        raise ValueError(f"{run_dir} has no config.json; pass a mobman-train run folder")
-    cfg = json.loads(cfg_path.read_text())
-    model = algos.get(cfg["algo"]).load_class().load(run_dir / "model.zip", device=device)
-    normalizer = None
-    if (run_dir / "vecnormalize.pkl").exists():
-        with open(run_dir / "vecnormalize.pkl", "rb") as f:
-            normalizer = pickle.load(f)
-        normalizer.training = False
-    return Agent(model, normalizer, cfg.get("wrappers", []), cfg["obs_keys"])

@@ -1,73 +1,119 @@
-"""Evaluations during and after training: tracking-error metrics of an agent on given seeds.
+"""Evaluations during and after training, through `eval` (its one rollout loop and its metrics).
 
-Episode k is run with `reset(seed=first_seed + k)`, as in `mobman-eval`, with the env's default settings for
-everything the config does not name (the learning-only arguments are dropped), so the numbers compare with the
-benchmark's.
+* Periodic (`evaluate`): the live agent (`train.agent.Agent`), in this process, on the held-out development
+  seeds, without writing files: `eval.rollout.rollout` per episode, `eval.metrics.aggregate` over them.
+* Final (`final_evaluation`): `eval.run` on the saved run folder (`sb3:DIR/model.zip`, loaded by
+  `policies.sb3.SB3Policy` exactly as `mobman-eval run` loads it) and `zero`, with the benchmark's env settings
+  (the learning-only env arguments dropped) on the reported seeds; its report goes to `DIR/final_eval/`, so
+  the printed `mobman-eval run` command reproduces the same numbers.
+
+Episode k uses `reset(seed=first_seed + k)`, as everywhere in the benchmark.
 """
 
 from __future__ import annotations
 
-import math
+from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 
-def rollout_errors(env: gym.Env, policy: Any, seed: int) -> np.ndarray:
-    """Run one episode with reset(seed=seed); return the noise-free tracking error after every step, m."""
-    obs, info = env.reset(seed=seed)
-    policy.reset(obs, info, seed=seed)
-    errors = []
-    episode_start = True
-    while True:
-        action, _ = policy.predict(obs, episode_start=np.array([episode_start]), deterministic=True)
-        episode_start = False
-        obs, _, terminated, truncated, info = env.step(action)
-        errors.append(info["tracking_error"])
-        if terminated or truncated:
-            return np.asarray(errors)
+def summarize(records: list[dict]) -> dict:
+    """Median / worst RMS and max tracking error (m) and success rate of episode records (eval's schema)."""
+    from eval import metrics as M
 
-
-def episode_metrics(errors: np.ndarray, tolerance: float) -> dict:
-    """RMS, max and final tracking error (m) and success (max <= tolerance) of one episode."""
+    agg = M.aggregate(records, group_keys=("policy",))[0]
+    ok = [r for r in records if r.get("status") == "ok"]
+    if not ok:
+        raise RuntimeError("every evaluation episode failed: " + str(records[0].get("error")))
     return {
-        "rms_error_m": float(math.sqrt(float(np.mean(np.square(errors))))),
-        "max_error_m": float(np.max(errors)),
-        "final_error_m": float(errors[-1]),
-        "success": bool(np.max(errors) <= tolerance),
-        "n_steps": int(len(errors)),
+        "n": agg["n"],
+        "n_failed": agg["n_failed"],
+        "median_rms_error_m": agg["rms_error_m"]["median"],
+        "max_rms_error_m": agg["rms_error_m"]["max"],
+        "median_max_error_m": agg["max_error_m"]["median"],
+        "max_max_error_m": agg["max_error_m"]["max"],
+        "success_rate": agg["success_rate"],
     }
 
 
-def evaluate(env_id: str, env_kwargs: dict, policy: Any, first_seed: int, episodes: int, tolerance: float) -> dict:
-    """Per-episode metrics and their summary (median / max over episodes, success rate)."""
-    env = gym.make(env_id, **env_kwargs)
+def evaluate(env_id: str, env_kwargs: dict, policy: Any, first_seed: int, episodes: int, tolerance: float,
+             name: str = "agent") -> dict:
+    """Roll `policy` out on seeds first_seed .. first_seed + episodes - 1 (in this process); the summary plus
+    the per-episode records under "episodes"."""
+    from eval.rollout import make_env, rollout
+
+    env = make_env(env_id, env_kwargs=env_kwargs)
     try:
-        rows = [
-            {"seed": first_seed + k, **episode_metrics(rollout_errors(env, policy, first_seed + k), tolerance)}
-            for k in range(episodes)
-        ]
+        records = [rollout(env, policy, first_seed + k, tolerance=tolerance, meta={"policy": name})[0]
+                   for k in range(episodes)]
     finally:
         env.close()
-    return {"episodes": rows, **summarize(rows)}
+    return {**summarize(records), "episodes": [_slim(r) for r in records]}
 
 
-def summarize(rows: list[dict]) -> dict:
-    rms = np.array([r["rms_error_m"] for r in rows])
-    mx = np.array([r["max_error_m"] for r in rows])
-    return {
-        "n": len(rows),
-        "median_rms_error_m": float(np.median(rms)),
-        "max_rms_error_m": float(np.max(rms)),
-        "median_max_error_m": float(np.median(mx)),
-        "max_max_error_m": float(np.max(mx)),
-        "success_rate": float(np.mean([r["success"] for r in rows])),
-    }
+def _slim(rec: dict) -> dict:
+    keys = ("seed", "status", "rms_error_m", "max_error_m", "final_error_m", "success", "n_steps", "terminated")
+    return {k: rec.get(k) for k in keys}
+
+
+def final_evaluation(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int,
+                     tolerance: float) -> dict:
+    """`eval.run` on the saved agent and `zero` (files in run_dir/final_eval); summaries per policy."""
+    from eval import EvalConfig
+    from eval import run as eval_run
+
+    cfg = eval_config(env_id, eval_env_kwargs, run_dir, first_seed, episodes, tolerance)
+    result = eval_run(cfg)
+    by_policy: dict[str, list[dict]] = {}
+    for rec in result.episodes:
+        by_policy.setdefault(rec["policy"], []).append(rec)
+    agent_spec, zero_spec = cfg.policies
+    return {"agent": {**summarize(by_policy[agent_spec]), "episodes": [_slim(r) for r in by_policy[agent_spec]]},
+            "zero": {**summarize(by_policy[zero_spec]), "episodes": [_slim(r) for r in by_policy[zero_spec]]},
+            "eval_out": str(cfg.out), "eval_config": _as_eval_config_dict(cfg), "eval_command": eval_command(cfg)}
+
+
+def eval_config(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int,
+                tolerance: float):
+    from eval import EvalConfig
+
+    kw = dict(eval_env_kwargs)
+    dynamics = kw.pop("dynamics", "physics")
+    model_error = kw.pop("model_error", None)
+    obs_noise = kw.pop("obs_noise", None)
+    return EvalConfig(envs=(env_id,), policies=(f"sb3:{Path(run_dir) / 'model.zip'}", "zero"), episodes=episodes,
+                      seed=first_seed, out=str(Path(run_dir) / "final_eval"), overwrite=True, dynamics=(dynamics,),
+                      model_error=model_error, obs_noise=obs_noise, env_kwargs=kw, tolerance=tolerance,
+                      save_arrays="first", progress=False)
+
+
+def eval_command(cfg) -> str:
+    """The `mobman-eval run` command line equivalent to an EvalConfig built by `eval_config`."""
+    import json
+    import shlex
+
+    parts = ["mobman-eval", "run", "--env", cfg.envs[0]]
+    for p in cfg.policies:
+        parts += ["--policy", p]
+    parts += ["--episodes", str(cfg.episodes), "--seed", str(cfg.seed), "--dynamics", cfg.dynamics[0]]
+    if cfg.model_error is not None:
+        parts += ["--model-error", repr(cfg.model_error)]
+    if cfg.obs_noise is not None:
+        parts += ["--obs-noise", repr(cfg.obs_noise)]
+    if cfg.env_kwargs:
+        parts += ["--env-kwargs", json.dumps(cfg.env_kwargs)]
+    if cfg.tolerance != 0.006:
+        parts += ["--tolerance", repr(cfg.tolerance)]
+    return " ".join(shlex.quote(p) for p in parts)
+
+
+def _as_eval_config_dict(cfg) -> dict:
+    return cfg.to_dict()
 
 
 class ZeroPolicy:
-    """Stand-still reference for the learning curve (the `zero` floor of the benchmark)."""
+    """Stand-still reference for the learning curve (the benchmark's `zero` floor)."""
 
     def reset(self, obs, info=None, *, seed=None):
         pass

@@ -188,38 +188,22 @@ def _periodic_evaluator(config: TrainConfig):
     def _evaluate(model: Any) -> dict:
         agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys)
         return evaluate(config.env_id, config.eval_env_kwargs, agent, config.eval_seed, config.eval_episodes,
-                        config.tolerance)
+                        config.tolerance, name=config.algo)
 
     return _evaluate
 
 
 def final_evaluation(config: TrainConfig, out: Path) -> dict:
-    """Evaluate the saved agent (`out/model.zip`) and `zero` with the benchmark's env settings on the reported
-    seeds; write `final_eval.json`."""
-    from train.agent import load_agent
-    from train.evaluation import evaluate
+    """Evaluate the saved agent (`out/model.zip`, through `eval.run` and `SB3Policy`) and `zero` with the
+    benchmark's env settings on the reported seeds; write `final_eval.json` (the report is in `final_eval/`)."""
+    from train.evaluation import final_evaluation as _final
 
-    agent = load_agent(out)
-    n, s = config.final_eval_episodes, config.final_eval_seed
-    result = {
-        "env_id": config.env_id, "env_kwargs": config.eval_env_kwargs, "first_seed": s, "episodes": n,
-        "tolerance_m": config.tolerance,
-        "agent": evaluate(config.env_id, config.eval_env_kwargs, agent, s, n, config.tolerance),
-        "zero": evaluate(config.env_id, config.eval_env_kwargs, ZeroPolicy(), s, n, config.tolerance),
-        "eval_command": eval_command(config, out),
-    }
+    result = _final(config.env_id, config.eval_env_kwargs, out, config.final_eval_seed,
+                    config.final_eval_episodes, config.tolerance)
+    result = {"env_id": config.env_id, "env_kwargs": config.eval_env_kwargs, "first_seed": config.final_eval_seed,
+              "episodes": config.final_eval_episodes, "tolerance_m": config.tolerance, **result}
     write_json(out / "final_eval.json", result)
     return result
-
-
-def eval_command(config: TrainConfig, out: Path) -> str:
-    """The `mobman-eval run` command that evaluates this agent on the same seeds and env settings."""
-    extra = {k: v for k, v in config.eval_env_kwargs.items() if k != "dynamics"}
-    cmd = (f"mobman-eval run --env {config.env_id} --policy sb3:{out / 'model.zip'} --policy zero "
-           f"--episodes {config.final_eval_episodes} --seed {config.final_eval_seed} --dynamics {config.dynamics}")
-    if extra:
-        cmd += f" --env-kwargs '{json.dumps(extra)}'"
-    return cmd
 
 
 # --- training ---------------------------------------------------------------------------------------------
@@ -311,7 +295,7 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
 
     off_policy = algos.get(config.algo).off_policy
     reference = evaluate(config.env_id, config.eval_env_kwargs, ZeroPolicy(), config.eval_seed,
-                         max(config.eval_episodes, 1), config.tolerance)
+                         max(config.eval_episodes, 1), config.tolerance, name="zero")
     t0 = time.time()
     start_steps = int(model.num_timesteps)
     callbacks = CallbackList([
@@ -328,7 +312,9 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
         log.info("Ctrl-C at %d steps: saving", model.num_timesteps)
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not corrupt the save
     try:
-        save_checkpoint(model, out, off_policy)
+        latest = latest_checkpoint(out)
+        if latest is None or latest["steps"] != model.num_timesteps:
+            save_checkpoint(model, out, off_policy)
         save_final(model, out)
     finally:
         signal.signal(signal.SIGINT, previous)
