@@ -9,14 +9,15 @@ folder written by `mobman-train`:
   exactly as `VecNormalize.normalize_obs` does: `clip((obs - mean) / sqrt(var + epsilon), -clip_obs,
   clip_obs)` cast to float32, with the saved `obs_rms`, `epsilon` and `clip_obs`, only for the keys in its
   `norm_obs_keys` (and only if `norm_obs` was on). The statistics are frozen: evaluation never updates them.
-* `config.json` (optional) - `"algo"`, `"env_id"`, `"env_kwargs"`, `"obs_keys"` (the Dict keys the agent sees:
-  the observation is filtered to them) and `"wrappers"` (a list of wrapper names or `{"name": ..., "kwargs":
-  {...}}` dicts, applied in order as training applied them per env, before `VecNormalize`). Observation
-  wrappers that are reproduced: `FilterObservation` (kwarg `filter_keys`) and `FlattenObservation` (the
-  filtered keys concatenated in sorted order, as gymnasium's `Dict` space orders them). Wrappers that do not
-  change what the agent sees at inference (`TimeLimit`, `Monitor`, `RecordEpisodeStatistics`, `ClipAction`,
-  reward and termination wrappers) are accepted and ignored; any other name is refused with the list, so a
-  mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own observation space are used.
+* `config.json` (optional) - `"algo"`, `"env_id"`, `"env_kwargs"`, `"obs_keys"` (the Dict keys the agent sees,
+  in order) and `"wrappers"` (names of observation wrappers, applied in order to the raw observation before
+  it is reduced to `obs_keys`, as `mobman-train` applies them per env before `VecNormalize`). Reproduced
+  here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32). Names of
+  wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
+  `RecordEpisodeStatistics`, `ClipAction`, reward wrappers) are accepted and ignored; any other name is
+  refused with the list, so a mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own
+  observation space are used. The kept keys are cast to float32 (the dtype the agent saw through the VecEnv's
+  buffers) before normalisation.
 
 The agent is stateless between steps (no recurrent policies), so `reset` does nothing and `predict` accepts an
 unbatched observation, a batch of one, or a longer batch (one action per env). torch and Stable-Baselines3 are
@@ -38,7 +39,18 @@ import numpy as np
 ALIASES = {"sac-circle": "models/sac-circle/model.zip"}
 
 ALGOS = ("ppo", "sac", "td3", "a2c", "ddpg")
-_OBS_WRAPPERS = ("FilterObservation", "FlattenObservation")
+
+
+def _pos_error(obs: dict) -> dict:
+    out = dict(obs)
+    out["pos_error"] = (np.asarray(obs["target_pos"]) - np.asarray(obs["ee_pos"])).astype(np.float32)
+    return out
+
+
+#: Observation wrappers reproduced at inference: name -> (transform of the raw dict, raw keys it reads).
+#: Same names and semantics as `mobman-train`'s `train.wrappers` (which may not be imported from here: the
+#: dependencies point mobman_env <- policies <- eval <- train).
+OBS_WRAPPERS = {"pos_error": (_pos_error, ("target_pos", "ee_pos"))}
 _NEUTRAL_WRAPPERS = ("TimeLimit", "Monitor", "RecordEpisodeStatistics", "ClipAction", "TransformReward",
                      "NormalizeReward", "ClipReward", "OrderEnforcing", "PassiveEnvChecker")
 
@@ -90,14 +102,20 @@ def _algo_from_zip(path: Path) -> str | None:
     return None
 
 
-def _wrapper_name(item: Any) -> tuple[str, dict]:
-    if isinstance(item, str):
-        return item.rsplit(".", 1)[-1], {}
-    if isinstance(item, dict):
-        name = item.get("name", item.get("type", item.get("class")))
-        if isinstance(name, str):
-            return name.rsplit(".", 1)[-1], dict(item.get("kwargs", {}))
-    raise ValueError(f"config.json 'wrappers' entries must be names or {{'name': ..., 'kwargs': {{...}}}}, got {item!r}")
+def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
+    """The observation wrappers to reproduce, in order (neutral ones dropped); unknown names fail."""
+    names = []
+    for item in items or []:
+        name = item.get("name") if isinstance(item, dict) else item
+        if not isinstance(name, str):
+            raise ValueError(f"{where}: 'wrappers' entries must be names, got {item!r}")
+        name = name.rsplit(".", 1)[-1]
+        if name in OBS_WRAPPERS:
+            names.append(name)
+        elif name not in _NEUTRAL_WRAPPERS:
+            raise ValueError(f"{where}: wrapper {name!r} cannot be reproduced at inference; supported: "
+                             f"{', '.join((*OBS_WRAPPERS, *_NEUTRAL_WRAPPERS))}")
+    return tuple(names)
 
 
 class SB3Policy:
@@ -115,7 +133,7 @@ class SB3Policy:
 
             torch.set_num_threads(int(torch_threads))
         self.model = self._load_model(device)
-        self._flatten = False
+        self.wrappers = _wrapper_names(self.config.get("wrappers"), self.run_dir / "config.json")
         self.obs_keys = self._observation_keys()
         self._load_normalisation()
 
@@ -147,29 +165,15 @@ class SB3Policy:
                          f"{self.run_dir / 'config.json'}. Errors: " + "; ".join(errors))
 
     def _observation_keys(self) -> tuple[str, ...] | None:
-        """The Dict keys the agent sees (None: the agent takes the whole observation unchanged)."""
-        model_space = self.model.observation_space
-        model_keys = tuple(getattr(model_space, "spaces", {}).keys()) or None
+        """The Dict keys the agent sees, in order (None: the agent takes the observation unchanged)."""
+        model_keys = tuple(getattr(self.model.observation_space, "spaces", {}).keys()) or None
         keys = self.config.get("obs_keys")
-        for item in self.config.get("wrappers", []) or []:
-            name, kwargs = _wrapper_name(item)
-            if name == "FilterObservation":
-                keys = kwargs.get("filter_keys", keys)
-            elif name == "FlattenObservation":
-                self._flatten = True
-            elif name not in _NEUTRAL_WRAPPERS:
-                raise ValueError(f"{self.run_dir / 'config.json'}: wrapper {name!r} cannot be reproduced at "
-                                 f"inference; supported: {', '.join(_OBS_WRAPPERS + _NEUTRAL_WRAPPERS)}")
         if keys is None:
             return model_keys
         keys = tuple(keys)
-        if self._flatten:
-            keys = tuple(sorted(keys))  # gymnasium's Dict space sorts its keys; flatten follows that order
-        elif model_keys is not None and set(keys) != set(model_keys):
+        if model_keys is not None and set(keys) != set(model_keys):
             raise ValueError(f"{self.run_dir / 'config.json'}: obs_keys {list(keys)} differ from the model's "
                              f"observation keys {list(model_keys)}")
-        elif model_keys is not None:
-            keys = model_keys
         return keys
 
     def _load_normalisation(self) -> None:
@@ -191,10 +195,18 @@ class SB3Policy:
         self._clip = float(vn.clip_obs)
 
     # --- checks ----------------------------------------------------------------------------------------
+    def required_keys(self) -> list[str]:
+        """The raw observation keys the agent needs (before its wrappers add derived keys)."""
+        derived = {name for name in self.wrappers}
+        needed = [k for k in (self.obs_keys or ()) if k not in derived]
+        for name in self.wrappers:
+            needed += [k for k in OBS_WRAPPERS[name][1] if k not in needed]
+        return needed
+
     def check_compatible(self, facts: Any) -> None:
         """Fail early (before any rollout) if the env lacks a key the agent needs or has another action size."""
-        if self.obs_keys is not None and facts.obs_keys:
-            missing = [k for k in self.obs_keys if k not in facts.obs_keys]
+        if facts.obs_keys:
+            missing = [k for k in self.required_keys() if k not in facts.obs_keys]
             if missing:
                 raise ValueError(f"the agent {self.path} needs observation keys {missing} that the env lacks "
                                  f"(env keys: {list(facts.obs_keys)})")
@@ -206,15 +218,14 @@ class SB3Policy:
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
         """Nothing to re-initialise: the agent is stateless between steps."""
 
-    def transform(self, observation: dict) -> Any:
-        """The observation as the agent saw it in training: filtered, wrapped and normalised."""
-        if self.obs_keys is not None and isinstance(observation, dict):
-            obs: Any = {k: np.asarray(observation[k]) for k in self.obs_keys}
-        else:
-            obs = observation
-        if self._flatten:
-            batched = np.asarray(obs[self.obs_keys[0]]).ndim == 2
-            obs = np.concatenate([np.asarray(obs[k], dtype=np.float32) for k in self.obs_keys], axis=-1 if batched else 0)
+    def transform(self, observation: Any) -> Any:
+        """The observation as the agent saw it in training: wrapped, reduced to `obs_keys`, normalised."""
+        obs = observation
+        if isinstance(obs, dict):
+            for name in self.wrappers:
+                obs = OBS_WRAPPERS[name][0](obs)
+            keys = self.obs_keys if self.obs_keys is not None else tuple(obs)
+            obs = {k: np.asarray(obs[k], dtype=np.float32) for k in keys}
         if self._norm is None:
             return obs
         eps, clip = self._eps, self._clip
@@ -223,7 +234,7 @@ class SB3Policy:
                 obs[k] = np.clip((obs[k] - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
             return obs
         mean, var = self._norm
-        return np.clip((obs - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
+        return np.clip((np.asarray(obs, dtype=np.float32) - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         return self.model.predict(self.transform(observation), state=state, episode_start=episode_start,
