@@ -1,0 +1,157 @@
+"""`SB3Policy`: a run folder (model.zip, vecnormalize.pkl, config.json) behind the Policy contract.
+
+The agent is a tiny SAC trained here for 200 steps: the test is about loading and observation processing
+(the same numbers the agent saw in training), not about learning.
+"""
+
+from __future__ import annotations
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import policies
+
+from conftest import SHORT_CIRCLE
+
+pytest.importorskip("stable_baselines3")
+
+OBS_KEYS = ["pos_error", "ee_vel", "target_vel", "joint_pos"]
+
+
+class _AgentView(gym.ObservationWrapper):
+    """What a mobman-train agent sees: `pos_error` added, then the dict reduced to OBS_KEYS."""
+
+    def __init__(self, env):
+        super().__init__(env)
+        spaces = dict(env.observation_space.spaces)
+        spaces["pos_error"] = gym.spaces.Box(-2000.0, 2000.0, (3,), np.float32)
+        self.observation_space = gym.spaces.Dict({k: spaces[k] for k in OBS_KEYS})
+
+    def observation(self, obs):
+        obs = dict(obs)
+        obs["pos_error"] = (obs["target_pos"] - obs["ee_pos"]).astype(np.float32)
+        return {k: obs[k] for k in OBS_KEYS}
+
+
+def _make_env():
+    return _AgentView(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    import torch
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    torch.set_num_threads(1)
+    out = tmp_path_factory.mktemp("run")
+    venv = VecNormalize(DummyVecEnv([_make_env]), norm_obs=True, norm_reward=False, clip_obs=5.0,
+                        norm_obs_keys=["pos_error", "ee_vel", "joint_pos"])  # target_vel left raw on purpose
+    venv.seed(0)
+    model = SAC("MultiInputPolicy", venv, learning_starts=100, batch_size=32, buffer_size=1000,
+                policy_kwargs={"net_arch": [16, 16]}, seed=0, device="cpu")
+    model.learn(200)
+    model.save(out / "model.zip")
+    venv.save(str(out / "vecnormalize.pkl"))
+    config = {"algo": "sac", "env_id": "WheeledPuma-Circle-v0", "env_kwargs": {"dynamics": "kinematic"},
+              "obs_keys": OBS_KEYS, "wrappers": ["pos_error"]}
+    (out / "config.json").write_text(json.dumps(config))
+    venv.close()
+    return out
+
+
+@pytest.fixture
+def env():
+    e = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE)
+    yield e
+    e.close()
+
+
+def _reference(run_dir, obs_batch):
+    """The action SB3 itself gives: VecNormalize.normalize_obs on the agent's view, then model.predict."""
+    import pickle
+
+    from stable_baselines3 import SAC
+
+    with open(run_dir / "vecnormalize.pkl", "rb") as f:
+        vn = pickle.load(f)
+    model = SAC.load(run_dir / "model.zip", device="cpu")
+    view = _AgentView.observation(None, obs_batch)
+    return model.predict(vn.normalize_obs(view), deterministic=True)[0], vn
+
+
+def test_sb3_policy_matches_sb3_on_the_agents_view(run_dir, env):
+    policy = policies.make(f"sb3:{run_dir / 'model.zip'}", env)
+    assert policy.algo == "sac" and policy.obs_keys == tuple(OBS_KEYS) and policy.wrappers == ("pos_error",)
+    obs, _ = env.reset(seed=10_000)
+    for _ in range(30):
+        batch = {k: v[None] for k, v in obs.items()}
+        expected, vn = _reference(run_dir, batch)
+        action, _ = policy.predict(batch)
+        np.testing.assert_array_equal(action, expected)
+        single, _ = policy.predict(obs)
+        np.testing.assert_array_equal(single, expected[0])
+        # only the normalised keys are normalised, exactly as VecNormalize does
+        mine = policy.transform(batch)
+        ref = vn.normalize_obs(_AgentView.observation(None, batch))
+        for k in OBS_KEYS:
+            np.testing.assert_array_equal(mine[k], ref[k])
+        np.testing.assert_array_equal(mine["target_vel"], batch["target_vel"])
+        obs, *_ = env.step(single)
+    assert np.any(np.abs(mine["joint_pos"]) > 0)
+
+
+def test_sb3_policy_runs_in_evaluate_policy_and_takes_longer_batches(run_dir):
+    from stable_baselines3.common.evaluation import evaluate_policy
+    from stable_baselines3.common.monitor import Monitor
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    factory = lambda: Monitor(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))  # noqa: E731
+    venv = DummyVecEnv([factory, factory])
+    try:
+        policy = policies.make(f"sb3:{run_dir}", venv)  # the run folder works as well as its model.zip
+        rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2, return_episode_rewards=True)
+        obs = venv.reset()
+        actions, _ = policy.predict(obs)
+    finally:
+        venv.close()
+    assert lengths == [100, 100] and all(np.isfinite(rewards))
+    assert actions.shape == (2, 8) and np.all(np.abs(actions) <= 1.0)
+
+
+def test_sb3_policy_finds_the_algorithm_without_config(run_dir, tmp_path, env):
+    import shutil
+
+    d = tmp_path / "bare"
+    d.mkdir()
+    shutil.copy(run_dir / "model.zip", d / "model.zip")
+    shutil.copy(run_dir / "vecnormalize.pkl", d / "vecnormalize.pkl")
+    cfg = json.loads((run_dir / "config.json").read_text())
+    del cfg["algo"]
+    (d / "config.json").write_text(json.dumps(cfg))
+    policy = policies.SB3Policy(d / "model.zip")
+    assert policy.algo == "sac"
+    obs, _ = env.reset(seed=10_001)
+    reference = policies.SB3Policy(run_dir / "model.zip")
+    np.testing.assert_array_equal(policy.predict(obs)[0], reference.predict(obs)[0])
+
+
+def test_sb3_policy_refuses_what_it_cannot_reproduce(run_dir, tmp_path, env):
+    import shutil
+
+    d = tmp_path / "odd"
+    d.mkdir()
+    shutil.copy(run_dir / "model.zip", d / "model.zip")
+    cfg = json.loads((run_dir / "config.json").read_text())
+    (d / "config.json").write_text(json.dumps({**cfg, "wrappers": ["pos_error", "FrameStack"]}))
+    with pytest.raises(ValueError, match="wrapper 'FrameStack' cannot be reproduced.*supported: pos_error"):
+        policies.make(f"sb3:{d / 'model.zip'}", env)
+    (d / "config.json").write_text(json.dumps({**cfg, "obs_keys": ["ee_pos", "ee_vel"]}))
+    with pytest.raises(ValueError, match="differ from the model's observation keys"):
+        policies.make(f"sb3:{d / 'model.zip'}", env)
+    (d / "config.json").write_text(json.dumps({**cfg, "algo": "dqn"}))
+    with pytest.raises(ValueError, match="unknown algo 'dqn'; accepted: ppo, sac, td3"):
+        policies.make(f"sb3:{d / 'model.zip'}", env)
