@@ -96,7 +96,10 @@ def make_policy(spec: str, env, seed: int | None):
     except FileNotFoundError as exc:
         raise EvalError(f"policy {spec!r}: model file not found: {exc}") from None
     except Exception as exc:
-        raise EvalError(f"policy {spec!r}: {exc} ({_known_policies_text()})") from None
+        msg = str(exc)
+        if "known" not in msg:
+            msg += f" ({_known_policies_text()})"
+        raise EvalError(f"policy {spec!r}: {msg}") from None
 
 
 def resolve_out(config: EvalConfig) -> Path:

@@ -1,0 +1,79 @@
+"""`mobman-eval paper` and `mobman-eval speed` end to end, at their smallest sizes (kinematic, one seed)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from eval import paper
+from eval.cli import main
+
+#: reported seed of this module (the paper command starts at 10,000 by design)
+PAPER_SEEDS = 1
+
+
+def test_paper_writes_figures_and_sets_claims_beside_measurements(tmp_path):
+    out = tmp_path / "paper"
+    rc = main(["paper", "--out", str(out), "--seeds", str(PAPER_SEEDS), "--dynamics", "kinematic", "--workers", "1",
+               "--quiet"])
+    assert rc == 0
+    for name in ("paper.md", "results.json", "summary.md", "fig2a_kinematic.png", "fig2b_kinematic.png",
+                 "fig3_kinematic.png"):
+        assert (out / name).is_file(), name
+    res = json.loads((out / "results.json").read_text())
+    policies = [a["policy"] for a in res["aggregate"]]
+    assert policies[:4] == ["nnbc", "jmpi", "oracle", "nnbc-full"]
+    assert {r["seed"] for r in res["episodes"]} == {10_000}
+    assert {r["env"] for r in res["episodes"]} == {"WheeledPuma-Circle-v0"}
+    md = (out / "paper.md").read_text()
+    # the path's size is measured from r_d, and the formula's is computed from the spec: both 0.80 x 0.69 x 0.40
+    assert "0.80 x 0.69 x 0.40 m (extent of r_d)" in md
+    assert "0.8 x 0.8 x 0.2 m" in md
+    nnbc = next(r for r in res["episodes"] if r["policy"] == "nnbc")
+    assert f"{nnbc['max_error_m'] * 1e3:.1f} mm" in md  # the measured number, not a constant
+    for claim in ("NNBC max error <= 6 mm (kinematic)", "JMPI fails (kinematic)", "## Where we differ, and why"):
+        assert claim in md
+
+
+def test_path_extent_and_formula():
+    spec = {"type": "circle", "radius": 0.4, "tilt": math.pi / 6}
+    np.testing.assert_allclose(paper.formula_extent(spec), [0.8, 0.8 * math.cos(math.pi / 6), 0.4])
+    s = np.linspace(0, 2 * math.pi, 2001)
+    r_d = np.c_[0.4 * np.cos(s) - 0.4, 0.4 * math.cos(math.pi / 6) * np.sin(s), 0.4 * math.sin(math.pi / 6) * np.sin(s)]
+    np.testing.assert_allclose(paper.path_extent(r_d), paper.formula_extent(spec), atol=1e-6)
+
+
+def test_paper_rejects_bad_seeds(tmp_path, capsys):
+    assert main(["paper", "--out", str(tmp_path / "p"), "--seeds", "0", "--quiet"]) == 2
+    assert "--seeds must be an integer >= 1" in capsys.readouterr().err
+
+
+def test_speed_writes_speed_json(tmp_path):
+    out = tmp_path / "speed"
+    rc = main(["speed", "--steps", "40", "--repeats", "1", "--episodes", "2", "--policy", "zero", "--policy",
+               "no-such-policy", "--out", str(out), "--quiet"])
+    assert rc == 0
+    res = json.loads((out / "speed.json").read_text())
+    blocks = {(b["dynamics"], b["n_substeps"]) for b in res["env"]}
+    assert blocks == {("kinematic", 2), ("physics", 2), ("physics", 4), ("physics", 10)}
+    for b in res["env"]:
+        assert b["env_steps_per_s"] > 0 and b["bare_steps_per_s"] > 0
+        assert b["ratio_env_to_bare"] == pytest.approx(b["env_steps_per_s"] / b["bare_steps_per_s"])
+    pred = {r["policy"]: r for r in res["predict"]}
+    assert pred["zero"]["status"] == "ok" and pred["zero"]["calls"] == 2000
+    assert pred["zero"]["predict_us_p99"] >= pred["zero"]["predict_us_median"] > 0
+    assert pred["no-such-policy"]["status"].startswith("skipped")
+    assert [(e["workers"], e["processes"]) for e in res["episodes"]] == [(1, 1), (2, 2)]
+
+
+def test_speed_module_entry_point_refuses_existing_out(tmp_path, capsys):
+    from eval import speed
+
+    out = tmp_path / "taken"
+    out.mkdir()
+    (out / "x").write_text("x")
+    assert speed.main(["--out", str(out), "--steps", "10"]) == 2
+    assert "--overwrite" in capsys.readouterr().err
