@@ -104,8 +104,10 @@ def append_curve_row(path: Path, row: dict) -> None:
 
 
 def truncate_curve(path: Path, max_timesteps: int) -> None:
-    """Drop rows after `max_timesteps` (a resumed run continues from its last checkpoint)."""
-    rows = [r for r in read_curve(path) if r["timesteps"] <= max_timesteps]
+    """Drop rows from `max_timesteps` on (a resumed run continues from its last checkpoint and evaluates the
+    checkpoint's model again: an evaluation at that step during the first session may have preceded the
+    last gradient update)."""
+    rows = [r for r in read_curve(path) if r["timesteps"] < max_timesteps]
     if Path(path).exists():
         lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
         atomic_write(path, "\n".join(lines) + "\n")

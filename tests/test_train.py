@@ -1,0 +1,270 @@
+"""mobman-train: config round trip, bad arguments, smoke training of every algorithm, reload through SB3Policy,
+resume, Ctrl-C, determinism. Tiny budgets (a few hundred steps) on a 1 s path in kinematic mode."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+from train.algos import ALGOS  # noqa: E402
+from train.cli import main  # noqa: E402
+from train.config import LEARNING_ENV_KWARGS, TrainConfig  # noqa: E402
+
+#: a 1 s version of the paper's circle (100 steps per episode)
+SHORT_PATH = {"type": "circle", "radius": 0.1, "tilt": 0.5236, "yaw": 3.1416, "duration": 1.0}
+#: small, fast hyperparameters per algorithm (the defaults are for real runs)
+TINY = {
+    "sac": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 32, "train_freq": 4, "gradient_steps": 2,
+            "policy_kwargs": {"net_arch": [32, 32]}},
+    "td3": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 32, "train_freq": 4, "gradient_steps": 2,
+            "policy_kwargs": {"net_arch": [32, 32]}},
+    "ppo": {"n_steps": 128, "batch_size": 64, "n_epochs": 2,
+            "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}}},
+}
+#: the final evaluation's seeds in these tests (reported range, as in real runs)
+FINAL_SEED = 10_000
+
+
+def tiny_config(algo: str, out: Path, **changes) -> TrainConfig:
+    fields = dict(
+        algo=algo, timesteps=300, seed=3, out=str(out), hyperparams=TINY[algo],
+        env_kwargs={**LEARNING_ENV_KWARGS, "path": SHORT_PATH}, eval_freq=150, eval_episodes=1,
+        final_eval_episodes=1, final_eval_seed=FINAL_SEED, checkpoint_freq=0, progress_bar=False,
+    )
+    fields.update(changes)
+    return TrainConfig(**fields)
+
+
+# --- config -------------------------------------------------------------------------------------------------
+def test_config_json_round_trip():
+    cfg = TrainConfig(algo="ppo", timesteps=1234, n_envs=2, seed=7, out="x", dynamics="physics",
+                      env_kwargs={"model_error": 0.0, "error_bound": 0.2}, hyperparams={"n_steps": 64,
+                      "policy_kwargs": {"net_arch": [8]}}, wrappers=("pos_error",), obs_keys=("pos_error", "time"),
+                      normalize_reward=False, tensorboard=True)
+    back = TrainConfig.from_json(cfg.to_json())
+    assert back == cfg
+    assert isinstance(back.obs_keys, tuple) and isinstance(back.wrappers, tuple)
+    assert TrainConfig.from_json(TrainConfig().to_json()) == TrainConfig()
+
+
+def test_config_unknown_field_is_refused():
+    with pytest.raises(ValueError, match="unknown TrainConfig field.*timestep"):
+        TrainConfig.from_dict({"timestep": 10})
+
+
+def test_every_algorithm_has_resolvable_defaults():
+    from train import algos
+
+    for name in ALGOS:
+        algos.check_keys(name, algos.resolve(name))
+
+
+@pytest.mark.parametrize(
+    "changes, match",
+    [
+        ({"algo": "dqn"}, "unknown algorithm 'dqn'; known: sac, td3, ppo"),
+        ({"env_id": "WheeledPuma-Circle-v9"}, "unknown env id.*WheeledPuma-Circle-v0"),
+        ({"timesteps": 0}, "timesteps must be an integer >= 1"),
+        ({"eval_seed": 10_000}, "development range"),
+        ({"dynamics": "fast"}, "unknown dynamics 'fast'; accepted: physics, kinematic"),
+        ({"env_kwargs": {"dynamics": "physics"}}, "--dynamics"),
+        ({"env_kwargs": {"max_speed": 1}}, "unknown env argument.*max_speed.*accepted"),
+        ({"wrappers": ("pos_err",)}, "unknown observation wrapper.*pos_error"),
+        ({"hyperparams": {"seed": 3}}, "set by mobman-train itself"),
+        ({"hyperparams": {"policy_kwargs": {"activation_fn": "swish"}}}, "unknown activation_fn 'swish'"),
+    ],
+)
+def test_config_rejects_bad_values(changes, match):
+    with pytest.raises(ValueError, match=match):
+        TrainConfig(**changes)
+
+
+# --- CLI: bad arguments fail before training ---------------------------------------------------------------
+@pytest.mark.parametrize(
+    "extra, match",
+    [
+        (["--timesteps", "0"], "timesteps must be an integer >= 1"),
+        (["--env", "Nope-v0"], "unknown env id 'Nope-v0'"),
+        (["--env-kwargs", "{bad json"], "not valid JSON"),
+        (["--env-kwargs", "[1, 2]"], "must be a JSON object"),
+        (["--env-kwargs", '{"model_error": -1}'], "model_error must be a finite number >= 0"),
+        (["--hyperparams", "missing.yaml"], "no such file"),
+        (["--hyperparams", "HP"], r"unknown hyperparameter\(s\) \['learning_rat'\] for sac; accepted: .*learning_rate"),
+        (["--seed", "-1"], "seed must be an integer >= 0"),
+    ],
+)
+def test_cli_bad_arguments_fail_before_training(tmp_path, capsys, extra, match):
+    hp = tmp_path / "hp.yaml"
+    hp.write_text("learning_rat: 0.001\n")
+    out = tmp_path / "run"
+    argv = ["--algo", "sac", "--out", str(out)] + [str(hp) if a == "HP" else a for a in extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "mobman-train: error:" in err
+    import re
+
+    assert re.search(match, err), err
+    assert not out.exists()  # nothing started
+
+
+def test_cli_unknown_algo_is_an_argparse_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--algo", "dqn"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'dqn'" in capsys.readouterr().err
+
+
+def test_cli_refuses_non_empty_out_and_bad_resume(tmp_path, capsys):
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "keep.txt").write_text("x")
+    assert main(["--out", str(out)]) == 2
+    assert "exists and is not empty; pass --overwrite" in capsys.readouterr().err
+    assert main(["--resume", str(tmp_path / "nowhere")]) == 2
+    assert "is not a run folder" in capsys.readouterr().err
+
+
+def test_hyperparams_file_zoo_style(tmp_path):
+    from train.cli import load_hyperparams
+
+    f = tmp_path / "hp.yml"
+    f.write_text("sac:\n  learning_rate: 0.001\nppo:\n  n_steps: 64\n")
+    assert load_hyperparams(str(f), "ppo") == {"n_steps": 64}
+    with pytest.raises(ValueError, match="not for --algo td3"):
+        load_hyperparams(str(f), "td3")
+
+
+# --- smoke training, reload, evaluate ---------------------------------------------------------------------
+@pytest.mark.parametrize("algo", sorted(ALGOS))
+def test_smoke_train_save_reload_evaluate(tmp_path, algo):
+    import gymnasium as gym
+
+    import policies
+    from eval.rollout import rollout
+    from train.run import run
+
+    out = tmp_path / algo
+    summary = run(tiny_config(algo, out))
+    assert summary["status"] == "done" and summary["timesteps"] >= 300
+    for name in ("model.zip", "vecnormalize.pkl", "config.json", "learning_curve.csv", "learning_curve.png",
+                 "final_eval.json", "summary.json", "monitor.csv", "checkpoints/latest.json"):
+        assert (out / name).is_file(), name
+    cfg = json.loads((out / "config.json").read_text())
+    for key in ("algo", "env_id", "env_kwargs", "obs_keys", "wrappers"):
+        assert key in cfg
+    assert cfg["algo"] == algo and cfg["wrappers"] == ["pos_error"]
+    curve = (out / "learning_curve.csv").read_text().splitlines()
+    assert len(curve) >= 3  # header, step 0, at least one later evaluation
+
+    # reload exactly as mobman-eval does, evaluate one short episode with the benchmark's settings
+    final = json.loads((out / "final_eval.json").read_text())
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_PATH)
+    try:
+        policy = policies.make(f"sb3:{out / 'model.zip'}", env)
+        rec, arrays = rollout(env, policy, FINAL_SEED)
+    finally:
+        env.close()
+    assert rec["status"] == "ok" and rec["n_steps"] == 100
+    # the final evaluation of the run is the same number mobman-eval gets
+    assert rec["rms_error_m"] == pytest.approx(final["agent"]["episodes"][0]["rms_error_m"], rel=0, abs=0)
+    assert final["zero"]["median_rms_error_m"] > 0
+
+
+def test_in_process_agent_matches_sb3policy(tmp_path):
+    """The live agent used for periodic evaluation sees exactly what SB3Policy rebuilds from the run folder."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import VecNormalize  # noqa: F401
+
+    import policies
+    from train.agent import Agent
+    from train.run import run
+
+    out = tmp_path / "sac"
+    run(tiny_config("sac", out, eval_freq=0, final_eval_episodes=0))
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_PATH)
+    try:
+        loaded = policies.make(f"sb3:{out}", env)
+        import pickle
+
+        with open(out / "vecnormalize.pkl", "rb") as f:
+            norm = pickle.load(f)
+        live = Agent(loaded.model, norm, ("pos_error",), json.loads((out / "config.json").read_text())["obs_keys"])
+        obs, _ = env.reset(seed=5)
+        for _ in range(20):
+            a1, _ = live.predict(obs)
+            a2, _ = loaded.predict(obs)
+            np.testing.assert_array_equal(a1, a2)
+            obs, *_ = env.step(a1)
+    finally:
+        env.close()
+
+
+def test_same_seed_same_result(tmp_path):
+    from train.run import run
+
+    a = run(tiny_config("sac", tmp_path / "a", eval_freq=0))
+    b = run(tiny_config("sac", tmp_path / "b", eval_freq=0))
+    assert a["final_eval"]["agent"]["median_rms_error_m"] == b["final_eval"]["agent"]["median_rms_error_m"]
+
+
+# --- resume and Ctrl-C ------------------------------------------------------------------------------------
+def test_resume_continues_to_the_new_total(tmp_path):
+    from train.callbacks import read_curve
+    from train.run import resume, run
+
+    out = tmp_path / "sac"
+    run(tiny_config("sac", out, timesteps=200, checkpoint_freq=100, final_eval_episodes=0, eval_freq=100))
+    first = json.loads((out / "checkpoints" / "latest.json").read_text())
+    assert first["steps"] == 200 and first["replay_buffer"] == "replay_buffer.pkl"
+    with pytest.raises(ValueError, match="already has 200 steps"):
+        resume(out, timesteps=200)
+    summary = resume(out, timesteps=350, progress_bar=False)
+    n = summary["timesteps"]
+    assert 350 <= n < 350 + TINY["sac"]["train_freq"]  # SB3 collects whole train_freq chunks
+    assert json.loads((out / "checkpoints" / "latest.json").read_text())["steps"] == n
+    assert json.loads((out / "config.json").read_text())["timesteps"] == 350
+    steps = [int(r["timesteps"]) for r in read_curve(out / "learning_curve.csv")]
+    assert steps == sorted(steps) and steps[0] == 0 and 200 in steps and steps[-1] == n
+    assert len(steps) == len(set(steps))  # the resumed step was not evaluated twice
+
+
+@pytest.mark.slow
+def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
+    """SIGINT to the whole process group (what a terminal's Ctrl-C does) with subprocess workers: the parent
+    saves and exits with 130; --resume then finishes the run."""
+    out = tmp_path / "run"
+    hp = tmp_path / "hp.json"
+    hp.write_text(json.dumps(TINY["td3"]))
+    cmd = [sys.executable, "-m", "train", "--algo", "td3", "--timesteps", "100000", "--n-envs", "2",
+           "--eval-freq", "0", "--final-eval-episodes", "0", "--out", str(out), "--no-progress",
+           "--hyperparams", str(hp), "--env-kwargs", json.dumps({"path": SHORT_PATH})]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline:  # wait until training runs (the monitor has episodes)
+            mon = out / "monitor.csv"
+            if mon.exists() and len(mon.read_text().splitlines()) > 6:
+                break
+            time.sleep(0.5)
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130, err
+    assert "interrupted at" in err and "--resume" in err
+    latest = json.loads((out / "checkpoints" / "latest.json").read_text())
+    assert 0 < latest["steps"] < 100_000
+    assert (out / "model.zip").is_file()
+    assert main(["--resume", str(out), "--timesteps", str(latest["steps"] + 200), "--no-progress"]) == 0
+    assert json.loads((out / "summary.json").read_text())["status"] == "done"
