@@ -92,6 +92,11 @@ class NNBCPlusConfig:
     j0_noise: float = 0.0
     """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
     test); drawn from the controller's RNG."""
+    pos_filter: float = 1.0
+    """Weight of the measured position in the fed-back end-effector position, 0 < pos_filter <= 1: each step
+    the estimate is advanced by the measured motion (dt * ee_vel, or J_hat dq with `measurement="position"`) and
+    pulled by pos_filter towards the measured ee_pos (a complementary filter; 1 = raw measurement). Below 1 it
+    filters sensor noise (`obs_noise`) out of the feedback."""
     lookahead: bool = True
     """Control with J_hat and r_d_dot extrapolated half a step (the command is held for the whole step)."""
 
@@ -102,6 +107,8 @@ class NNBCPlusConfig:
             raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
         if self.weighting not in ("none", "scale"):
             raise ValueError(f"weighting must be 'none' or 'scale', got {self.weighting!r}")
+        if not 0.0 < self.pos_filter <= 1.0:
+            raise ValueError(f"pos_filter must be in (0, 1], got {self.pos_filter!r}")
         if not 0.0 < self.forgetting <= 1.0:
             raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting!r}")
         for f in fields(self):
@@ -111,80 +118,120 @@ class NNBCPlusConfig:
 
 
 N_ACT = 8
+N_STATE = 2 * N_ACT  # one row of [J | J_dot]
+N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
+_SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
+
+
+def _solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Solve the 3x3 system A x = b by cofactors (several times faster than np.linalg.solve at this size)."""
+    (a, b_, c), (d, e, f), (g, h, i) = A.tolist()
+    c0, c1, c2 = e * i - f * h, f * g - d * i, d * h - e * g
+    det = a * c0 + b_ * c1 + c * c2
+    inv = np.array(
+        [[c0, c * h - b_ * i, b_ * f - c * e], [c1, a * i - c * g, c * d - a * f], [c2, b_ * g - a * h, a * e - b_ * d]]
+    )
+    return inv @ b / det
 
 
 class NNBCPlus(ControllerPolicy):
-    """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring."""
+    """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
+
+    After each step: `J_hat` (3x8) and `Jdot_hat` (3x8) are the current estimates, `P` the shared 16x16
+    covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
+    """
 
     name = "nnbc-plus"
     Config = NNBCPlusConfig
 
     def __init__(self, facts: EnvFacts, config: NNBCPlusConfig | None = None, seed: int | None = None, **extra: Any):
         if extra:
-            raise TypeError(f"NNBCPlus takes no extra arguments (it is model-free), got {sorted(extra)}")
+            raise TypeError(
+                f"NNBCPlus takes no extra arguments (it is model-free: EnvFacts and observations only), got "
+                f"{sorted(extra)}"
+            )
+        if len(facts.action_scale) != N_ACT:
+            raise ValueError(f"NNBCPlus drives {N_ACT} actuators, the env has {len(facts.action_scale)}")
         super().__init__(facts, seed=seed)
-        self.config = config if config is not None else NNBCPlusConfig()
-        c = self.config
-        dt = facts.dt
-        self._dt = dt
-        n2 = 2 * N_ACT
-        F = np.eye(n2)
+        if config is None:
+            config = NNBCPlusConfig()
+        if not isinstance(config, NNBCPlusConfig):
+            raise TypeError(f"config must be an NNBCPlusConfig, got {type(config).__name__}")
+        self.config = c = config
+        self._dt = dt = facts.dt
+        F = np.eye(N_STATE)
         F[:N_ACT, N_ACT:] = dt * np.eye(N_ACT)
-        self._F = F
-        self._FT = F.T.copy()
+        self._F, self._FT = F, F.T.copy()
         self._inv_lambda = 1.0 / c.forgetting
         self._r = c.meas_std**2
-        self._trace_max = c.p_max * n2
-        w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(N_ACT)
-        self._w = w
+        self._trace_max = c.p_max * N_STATE
+        self._w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(N_ACT)
         self._damp = c.damping * np.eye(3)
         self._whole = c.formulation == "whole_body"
         self._use_vel = c.measurement == "velocity"
-        # probe schedule: actuator i at +a on step 2i, -a on step 2i + 1
-        self._n_probe = 2 * N_ACT
-        self.J_hat = np.zeros((3, N_ACT))
-        self.Jdot_hat = np.zeros((3, N_ACT))
+        self._h = np.zeros(N_STATE)
+        self._P0 = np.diag(np.r_[np.full(N_ACT, c.p0_jacobian), np.full(N_ACT, c.p0_rate)])
+        self.X = np.zeros((3, N_STATE))
+        self.P = self._P0.copy()
+
+    @property
+    def J_hat(self) -> np.ndarray:
+        return self.X[:, :N_ACT]
+
+    @property
+    def Jdot_hat(self) -> np.ndarray:
+        return self.X[:, N_ACT:]
 
     # --- episode start ---------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
         self._k = 0
-        self._q0 = obs["joint_pos"][:6].copy()
+        q = obs["joint_pos"]
+        self._q0 = q[:6].copy()
         self._probe_x: list[np.ndarray] = []
         self._probe_y: list[np.ndarray] = []
-        self._prev_q = obs["joint_pos"].copy()
-        self._prev_r = self._task_pos(obs)
+        self._prev_q = q.copy()
+        self._prev_s = self._task_pos(obs)
+        self._s_f = self._prev_s.copy()
         self._prev_vd = obs["target_vel"].copy()
-        self.X = np.zeros((3, 2 * N_ACT))  # rows of [J_hat | J_dot_hat]
-        c = self.config
-        self.P = np.diag(np.r_[np.full(N_ACT, c.p0_jacobian), np.full(N_ACT, c.p0_rate)])
-        self.J_hat = self.X[:, :N_ACT]
-        self.Jdot_hat = self.X[:, N_ACT:]
+        self._td = np.zeros(3)
+        self._signs = np.empty((0, N_ACT))
+        self.X = np.zeros((3, N_STATE))
+        self.P = self._P0.copy()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
+        """The position J_hat's output integrates to: r_a (whole body) or r_a - [p_c; 0] (paper)."""
         r = obs["ee_pos"]
         if self._whole:
             return r.copy()
         pc = obs["arm_base_pos"]
         return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
 
-    def _measure(self, obs: dict) -> tuple[np.ndarray, np.ndarray]:
-        """(x, y): actuator speeds (8) and task velocity (3) with y = J x (see `measurement`)."""
+    def _measure(self, obs: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(x, y, ds): actuator speeds (8) and task velocity (3) with y = J x (see `measurement`), and the task
+        motion over the last step for the position filter."""
+        q = obs["joint_pos"]
+        s = self._task_pos(obs)
         if self._use_vel:
             x = obs["joint_vel"]
             y = obs["ee_vel"]
             if not self._whole:
                 v = obs["arm_base_vel"]
                 y = np.array([y[0] - v[0], y[1] - v[1], y[2]])
-            return x, y
-        q = obs["joint_pos"]
-        r = self._task_pos(obs)
-        x = (q - self._prev_q) / self._dt
-        y = (r - self._prev_r) / self._dt
+            ds = self._dt * y
+        else:
+            dq = q - self._prev_q
+            x = dq / self._dt
+            y = (s - self._prev_s) / self._dt
+            ds = self.X[:, :N_ACT] @ dq
         self._prev_q = q.copy()
-        self._prev_r = r
-        return x, y
+        self._prev_s = s
+        a = self.config.pos_filter
+        self._s_f += ds
+        self._s_f += a * (s - self._s_f)
+        return x, y, ds
 
     def _finish_probe(self) -> None:
+        """J_hat(0): least squares over the probe's (x, y) pairs; J_dot_hat(0) = 0."""
         X = np.array(self._probe_x).T  # (8, n)
         Y = np.array(self._probe_y).T  # (3, n)
         A = X @ X.T
@@ -195,60 +242,63 @@ class NNBCPlus(ControllerPolicy):
         self.X[:, :N_ACT] = J0
         self.X[:, N_ACT:] = 0.0
 
+    def _kalman(self, x: np.ndarray, y: np.ndarray) -> None:
+        """Predict [J | J_dot] one step (constant rate, forgetting), then update all rows with y = J x."""
+        dt = self._dt
+        X = self.X
+        X[:, :N_ACT] += dt * X[:, N_ACT:]
+        P = self._F @ self.P @ self._FT
+        P *= self._inv_lambda
+        h = self._h
+        h[:N_ACT] = x
+        if not self._use_vel:
+            h[N_ACT:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
+        Ph = P @ h
+        K = Ph / (h @ Ph + self._r)
+        X += np.outer(y - X @ h, K)
+        P -= np.outer(K, Ph)
+        P += P.T
+        P *= 0.5
+        tr = P.trace()
+        if tr > self._trace_max:
+            P *= self._trace_max / tr
+        self.P = P
+
     # --- one step --------------------------------------------------------------------------------------
     def _act(self, obs: dict) -> np.ndarray:
         k = self._k
         self._k = k + 1
-        dt = self._dt
         c = self.config
-        x, y = self._measure(obs)
-        if k <= self._n_probe:
+        x, y, _ = self._measure(obs)
+        if k <= N_PROBE:
             if k > 0:
                 self._probe_x.append(np.array(x, dtype=float))
                 self._probe_y.append(np.array(y, dtype=float))
-            if k < self._n_probe:
+            if k < N_PROBE:
+                self._prev_vd = obs["target_vel"].copy()
                 u = np.zeros(N_ACT)
                 u[k // 2] = c.probe_speed if k % 2 == 0 else -c.probe_speed
                 return u
             self._finish_probe()
         else:
-            # --- Kalman filter: predict (constant rate, forgetting), then update with y = [J | J_dot] h
-            P = self._F @ self.P @ self._FT
-            P *= self._inv_lambda
-            X = self.X
-            X[:, :N_ACT] += dt * X[:, N_ACT:]
-            if self._use_vel:
-                h = np.concatenate((x, np.zeros(N_ACT)))
-            else:
-                h = np.concatenate((x, -0.5 * dt * x))  # the finite difference holds at the interval's middle
-            Ph = P @ h
-            s = h @ Ph + self._r
-            K = Ph / s
-            innov = y - X @ h
-            X += np.outer(innov, K)
-            P -= np.outer(K, Ph)
-            P += P.T
-            P *= 0.5
-            tr = np.trace(P)
-            if tr > self._trace_max:
-                P *= self._trace_max / tr
-            self.P = P
-        # --- control
-        J = self.X[:, :N_ACT]
+            self._kalman(x, y)
+        # --- control: u = z + J_c^+ (v - J_c z)
+        X = self.X
         vd = obs["target_vel"]
         if c.lookahead:
-            Jc = J + (0.5 * dt) * self.X[:, N_ACT:]
-            v = vd + 0.5 * (vd - self._prev_vd)
+            Jc = X[:, :N_ACT] + (0.5 * self._dt) * X[:, N_ACT:]
+            v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
         else:
-            Jc = J
+            Jc = X[:, :N_ACT]
             v = vd.copy()
         self._prev_vd = vd.copy()
-        r = obs["ee_pos"]
-        v += c.gamma * (obs["target_pos"] - r)
+        s_d = obs["target_pos"]
         if not self._whole:
-            pv = obs["arm_base_vel"]
+            pc, pv = obs["arm_base_pos"], obs["arm_base_vel"]
+            s_d = np.array([s_d[0] - pc[0], s_d[1] - pc[1], s_d[2]])
             v[0] -= pv[0]
             v[1] -= pv[1]
+        v += c.gamma * (s_d - self._s_f)
         if c.task_dither > 0:
             if k % 2 == 0:
                 self._td = c.task_dither * (2.0 * self.rng.integers(0, 2, 3) - 1.0)
@@ -257,9 +307,12 @@ class NNBCPlus(ControllerPolicy):
                 v -= self._td
         z = np.zeros(N_ACT)
         if c.dither > 0:
-            z += c.dither * (2.0 * self.rng.integers(0, 2, N_ACT) - 1.0)
+            if not len(self._signs):
+                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, N_ACT)) - 1.0
+            z += c.dither * self._signs[0]
+            self._signs = self._signs[1:]
         if c.posture_gain > 0:
             z[:6] -= c.posture_gain * (obs["joint_pos"][:6] - self._q0)
         JW = Jc * self._w
-        lam = np.linalg.solve(JW @ Jc.T + self._damp, v - Jc @ z)
+        lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z)
         return z + JW.T @ lam
