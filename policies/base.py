@@ -84,8 +84,11 @@ class EnvFacts:
         return np.asarray(self.action_scale, dtype=float)
 
 
-def unbatch(observation: dict) -> tuple[dict, bool]:
-    """Return (single observation with 1-D float64 arrays, whether the input was a batch of one)."""
+def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dict, bool]:
+    """Return (single observation with 1-D float64 arrays, whether the input was a batch of one).
+
+    `keys`: convert only these keys (a controller's hot path needs a few of the ten); None: all of them.
+    """
     if not isinstance(observation, dict):
         raise ValueError(f"observation must be a dict (the env's Dict observation), got {type(observation).__name__}")
     first = np.asarray(observation.get("ee_pos", next(iter(observation.values()))))
@@ -95,9 +98,10 @@ def unbatch(observation: dict) -> tuple[dict, bool]:
             f"controllers are single-env: got a batch of {first.shape[0]} observations; use one env (DummyVecEnv "
             f"with n_envs=1) or one controller per env"
         )
+    items = observation.items() if keys is None else ((k, observation[k]) for k in keys)
     if batched:
-        return {k: np.asarray(v, dtype=float)[0] for k, v in observation.items()}, True
-    return {k: np.asarray(v, dtype=float) for k, v in observation.items()}, False
+        return {k: np.asarray(v, dtype=float)[0] for k, v in items}, True
+    return {k: np.asarray(v, dtype=float) for k, v in items}, False
 
 
 def first_flag(episode_start: Any) -> bool:
@@ -115,6 +119,8 @@ class ControllerPolicy:
     """
 
     name = "controller"
+    #: observation keys `_reset`/`_act` read (None: all); only these are converted on the hot path
+    uses_keys: tuple[str, ...] | None = None
 
     def __init__(self, facts: EnvFacts, seed: int | None = None):
         self.facts = facts
@@ -128,18 +134,19 @@ class ControllerPolicy:
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
         if seed is not None:
             self.rng = np.random.default_rng(seed)
-        single, _ = unbatch(obs)
+        single, _ = unbatch(obs, self.uses_keys)
         self.last_u = np.zeros(len(self._scale))
         self._reset(single)
         self._initialised = True
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
-        single, batched = unbatch(observation)
+        single, batched = unbatch(observation, self.uses_keys)
         if first_flag(episode_start) or not self._initialised:
             self.last_u = np.zeros(len(self._scale))
             self._reset(single)
             self._initialised = True
-        u = np.clip(self._act(single), -self._scale, self._scale)
+        # np.minimum(np.maximum(...)) is np.clip at a third of its cost for an 8-vector
+        u = np.minimum(np.maximum(self._act(single), -self._scale), self._scale)
         self.last_u = u
         action = (u / self._scale).astype(np.float32)
         return (action[None] if batched else action), state

@@ -90,6 +90,7 @@ class JMPI(_ModelPolicy):
     """
 
     name = "jmpi"
+    uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")
 
     def __init__(self, facts: EnvFacts, config: JMPIConfig | None = None, seed: int | None = None, *,
                  nominal_params: Any = None, **extra: Any):
@@ -118,6 +119,7 @@ class Oracle(_ModelPolicy):
     """
 
     name = "oracle"
+    uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel", "target_pos", "ee_pos")
 
     def __init__(self, facts: EnvFacts, config: OracleConfig | None = None, seed: int | None = None, *,
                  params_provider: Callable[[], Any] | None = None, **extra: Any):

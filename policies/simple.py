@@ -37,6 +37,7 @@ class Zero(ControllerPolicy):
     """Always commands zero speed."""
 
     name = "zero"
+    uses_keys = ()
 
     def __init__(self, facts: EnvFacts, config: ZeroConfig | None = None, seed: int | None = None, **extra: Any):
         if extra:
@@ -56,6 +57,7 @@ class Random(ControllerPolicy):
     """Uniform random actions from the controller's own Generator (`reset(seed=...)` makes them repeatable)."""
 
     name = "random"
+    uses_keys = ()
 
     def __init__(self, facts: EnvFacts, config: RandomConfig | None = None, seed: int | None = None, **extra: Any):
         if extra:
