@@ -51,7 +51,7 @@ MEASUREMENTS = ("velocity", "position")
 class NNBCPlusConfig:
     """Gains of `NNBCPlus`; defaults tuned on development seeds 0-999 only (see the module docstring)."""
 
-    gamma: float = 10.0
+    gamma: float = 20.0
     """Task-space feedback gain, 1/s: v = r_d_dot + gamma (r_d - r_a) (the paper's gamma)."""
     formulation: str = "whole_body"
     """"whole_body": J_hat maps u to the whole r_a_dot (the platform's translation is learnt, so it can drive);
@@ -78,11 +78,11 @@ class NNBCPlusConfig:
     singularities and when J_hat is poor)."""
     dither: float = 0.05
     """Amplitude of the random-sign null-space excitation, rad/s per actuator (0 turns it off)."""
-    task_dither: float = 0.0
+    task_dither: float = 0.01
     """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
     task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
-    posture_gain: float = 0.0
+    posture_gain: float = 2.0
     """Null-space pull of the 6 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
     weighting: str = "none"
     """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
@@ -92,7 +92,7 @@ class NNBCPlusConfig:
     j0_noise: float = 0.0
     """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
     test); drawn from the controller's RNG."""
-    pos_filter: float = 1.0
+    pos_filter: float = 0.1
     """Weight of the measured position in the fed-back end-effector position, 0 < pos_filter <= 1: each step
     the estimate is advanced by the measured motion (dt * ee_vel, or J_hat dq with `measurement="position"`) and
     pulled by pos_filter towards the measured ee_pos (a complementary filter; 1 = raw measurement). Below 1 it

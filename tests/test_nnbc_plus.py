@@ -1,0 +1,179 @@
+"""`nnbc-plus` (policies/nnbc_plus.py): the model-free controller that fixes the paper's NNBC (issue 6).
+
+Kinematic mode, full 20 s episodes, a few reported seeds per claim (DESIGN "Seeds": the gains were tuned on seeds
+0-999 only). The claims asserted here are the issue's targets on a reduced seed set: every task tracked within
+the paper's 6 mm, also from a J_hat(0) perturbed by 50% of its norm, with 1 mm position noise and with 10% model
+error.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mobman_env
+from mobman_env import kinematics as K
+from policies.base import EnvFacts
+from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
+
+REPORTED_SEEDS = range(10_000, 10_005)
+TOLERANCE = 0.006  # m: the paper's maximum error, the success criterion of the issue
+TASKS = ("Circle", "Line", "Lemniscate", "Random")
+
+
+def make_env(task: str, **kwargs) -> gym.Env:
+    return gym.make(f"WheeledPuma-{task}-v0", dynamics="kinematic", **kwargs)
+
+
+def rollout(env: gym.Env, policy: NNBCPlus, seed: int, n_steps: int | None = None) -> dict:
+    """One episode; returns the true (noise-free) tracking errors and the last info."""
+    obs, info = env.reset(seed=seed)
+    policy.reset(obs, info, seed=seed)
+    errors, actions = [], []
+    while True:
+        action, _ = policy.predict(obs)
+        actions.append(action)
+        obs, _, terminated, truncated, info = env.step(action)
+        errors.append(info["tracking_error"])
+        if terminated or truncated or (n_steps is not None and len(errors) >= n_steps):
+            break
+    e = np.asarray(errors)
+    return {"max": float(e.max()), "rms": float(np.sqrt(np.mean(e**2))), "actions": np.array(actions), "info": info}
+
+
+def run_seeds(task: str, config: NNBCPlusConfig | None = None, **env_kwargs) -> list[dict]:
+    env = make_env(task, **env_kwargs)
+    try:
+        policy = NNBCPlus(EnvFacts.from_env(env), config)
+        return [rollout(env, policy, seed) for seed in REPORTED_SEEDS]
+    finally:
+        env.close()
+
+
+# --- accuracy claims ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("task", TASKS)
+def test_tracks_every_task_within_the_papers_6mm(task):
+    results = run_seeds(task)
+    worst = [round(r["max"] * 1e3, 2) for r in results]
+    assert all(r["max"] <= TOLERANCE for r in results), f"{task}: max errors (mm) over seeds {worst}"
+    if task == "Circle":
+        median_rms = np.median([r["rms"] for r in results])
+        assert median_rms <= 0.5e-3, f"Circle median RMS {median_rms * 1e3:.3f} mm > 0.5 mm"
+
+
+def test_robust_to_a_50_percent_perturbed_initial_jacobian():
+    results = run_seeds("Circle", NNBCPlusConfig(j0_noise=0.5))
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_position_noise_of_1mm_keeps_the_true_error_within_6mm():
+    results = run_seeds("Circle", obs_noise=0.001)
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_position_filter_reduces_the_effect_of_noise():
+    """The complementary filter (pos_filter) is what keeps noisy feedback small: off, the error is larger."""
+    env = make_env("Circle", obs_noise=0.001)
+    try:
+        facts = EnvFacts.from_env(env)
+        seed = REPORTED_SEEDS[0]
+        on = rollout(env, NNBCPlus(facts), seed)
+        off = rollout(env, NNBCPlus(facts, NNBCPlusConfig(pos_filter=1.0)), seed)
+    finally:
+        env.close()
+    assert on["rms"] < 0.8 * off["rms"], (on["rms"], off["rms"])
+
+
+def test_ten_percent_model_error_changes_nothing():
+    results = run_seeds("Circle", model_error=0.10)
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+# --- the estimator -----------------------------------------------------------------------------------------
+def test_probe_recovers_the_true_whole_body_jacobian():
+    """After the 16 probe steps J_hat equals the true whole-body Jacobian to 1% of its norm (the probe is the
+    only source of J_hat(0): no model is read)."""
+    env = make_env("Circle")
+    try:
+        policy = NNBCPlus(EnvFacts.from_env(env), NNBCPlusConfig(dither=0.0, task_dither=0.0))
+        rollout(env, policy, REPORTED_SEEDS[0], n_steps=17)
+        base = env.unwrapped
+        state = base.sim.state()
+        J = K.whole_body_jacobian(base.true_params, state.joint_pos[:6], state.base_pose[2])
+    finally:
+        env.close()
+    assert np.linalg.norm(policy.J_hat - J) <= 0.01 * np.linalg.norm(J)
+
+
+def test_the_estimate_follows_the_true_jacobian_in_every_direction():
+    """The paper's failure mode: J_hat's smallest singular value collapses while the true one does not. Here
+    J_hat stays close to the true Jacobian over the whole circle (every direction is kept fresh)."""
+    env = make_env("Circle")
+    try:
+        policy = NNBCPlus(EnvFacts.from_env(env))
+        obs, info = env.reset(seed=REPORTED_SEEDS[1])
+        policy.reset(obs, info, seed=REPORTED_SEEDS[1])
+        base = env.unwrapped
+        rel_errors, sv_ratio = [], []
+        for k in range(2000):
+            action, _ = policy.predict(obs)
+            obs, _, terminated, truncated, info = env.step(action)
+            if k > 50 and k % 50 == 0:
+                state = base.sim.state()
+                J = K.whole_body_jacobian(base.true_params, state.joint_pos[:6], state.base_pose[2])
+                rel_errors.append(np.linalg.norm(policy.J_hat - J) / np.linalg.norm(J))
+                sv_ratio.append(np.linalg.svd(policy.J_hat, compute_uv=False)[-1] / np.linalg.svd(J, compute_uv=False)[-1])
+            if terminated or truncated:
+                break
+    finally:
+        env.close()
+    assert max(rel_errors) < 0.1, f"largest relative error of J_hat: {max(rel_errors):.3f}"
+    assert 0.8 < min(sv_ratio) and max(sv_ratio) < 1.25, (min(sv_ratio), max(sv_ratio))
+
+
+# --- contract ----------------------------------------------------------------------------------------------
+def test_same_seed_same_actions_and_episode_start_reinitialises():
+    env = make_env("Random")
+    try:
+        facts = EnvFacts.from_env(env)
+        policy = NNBCPlus(facts)
+        first = rollout(env, policy, 3, n_steps=120)["actions"]
+        again = rollout(env, NNBCPlus(facts), 3, n_steps=120)["actions"]
+        np.testing.assert_array_equal(first, again)
+        # SB3 never calls reset(): a batched predict with episode_start=[True] must re-initialise the same way
+        obs, _ = env.reset(seed=3)
+        policy.reset(obs, seed=3)
+        a1, _ = policy.predict(obs)
+        policy.rng = np.random.default_rng(3)  # same RNG state as reset(seed=3) gives
+        batched = {k: v[None] for k, v in obs.items()}
+        a2, _ = policy.predict(batched, episode_start=np.array([True]))
+        np.testing.assert_array_equal(a1, a2[0])
+    finally:
+        env.close()
+
+
+def test_model_free_construction_and_config_validation():
+    facts = EnvFacts(dt=0.01, action_scale=(3, 3, 3, 5, 5, 5, 10, 10), obs_keys=mobman_env.OBS_KEYS)
+    with pytest.raises(TypeError, match="model-free"):
+        NNBCPlus(facts, nominal_params=object())
+    with pytest.raises(ValueError, match="formulation"):
+        NNBCPlusConfig(formulation="full")
+    with pytest.raises(ValueError, match="forgetting"):
+        NNBCPlusConfig(forgetting=1.5)
+    with pytest.raises(ValueError, match="gamma"):
+        NNBCPlusConfig(gamma=-1.0)
+    cfg = NNBCPlusConfig()
+    assert dataclasses.is_dataclass(cfg)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.gamma = 1.0  # type: ignore[misc]
+    # every gain is documented in the class source (one docstring per field)
+    import inspect
+
+    src = inspect.getsource(NNBCPlusConfig)
+    for f in dataclasses.fields(NNBCPlusConfig):
+        line = next(ln for ln in src.splitlines() if ln.strip().startswith(f"{f.name}:"))
+        after = src.split(line, 1)[1].lstrip()
+        assert after.startswith('"""'), f"config field {f.name} has no docstring"
