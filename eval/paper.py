@@ -290,6 +290,9 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
             continue
         line = (f"* **NNBC, {dyn}:** above 6 mm in {a['n'] - n_ok}/{a['n']} seeds (median {_mm(med)}, worst "
                 f"{_mm(max(errs))}).")
+        if a.get("n_tipped_over"):
+            line += (f" In {a['n_tipped_over']} of them the platform tipped over (roll or pitch > 30 deg) and the "
+                     f"episode ended early.")
         if o is not None and o["max_error_m"]["median"] is not None:
             om = o["max_error_m"]["median"]
             setting = ("contact dynamics, wheel slip and torque-limited motors" if dyn == "physics"

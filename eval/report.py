@@ -13,6 +13,30 @@ Files of one run directory:
 
 Every file is written to a temporary name in the same directory and renamed (`os.replace`), so a crash never
 leaves a half-written file and never destroys the previous version of a file before the new one is complete.
+
+## results.json, schema 1 (SI units: m, s, rad/s; NaN/inf are written as null)
+
+```
+{"schema": 1,
+ "config": {...},            # the resolved EvalConfig (as config.json), plus "policy_objects" {name: class}
+ "versions": {"python", "mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "stable-baselines3", "torch"},
+ "git": "<sha>[-dirty]" | "unknown",
+ "wall_s": float,            # time spent running the episodes
+ "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
+   {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
+    "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
+    "status": "ok" | "failed", "error": traceback | null,
+    "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
+    "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
+    "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success",
+    "predict_us_median", "predict_us_p99" (whole predict call, microseconds), "wall_s", "pid",
+    "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
+ "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
+   {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
+    "max_error_m" | "rms_error_m" | "final_error_m" | "effort" | "peak_joint_speed" | "peak_wheel_speed" |
+    "predict_us_median" | "predict_us_p99": {"median", "mean", "std", "min", "max"}}]}   # over status-ok episodes
+```
+Comparisons across workers or machines skip `wall_s`, `pid` and `predict_us_*`.
 """
 
 from __future__ import annotations
@@ -181,7 +205,7 @@ def _num(x: float | None, fmt: str = "{:.2f}") -> str:
     return "-" if x is None else fmt.format(x)
 
 
-SUMMARY_HEADER = ("policy", "n", "failed", "success", "max err median (mm)", "max err mean ± std (mm)",
+SUMMARY_HEADER = ("policy", "n", "failed", "tipped over", "success", "max err median (mm)", "max err mean ± std (mm)",
                   "rms median (mm)", "final median (mm)", "effort median (s)", "peak joint (rad/s)",
                   "peak wheel (rad/s)", "predict median / p99 (µs)")
 
@@ -189,7 +213,8 @@ SUMMARY_HEADER = ("policy", "n", "failed", "success", "max err median (mm)", "ma
 def summary_row(a: dict) -> list[str]:
     me = a["max_error_m"]
     return [
-        str(a["policy"]), str(a["n"]), str(a["n_failed"]), f"{a['success_rate'] * 100:.0f}%",
+        str(a["policy"]), str(a["n"]), str(a["n_failed"]), str(a.get("n_tipped_over", 0)),
+        f"{a['success_rate'] * 100:.0f}%",
         _mm(me["median"]),
         "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
         _mm(a["rms_error_m"]["median"]), _mm(a["final_error_m"]["median"]),
@@ -236,13 +261,13 @@ def summary_markdown(results: dict) -> str:
     return "\n".join(lines)
 
 
-CONSOLE_HEADER = ("policy", "n", "failed", "success", "max err median", "max err mean ± std", "rms median",
+CONSOLE_HEADER = ("policy", "n", "failed", "tipped", "success", "max median", "max mean ± std", "rms median",
                   "final median", "predict µs")
 
 
 def console_row(a: dict) -> list[str]:
     full = summary_row(a)
-    return full[:8] + [_num(a["predict_us_median"]["median"], "{:.0f}")]
+    return full[:9] + [_num(a["predict_us_median"]["median"], "{:.0f}")]
 
 
 def print_table(results: dict, out: Path | None = None) -> None:

@@ -223,7 +223,8 @@ def print_table(res: dict) -> None:
         t.add_column(h, justify="left" if h in ("policy", "status") else "right")
     for r in res["predict"]:
         t.add_row(r["policy"], f"{r['predict_us_median']:.0f}" if "predict_us_median" in r else "-",
-                  f"{r['predict_us_p99']:.0f}" if "predict_us_p99" in r else "-", r["status"])
+                  f"{r['predict_us_p99']:.0f}" if "predict_us_p99" in r else "-",
+                  r["status"].split(":")[0] + (" (reason in speed.json)" if r["status"] != "ok" else ""))
     c.print(t)
     t = Table(title="episodes/s (20 s kinematic nnbc episodes, worker start-up included)")
     for h in ("workers", "processes", "episodes", "episodes/s", "env steps/s incl. policy", "wall s"):

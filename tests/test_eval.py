@@ -270,3 +270,13 @@ def test_video_of_episode_0(tmp_path):
     result = run(_config(tmp_path, policies=("zero",), episodes=1, video=True))
     videos = list((result.out / "videos").iterdir())
     assert len(videos) == 1 and videos[0].suffix in (".mp4", ".gif") and videos[0].stat().st_size > 1000
+
+
+def test_both_dynamics_modes_are_separate_conditions_on_the_same_robots(tmp_path):
+    result = run(_config(tmp_path, policies=("zero", "nnbc"), episodes=1, dynamics=("kinematic", "physics")))
+    assert [(r["dynamics"], r["policy"]) for r in result.episodes] == [
+        ("kinematic", "zero"), ("kinematic", "nnbc"), ("physics", "zero"), ("physics", "nnbc")]
+    assert all(r["status"] == "ok" for r in result.episodes)
+    assert len({r["true_params_hash"] for r in result.episodes}) == 1  # seed S draws the same robot in both modes
+    assert [(a["dynamics"], a["policy"]) for a in result.aggregate] == [
+        ("kinematic", "zero"), ("kinematic", "nnbc"), ("physics", "zero"), ("physics", "nnbc")]
