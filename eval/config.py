@@ -78,6 +78,11 @@ class EvalConfig:
             raise EvalError(f"seed must be an integer >= 0, got {self.seed!r}")
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise EvalError(f"workers must be an integer >= 1, got {self.workers!r}")
+        for name in ("envs", "policies"):
+            values = getattr(self, name)
+            dup = sorted({v for v in values if values.count(v) > 1})
+            if dup:
+                raise EvalError(f"{name} given more than once: {dup}; give each once (use --episodes for more runs)")
         if not self.dynamics:
             raise EvalError("no dynamics mode given; accepted: physics, kinematic")
         for d in self.dynamics:

@@ -280,3 +280,15 @@ def test_both_dynamics_modes_are_separate_conditions_on_the_same_robots(tmp_path
     assert len({r["true_params_hash"] for r in result.episodes}) == 1  # seed S draws the same robot in both modes
     assert [(a["dynamics"], a["policy"]) for a in result.aggregate] == [
         ("kinematic", "zero"), ("kinematic", "nnbc"), ("physics", "zero"), ("physics", "nnbc")]
+
+
+def test_duplicate_policies_and_unpicklable_objects_with_workers_are_refused(tmp_path):
+    with pytest.raises(EvalError, match="more than once"):
+        run(_config(tmp_path, policies=("zero", "zero")))
+
+    class Local(HoldStill):  # a class defined inside a function cannot be pickled
+        pass
+
+    with pytest.raises(EvalError, match="cannot be sent to worker processes"):
+        run(_config(tmp_path, policies=(), workers=2), policies={"local": Local()})
+    assert not (tmp_path / "out").exists()
