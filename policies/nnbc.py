@@ -32,12 +32,16 @@ With y_dot ~ (y_k - y_{k-1}) / dt and u_dot ~ (u_{k-1} - u_{k-2}) / dt, one Eule
 Multiplying by u_{k-1} (with u^+ u = 1) gives eps_k = (1 - mu dt) eps_{k-1}: the exact discrete image of
 eps_dot = -mu eps. The derivative terms are what makes this so: without them (J_k = J_{k-1} + mu dt eps u^+)
 the estimate chases a moving target and keeps a lag bias of order |y_dot| / mu that does not shrink with dt.
+A consequence worth knowing: with the derivative terms, a residual that starts at zero (the robot at rest,
+y_0 = 0, u_{-1} = 0) stays zero up to the u^+ regularisation, whatever mu is: J_hat then reproduces every
+measured response along the command that caused it exactly, and mu only shapes how an initial or injected
+residual decays.
 The code evaluates the bracket in the algebraically identical form a_k - (1 - mu dt) eps_{k-1}, with the a-priori
 residual a_k = y_k - J_{k-1} u_{k-1} (one matrix-vector product per step; `NNBC._znn_update`).
 
 The pseudo-inverse of a vector is regularised, u^+ = u^T / (u^T u + eps_u) with eps_u = 1e-6 (rad/s)^2 by
 default: for |u| >> 1 mrad/s it is the exact u^T / |u|^2, and as u -> 0 the update fades to zero instead of
-dividing by zero. At the first step r_d_dot(0) = 0 and e(0) = 0, so u = 0 and J_hat is left alone.
+dividing by zero. At the first control step r_d_dot(0) = 0 and e(0) = 0, so u = 0 and J_hat is left alone.
 
 Row space (a structural property of the paper's method)
 -------------------------------------------------------
@@ -45,8 +49,11 @@ u = J_hat^+ v lies in the row space of J_hat, and (15) adds only multiples of u^
 never changes after J_hat(0) (as long as no clipping alters u): the eight actuators only ever move inside one
 3-D subspace fixed at the start. `tests/test_policies.py` checks this numerically. It is why the method fails on
 long paths: the update refreshes J_hat only along the current u, and the other directions go stale as the arm
-moves; on the paper's 0.4 m circle J_hat's smallest singular value collapses after about 5 s. This module
-keeps the paper's method exactly; an improved controller lives beside it (`nnbc-plus`).
+moves. Measured on Circle-v0 (kinematic, 20 seeds, medians): the largest principal angle between J_hat's row
+space and the true Jacobian's grows from 1 deg at 1 s to 37 deg at 5 s and 78 deg at 7 s; J_hat's smallest
+singular value falls from 0.20 to 0.10 at 5 s and 0.05 at 7 s while the true one is 0.23 at 5 s; the error
+passes 6 mm at about 5.3 s. This module keeps the paper's method exactly; an improved controller lives beside
+it (`nnbc-plus`).
 
 p_c_dot in eq. (11) closes a loop through the yaw
 -------------------------------------------------
