@@ -21,6 +21,16 @@ from eval.config import DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, EvalConfig, EvalE
 from eval.metrics import DEFAULT_TOLERANCE
 
 
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows "(default: X)" only where X says something (not None/False) and the help does not already."""
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        if action.default in (None, False, argparse.SUPPRESS) or "default:" in text:
+            return text
+        return super()._get_help_string(action)
+
+
 def _policy_help() -> str:
     try:
         from policies.registry import KNOWN_POLICIES, SPEC_FORMS
@@ -49,7 +59,7 @@ def _add_run(sub) -> None:
         "run", help="benchmark policies on identical episodes",
         description="Run every policy on the same episodes (episode k of every env/dynamics/policy uses "
                     "seed S + k) and write results.json, results.csv, summary.md, plots and config.json.",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("--env", action="append", dest="envs", metavar="ID",
                    help="env id, repeatable (default: WheeledPuma-Circle-v0)")

@@ -35,11 +35,11 @@ DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "
 
 
 def add_parser(sub) -> None:
-    import argparse
+    from eval.cli import HelpFormatter
 
     p = sub.add_parser(
         "paper", help="reproduce the paper's section IV (NNBC vs JMPI on the circle) and write paper.md",
-        description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter,
     )
     p.add_argument("--out", default=None, help="output directory (default: runs/paper-<UTC timestamp>)")
     p.add_argument("--seeds", type=int, default=20, help=f"reported seeds ({PAPER_SEED}, {PAPER_SEED + 1}, ...)")

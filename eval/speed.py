@@ -29,6 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
+from eval.cli import HelpFormatter
+
 SPEED_ENV = "WheeledPuma-Circle-v0"
 SUBSTEPS = (2, 4, 10)
 WORKERS = (1, 2)
@@ -48,7 +50,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
 def add_parser(sub) -> None:
     p = sub.add_parser("speed", help="the speed benchmark (env steps/s, predict µs, episodes/s)",
                        description=__doc__.split("\n\n")[0],
-                       formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                       formatter_class=HelpFormatter)
     add_arguments(p)
     p.set_defaults(func=run_from_args)
 
@@ -261,7 +263,7 @@ def main(argv: list[str] | None = None) -> int:
     from eval.config import EvalError
 
     p = argparse.ArgumentParser(prog="python -m eval.speed", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+                                formatter_class=HelpFormatter)
     add_arguments(p)
     args = p.parse_args(argv)
     try:
