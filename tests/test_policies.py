@@ -354,8 +354,10 @@ class _GuardedView:
         return getattr(self._env, name)
 
 
-@pytest.mark.parametrize("spec", ["nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random"])
+@pytest.mark.parametrize("spec", ["nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random", "nnbc-plus"])
 def test_model_free_controllers_never_touch_the_model(spec):
+    if spec == "nnbc-plus":
+        pytest.importorskip("policies.nnbc_plus")
     env = _ModelGuard(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
     try:
         pol = policies.make(spec, env, seed=0)
