@@ -196,7 +196,9 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
     try:
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as exc:
-        if exc.name and module_name.split(".")[0] == exc.name.split(".")[0] and module_name.startswith(exc.name):
+        # the module itself (or its package) is missing: an unknown spec. A missing import *inside* the user's
+        # module is their error and propagates unchanged.
+        if exc.name is not None and (module_name == exc.name or module_name.startswith(exc.name + ".")):
             raise ValueError(f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
                              f"module; known: {_known_text()}") from None
         raise
