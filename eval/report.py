@@ -261,28 +261,35 @@ def summary_markdown(results: dict) -> str:
     return "\n".join(lines)
 
 
-CONSOLE_HEADER = ("policy", "n", "failed", "tipped", "success", "max median", "max mean ± std", "rms median",
-                  "final median", "predict µs")
+CONSOLE_HEADER = ("policy", "n", "failed\n/tipped", "succ", "max\nmed", "max\nmean", "rms\nmed", "final\nmed",
+                  "pred\nµs")
 
 
 def console_row(a: dict) -> list[str]:
-    full = summary_row(a)
-    return full[:9] + [_num(a["predict_us_median"]["median"], "{:.0f}")]
+    me = a["max_error_m"]
+    return [str(a["policy"]), str(a["n"]), f"{a['n_failed']}/{a.get('n_tipped_over', 0)}",
+            f"{a['success_rate'] * 100:.0f}%", _mm(me["median"], 1), _mm(me["mean"], 1),
+            _mm(a["rms_error_m"]["median"], 1), _mm(a["final_error_m"]["median"], 1),
+            _num(a["predict_us_median"]["median"], "{:.0f}")]
 
 
 def print_table(results: dict, out: Path | None = None) -> None:
     """A compact table per condition on stdout (errors in mm; summary.md has every column)."""
+    from rich import box
     from rich.console import Console
     from rich.table import Table
 
     console = Console()
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
-        table = Table(title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m); errors in mm")
+        table = Table(title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)", box=box.SIMPLE_HEAD,
+                      caption="errors in mm: max over each episode, then median/mean over episodes; pred: median "
+                              "predict call; summary.md has all columns", padding=(0, 1))
         for h in CONSOLE_HEADER:
             if h == "policy":
-                table.add_column(h, justify="left", no_wrap=True)
+                longest = max(len(str(a["policy"])) for a in rows)
+                table.add_column(h, justify="left", overflow="fold", min_width=min(max(longest, 6), 16))
             else:
-                table.add_column(h, justify="right")
+                table.add_column(h, justify="right", no_wrap=True)
         for a in rows:
             table.add_row(*console_row(a))
         console.print(table)
