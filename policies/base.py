@@ -115,7 +115,8 @@ class ControllerPolicy:
 
     Subclasses implement `_reset(obs)` (re-initialise all state from the first observation) and `_act(obs)`
     (return the actuator speeds u in rad/s for one unbatched observation). The base class clips u to the speed
-    limits, records it as `self.last_u` (the command actually issued) and returns u / action_scale.
+    limits, records it as `self.last_u` (the command actually issued) and returns u / action_scale. A subclass
+    that reads only some observation keys lists them in `uses_keys`, and only those are converted per call.
     """
 
     name = "controller"

@@ -183,6 +183,31 @@ def test_nnbc_probe_measures_the_jacobian(kin_env):
     np.testing.assert_allclose(pol.J_hat, J_true, atol=3e-3)
 
 
+def test_nnbc_initial_jacobian_from_the_python_api(kin_env):
+    """J0=<matrix> skips the probe and starts from that matrix; j0=nominal uses the nominal model's Jacobian."""
+    from mobman_env import kinematics as K
+
+    env = kin_env(path=SHORT_CIRCLE)
+    obs, _ = env.reset(seed=0)
+    facts = EnvFacts.from_env(env)
+    J0 = K.paper_jacobian(env.unwrapped.true_params, np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0]))
+    pol = NNBC(facts, J0=J0)
+    pol.reset(obs)
+    assert pol.j0_source == "matrix" and not pol.probing
+    np.testing.assert_array_equal(pol.J_hat, J0)
+    action, _ = pol.predict(obs)
+    assert not action.any()  # r_d_dot(0) = 0 and e(0) = 0: u = 0, and J_hat is left alone
+    np.testing.assert_array_equal(pol.J_hat, J0)
+    nominal = policies.make("nnbc:j0=nominal", env)
+    nominal.reset(obs)
+    J_nom = K.paper_jacobian(env.unwrapped.nominal_params, np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0]))
+    np.testing.assert_allclose(nominal.J_hat, J_nom)
+    with pytest.raises(ValueError, match="either J0"):
+        NNBC(facts, NNBCConfig(j0="nominal"), J0=J0, nominal_params=env.unwrapped.nominal_params)
+    with pytest.raises(ValueError, match="J0 must be a finite 3 x 8 matrix"):
+        NNBC(facts, J0=np.zeros((3, 7)))
+
+
 # --- baselines --------------------------------------------------------------------------------------------
 def test_oracle_tracks_circle_v0(kin_env):
     """eq. (10) with the true model: < 2 mm on Circle-v0 (5% model error), up to the first joint-limit hit."""
