@@ -281,7 +281,9 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
                             for t in shares[i]:
                                 if t.index not in records:
                                     take(t.index, _failed_record(
-                                        t, config, f"worker process {p.pid} died with exit code {p.exitcode}"), None)
+                                        t, config, f"worker process {p.pid} died with exit code {p.exitcode} (its error is on stderr; "
+                                        f"a script that calls eval.run with workers > 1 needs an "
+                                        f"`if __name__ == '__main__':` guard)"), None)
                 continue
             if kind == "result":
                 take(a, rec, arr)
@@ -347,7 +349,8 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     """Benchmark `config.policies` (specs) and `policies` ({name: object with predict/reset}) side by side.
 
     Every (env, dynamics, policy) faces the same `config.episodes` episodes (seeds S .. S + episodes - 1).
-    Writes the report files into the output directory and returns a `RunResult`.
+    Writes the report files into the output directory and returns a `RunResult`. With `workers > 1` the
+    workers are spawned processes: a script calling this needs the usual `if __name__ == "__main__":` guard.
     """
     from eval import report
 
