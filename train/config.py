@@ -65,6 +65,10 @@ class TrainConfig:
     """Observation keys the agent sees, in order (after the wrappers)."""
     hyperparams: dict = field(default_factory=dict)
     """Overrides of the algorithm's defaults (`train.algos`), e.g. from `--hyperparams FILE` (YAML or JSON)."""
+    actor_out_scale: float = 0.01
+    """SAC/TD3: multiply the initial weights and bias of the actor's output layer by this, so the untrained
+    policy commands about zero speed instead of large random ones (the task's useful actions are ~5% of the
+    speed limits). PPO is unaffected: SB3's orthogonal init already gives its action layer a gain of 0.01."""
     normalize_obs: bool = True
     """Normalise observations with VecNormalize's running mean and std (saved as `vecnormalize.pkl`)."""
     normalize_reward: bool | None = None
@@ -123,6 +127,8 @@ class TrainConfig:
         algos.resolve(self.algo, self.hyperparams)
         if not (isinstance(self.alive_bonus, (int, float)) and math.isfinite(self.alive_bonus)):
             raise ValueError(f"alive_bonus must be a finite number, got {self.alive_bonus!r}")
+        if not (isinstance(self.actor_out_scale, (int, float)) and self.actor_out_scale > 0):
+            raise ValueError(f"actor_out_scale must be a number > 0 (1: SB3's init), got {self.actor_out_scale!r}")
         if not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
             raise ValueError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
         object.__setattr__(self, "wrappers", tuple(self.wrappers))

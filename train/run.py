@@ -210,10 +210,28 @@ def final_evaluation(config: TrainConfig, out: Path) -> dict:
 def _build_model(config: TrainConfig, venv: Any, out: Path) -> Any:
     spec = algos.get(config.algo)
     kwargs = algos.build_kwargs(config.algo, config.resolved_hyperparams, venv.action_space.shape[0])
-    return spec.load_class()(
+    model = spec.load_class()(
         "MultiInputPolicy", venv, seed=config.seed, device=config.device, verbose=config.verbose,
         tensorboard_log=str(out / "tensorboard") if config.tensorboard else None, **kwargs,
     )
+    if spec.off_policy and config.actor_out_scale != 1.0:
+        scale_actor_output(model, config.actor_out_scale)
+    return model
+
+
+def scale_actor_output(model: Any, scale: float) -> None:
+    """Scale the actor's last linear layer (SAC: `actor.mu`; TD3: the last Linear of `actor.mu`), and copy it
+    into the target actor if there is one."""
+    import torch
+
+    mu = model.actor.mu
+    layer = mu if isinstance(mu, torch.nn.Linear) else [m for m in mu if isinstance(m, torch.nn.Linear)][-1]
+    with torch.no_grad():
+        layer.weight.mul_(scale)
+        layer.bias.mul_(scale)
+    target = getattr(model, "actor_target", None)
+    if target is not None:
+        target.load_state_dict(model.actor.state_dict())
 
 
 def _wrap_normalize(config: TrainConfig, venv: Any) -> Any:
