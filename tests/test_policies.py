@@ -78,7 +78,8 @@ def test_sigma_min_and_damped_pinv_known_answers():
         v = rng.standard_normal(3)
         # well conditioned: no damping, the exact Moore-Penrose pseudo-inverse
         if np.linalg.svd(J, compute_uv=False)[-1] > 0.05:
-            np.testing.assert_allclose(damped_pinv_apply(J, v, 0.02, 0.02), np.linalg.pinv(J) @ v, rtol=1e-9, atol=1e-12)
+            expected = np.linalg.pinv(J) @ v
+            np.testing.assert_allclose(damped_pinv_apply(J, v, 0.02, 0.02), expected, rtol=1e-9, atol=1e-12)
     # nearly singular: damped, bounded, and equal to the matrix form
     J = np.array([[1.0, 0, 0, 0, 0, 0, 0, 0], [0, 1.0, 0, 0, 0, 0, 0, 0], [0, 0, 1e-6, 0, 0, 0, 0, 0]])
     u = damped_pinv_apply(J, np.array([0.0, 0.0, 1.0]), 0.02, 0.02)
@@ -100,7 +101,8 @@ def test_nnbc_discrete_znn_residual_decays_like_eq_13():
         t = 0.01 * k
         return {"ee_pos": np.zeros(3), "ee_vel": ee_vel, "arm_base_vel": np.zeros(2),
                 "target_pos": 0.05 * np.array([math.sin(t), math.cos(t) - 1, math.sin(2 * t)]),
-                "target_vel": np.array([0.3, -0.2, 0.1]) + 0.05 * np.array([math.cos(t), -math.sin(t), 2 * math.cos(2 * t)])}
+                "target_vel": np.array([0.3, -0.2, 0.1])
+                + 0.05 * np.array([math.cos(t), -math.sin(t), 2 * math.cos(2 * t)])}
 
     first = obs_at(0, np.array([0.1, -0.05, 0.02]))  # a disturbance at t = 0: eps_0 = y_0 != 0
     pol.reset(first)
@@ -172,7 +174,8 @@ def test_nnbc_probe_measures_the_jacobian(kin_env):
     pol = policies.make("nnbc", env)
     obs, _ = env.reset(seed=REPORTED_SEEDS[0])
     pol.reset(obs)
-    J_true = K.paper_jacobian(env.unwrapped.true_params, np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0]))
+    q, yaw = np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0])
+    J_true = K.paper_jacobian(env.unwrapped.true_params, q, yaw)
     for _ in range(17):
         assert pol.probing or pol.step_count == 16
         action, _ = pol.predict(obs)
@@ -190,7 +193,8 @@ def test_nnbc_initial_jacobian_from_the_python_api(kin_env):
     env = kin_env(path=SHORT_CIRCLE)
     obs, _ = env.reset(seed=0)
     facts = EnvFacts.from_env(env)
-    J0 = K.paper_jacobian(env.unwrapped.true_params, np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0]))
+    q, yaw = np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0])
+    J0 = K.paper_jacobian(env.unwrapped.true_params, q, yaw)
     pol = NNBC(facts, J0=J0)
     pol.reset(obs)
     assert pol.j0_source == "matrix" and not pol.probing
@@ -200,7 +204,7 @@ def test_nnbc_initial_jacobian_from_the_python_api(kin_env):
     np.testing.assert_array_equal(pol.J_hat, J0)
     nominal = policies.make("nnbc:j0=nominal", env)
     nominal.reset(obs)
-    J_nom = K.paper_jacobian(env.unwrapped.nominal_params, np.asarray(obs["joint_pos"][:6], float), float(obs["base_yaw"][0]))
+    J_nom = K.paper_jacobian(env.unwrapped.nominal_params, q, yaw)
     np.testing.assert_allclose(nominal.J_hat, J_nom)
     with pytest.raises(ValueError, match="either J0"):
         NNBC(facts, NNBCConfig(j0="nominal"), J0=J0, nominal_params=env.unwrapped.nominal_params)
