@@ -172,7 +172,8 @@ def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed:
     steps = sum(r.get("n_steps") or 0 for r in result.episodes)
     return {"workers": workers, "episodes": episodes, "policy": policy, "dynamics": "kinematic",
             "episodes_per_s": episodes / result.results["wall_s"], "env_steps_per_s": steps / result.results["wall_s"],
-            "run_wall_s": result.results["wall_s"], "total_wall_s": total, "processes": len(pids)}
+            "run_wall_s": result.results["wall_s"], "total_wall_s": total, "processes": len(pids),
+            "episode_wall_s_median": float(np.median([r["wall_s"] for r in result.episodes]))}
 
 
 def default_policies() -> list[str]:
@@ -229,11 +230,11 @@ def print_table(res: dict) -> None:
                   r["status"].split(":")[0] + (" (reason in speed.json)" if r["status"] != "ok" else ""))
     c.print(t)
     t = Table(title="episodes/s (20 s kinematic nnbc episodes, worker start-up included)")
-    for h in ("workers", "processes", "episodes", "episodes/s", "env steps/s incl. policy", "wall s"):
+    for h in ("workers", "processes", "episodes", "episodes/s", "steps/s incl. policy", "wall s", "s per episode"):
         t.add_column(h, justify="right")
     for e in res["episodes"]:
         t.add_row(str(e["workers"]), str(e["processes"]), str(e["episodes"]), f"{e['episodes_per_s']:.2f}",
-                  f"{e['env_steps_per_s']:,.0f}", f"{e['run_wall_s']:.1f}")
+                  f"{e['env_steps_per_s']:,.0f}", f"{e['run_wall_s']:.1f}", f"{e['episode_wall_s_median']:.2f}")
     c.print(t)
     load = res["machine"]["loadavg_1_5_15_at_start"]
     if load:
