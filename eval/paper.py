@@ -15,7 +15,6 @@ Writes, beside the usual run files (results.json, summary.md, plots/ ...):
 from __future__ import annotations
 
 import math
-import sys
 import time
 from pathlib import Path
 

@@ -135,7 +135,7 @@ def env_vs_bare(dynamics: str, n_substeps: int, steps: int, repeats: int, seed: 
 def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     """Median and p99 of the whole predict call of each policy over one kinematic episode (the eval loop)."""
     from eval.rollout import rollout
-    from eval.runner import make_policy
+    from eval.checks import make_policy
 
     rows = []
     env = _env("kinematic")
@@ -244,7 +244,7 @@ def print_table(res: dict) -> None:
 def run_from_args(args) -> int:
     from eval.config import EvalError
     from eval.report import atomic_write_json
-    from eval.runner import check_out
+    from eval.checks import check_out
 
     for name in ("steps", "repeats", "episodes"):
         if getattr(args, name) < 1:

@@ -48,7 +48,7 @@ def encode(frames: list[np.ndarray], path_stem: Path, fps: float) -> Path:
 def record_episode(env_id: str, name: str, user: dict, seed: int, config, dynamics: str
                    ) -> tuple[list[np.ndarray], float, dict]:
     """Frames of one episode of policy `name` (a spec, or a key of `user`), the frame rate, and its record."""
-    from eval.runner import make_policy
+    from eval.checks import make_policy
 
     env = make_env(env_id, dynamics, config.model_error, config.obs_noise, config.env_kwargs, render_mode="rgb_array")
     try:

@@ -1,0 +1,207 @@
+"""Running episodes: in this process, or dealt round-robin to N spawned worker processes.
+
+Each process builds each env (per id and dynamics mode) and each policy (per env) once and reuses them; every
+episode starts from `env.reset(seed=S + k)` and `policy.reset(..., seed=S + k)`, so results do not depend on
+which process runs an episode or what it ran before (physics mode included: tested bit-identical). A worker
+that dies marks its unfinished episodes failed.
+"""
+
+from __future__ import annotations
+
+import os
+import pickle
+import queue as queue_mod
+from typing import Any, NamedTuple
+
+from eval.checks import make_policy
+from eval.config import EvalConfig
+from eval.rollout import make_env, rollout
+
+
+class Task(NamedTuple):
+    index: int  # position in results["episodes"]
+    env: str
+    dynamics: str
+    policy: str
+    episode: int  # k: the episode uses seed S + k
+
+
+class Executor:
+    """Runs tasks in one process, building each env (per id and dynamics) and policy (per env) once."""
+
+    def __init__(self, config: EvalConfig, user: dict):
+        self.config = config
+        self.user = user
+        self._envs: dict[tuple, Any] = {}
+        self._policies: dict[tuple, Any] = {}
+
+    def env(self, env_id: str, dyn: str):
+        key = (env_id, dyn)
+        if key not in self._envs:
+            c = self.config
+            self._envs[key] = make_env(env_id, dyn, c.model_error, c.obs_noise, c.env_kwargs)
+        return self._envs[key]
+
+    def policy(self, env_id: str, dyn: str, name: str):
+        if name in self.user:
+            return self.user[name]
+        key = (env_id, dyn, name)
+        if key not in self._policies:
+            self._policies[key] = make_policy(name, self.env(env_id, dyn), self.config.seed)
+        return self._policies[key]
+
+    def run(self, task: Task) -> tuple[dict, dict | None]:
+        meta = {"env": task.env, "policy": task.policy, "episode": task.episode}
+        seed = self.config.seed + task.episode
+        try:
+            env = self.env(task.env, task.dynamics)
+            pol = self.policy(task.env, task.dynamics, task.policy)
+        except Exception:
+            import traceback
+
+            rec = {**meta, "seed": seed, "dynamics": task.dynamics, "model_error": self.config.model_error,
+                   "obs_noise": self.config.obs_noise, "status": "failed", "error": traceback.format_exc(),
+                   "success": False, "wall_s": 0.0, "pid": os.getpid()}
+            return rec, None
+        return rollout(env, pol, seed, tolerance=self.config.tolerance, meta=meta)
+
+    def close(self) -> None:
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
+        self._policies.clear()
+
+
+def keep_arrays(config: EvalConfig, task: Task) -> bool:
+    """Episode 0 of every condition is kept for the plots; all of them with save_arrays="all"."""
+    return task.episode == 0 or config.save_arrays == "all"
+
+
+def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out_q) -> None:
+    """Entry point of one worker process: run `tasks` in order, put each result on `out_q`."""
+    user = pickle.loads(user_bytes) if user_bytes else {}
+    ex = Executor(config, user)
+    try:
+        for task in tasks:
+            rec, arrays = ex.run(task)
+            out_q.put(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
+    finally:
+        ex.close()
+        out_q.put(("done", wid, None, None))
+
+
+def _failed_record(task: Task, config: EvalConfig, message: str) -> dict:
+    return {"env": task.env, "policy": task.policy, "episode": task.episode, "seed": config.seed + task.episode,
+            "dynamics": task.dynamics, "model_error": config.model_error, "obs_noise": config.obs_noise,
+            "status": "failed", "error": message, "success": False, "wall_s": None, "pid": None}
+
+
+def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes | None = None,
+            on_result=None) -> tuple[dict[int, dict], dict[int, dict]]:
+    """Run `tasks`; returns ({index: record}, {index: arrays}). `on_result(record)` is called as each ends."""
+    records: dict[int, dict] = {}
+    arrays: dict[int, dict] = {}
+
+    def take(index, rec, arr):
+        records[index] = rec
+        if arr is not None:
+            arrays[index] = arr
+        if on_result is not None:
+            on_result(rec)
+
+    n_workers = min(config.workers, len(tasks))
+    if n_workers <= 1:
+        ex = Executor(config, user)
+        try:
+            for task in tasks:
+                rec, arr = ex.run(task)
+                take(task.index, rec, arr if keep_arrays(config, task) else None)
+        finally:
+            ex.close()
+        return records, arrays
+
+    import multiprocessing as mp
+
+    ctx = mp.get_context("spawn")
+    out_q = ctx.Queue()
+    shares = [tasks[i::n_workers] for i in range(n_workers)]
+    procs = [ctx.Process(target=_worker_main, args=(i, config, user_bytes, shares[i], out_q), daemon=True,
+                         name=f"mobman-eval-worker-{i}") for i in range(n_workers)]
+    with _single_threaded_children():
+        for p in procs:
+            p.start()
+    done: set[int] = set()
+    try:
+        while len(done) < n_workers:
+            try:
+                kind, a, rec, arr = out_q.get(timeout=1.0)
+            except queue_mod.Empty:
+                for i, p in enumerate(procs):
+                    if i not in done and not p.is_alive() and p.exitcode not in (0, None):
+                        # died without saying "done" (e.g. a segfault): its unfinished episodes failed
+                        _drain(out_q, take, done)
+                        if i not in done:
+                            done.add(i)
+                            for t in shares[i]:
+                                if t.index not in records:
+                                    take(t.index, _failed_record(
+                                        t, config, f"worker process {p.pid} died with exit code {p.exitcode} (its error is on stderr; "
+                                        f"a script that calls eval.run with workers > 1 needs an "
+                                        f"`if __name__ == '__main__':` guard)"), None)
+                continue
+            if kind == "result":
+                take(a, rec, arr)
+            else:
+                done.add(a)
+    finally:
+        for p in procs:
+            p.join(timeout=10)
+            if p.is_alive():
+                p.terminate()
+    for t in tasks:  # a worker that stopped early (it reports its own error on stderr)
+        if t.index not in records:
+            take(t.index, _failed_record(t, config, "the worker process stopped before running this episode"), None)
+    return records, arrays
+
+
+#: Thread-pool sizes for worker processes: one process per core is the parallelism; BLAS / OpenMP thread pools
+#: on top of it would only oversubscribe the cores.
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class _single_threaded_children:
+    """Set the thread-pool variables to 1 (unless the user set them) while worker processes are spawned."""
+
+    def __enter__(self):
+        self._saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+        for k in _THREAD_VARS:
+            os.environ.setdefault(k, "1")
+
+    def __exit__(self, *exc):
+        for k, v in self._saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _drain(out_q, take, done) -> None:
+    while True:
+        try:
+            kind, a, rec, arr = out_q.get(timeout=0.2)
+        except queue_mod.Empty:
+            return
+        if kind == "result":
+            take(a, rec, arr)
+        else:
+            done.add(a)
+
+
+def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
+    tasks = []
+    for env_id in config.envs:
+        for dyn in config.dynamics:
+            for name in names:
+                for k in range(config.episodes):
+                    tasks.append(Task(len(tasks), env_id, dyn, name, k))
+    return tasks
