@@ -7,9 +7,11 @@ result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinema
 result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
 ```
 
-Command line: `mobman-eval run|paper|speed` (`eval.cli.main(argv)`). Modules: `rollout` (the one rollout
-loop), `metrics` (pure functions), `runner` (checks, workers, `run`), `report` (results.json / csv / summary.md,
-atomic writes), `plots`, `video`, `paper` (section IV of the paper), `speed` (the speed benchmark).
+Command line: `mobman-eval run|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual. Modules:
+`config` (EvalConfig), `rollout` (the one rollout loop), `metrics` (pure functions), `checks` (everything checked
+before the first rollout), `workers` (episodes in this process or N spawned ones), `runner` (`run`), `report`
+(results.json / csv / summary.md, atomic writes), `plots`, `video`, `paper` (the paper's section IV), `speed`
+(the speed benchmark).
 """
 
 from eval.config import EvalConfig, EvalError
