@@ -82,6 +82,7 @@ def test_every_algorithm_has_resolvable_defaults():
         ({"wrappers": ("pos_err",)}, "unknown observation wrapper.*pos_error"),
         ({"hyperparams": {"seed": 3}}, "set by mobman-train itself"),
         ({"hyperparams": {"policy_kwargs": {"activation_fn": "swish"}}}, "unknown activation_fn 'swish'"),
+        ({"hyperparams": {"learning_rate": "cos_1e-3"}}, "expected a number or 'lin_<number>'"),
     ],
 )
 def test_config_rejects_bad_values(changes, match):
@@ -178,6 +179,10 @@ def test_smoke_train_save_reload_evaluate(tmp_path, algo):
     # the final evaluation of the run is the same number mobman-eval gets
     assert rec["rms_error_m"] == pytest.approx(final["agent"]["episodes"][0]["rms_error_m"], rel=0, abs=0)
     assert final["zero"]["median_rms_error_m"] > 0
+    # the best model on the development seeds is a run folder of its own, evaluated beside the last one
+    best = json.loads((out / "best" / "best.json").read_text())
+    assert best["timesteps"] in [int(line.split(",")[0].split(".")[0]) for line in curve[1:]]
+    assert final["best"]["spec"] == f"sb3:{out / 'best' / 'model.zip'}"
 
 
 def test_in_process_agent_matches_sb3policy(tmp_path):

@@ -4,6 +4,8 @@ Hyperparameters are plain data (JSON/YAML-able) so the resolved set is saved in 
 `build_kwargs` turns the few non-plain entries into SB3 objects:
 
 * `policy_kwargs.activation_fn`: a name from `ACTIVATIONS` ("relu", "tanh", "elu", "leaky_relu").
+* `learning_rate` (and PPO's `clip_range`): a number, or `"lin_<value>"` for a linear decay from value to 0
+  over the run (rl-zoo's notation).
 * `action_noise` (TD3, SAC): `{"type": "normal" | "ornstein_uhlenbeck", "sigma": float}` (sigma in the normalised
   action units, the same for every actuator).
 
@@ -86,7 +88,7 @@ ALGOS: dict[str, AlgoSpec] = {
         off_policy=False,
         normalize_reward=True,
         defaults={
-            "learning_rate": 3e-4,
+            "learning_rate": "lin_3e-4",
             "n_steps": 2048,
             "batch_size": 256,
             "n_epochs": 10,
@@ -137,6 +139,9 @@ def resolve(name: str, overrides: dict | None = None) -> dict:
             hp["policy_kwargs"] = {**hp.get("policy_kwargs", {}), **copy.deepcopy(value)}
         else:
             hp[key] = copy.deepcopy(value)
+    for key in ("learning_rate", "clip_range"):
+        if isinstance(hp.get(key), str):
+            _schedule(hp[key], key)
     act = hp.get("policy_kwargs", {}).get("activation_fn")
     if act is not None and act not in ACTIVATIONS:
         raise ValueError(f"unknown activation_fn {act!r}; known: {', '.join(ACTIVATIONS)}")
@@ -180,6 +185,30 @@ def build_kwargs(name: str, hp: dict, n_actions: int) -> dict[str, Any]:
     if isinstance(noise, dict):
         cls = NormalActionNoise if noise["type"] == "normal" else OrnsteinUhlenbeckActionNoise
         kwargs["action_noise"] = cls(mean=np.zeros(n_actions), sigma=float(noise["sigma"]) * np.ones(n_actions))
+    for key in ("learning_rate", "clip_range"):
+        if isinstance(kwargs.get(key), str):
+            kwargs[key] = _schedule(kwargs[key], key)
     if isinstance(kwargs.get("train_freq"), list):
         kwargs["train_freq"] = tuple(kwargs["train_freq"])
     return kwargs
+
+
+def _schedule(text: str, key: str):
+    """"lin_3e-4" -> a callable of SB3's progress_remaining (1 -> 0): linear decay to 0."""
+    if not text.startswith("lin_"):
+        raise ValueError(f"{key} {text!r}: expected a number or 'lin_<number>' (linear decay), e.g. 'lin_3e-4'")
+    try:
+        start = float(text[4:])
+    except ValueError:
+        raise ValueError(f"{key} {text!r}: expected a number after 'lin_', e.g. 'lin_3e-4'") from None
+    return LinearSchedule(start)
+
+
+class LinearSchedule:
+    """value(progress_remaining) = start * progress_remaining (picklable, unlike a closure)."""
+
+    def __init__(self, start: float):
+        self.start = start
+
+    def __call__(self, progress_remaining: float) -> float:
+        return self.start * progress_remaining

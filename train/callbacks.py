@@ -52,8 +52,10 @@ class PeriodicEval(BaseCallback):
     the untrained agent."""
 
     def __init__(self, freq: int, evaluate: Callable[[Any], dict], curve_csv: Path, curve_png: Path,
-                 reference: dict | None, t0: float, wall_offset: float = 0.0):
+                 reference: dict | None, t0: float, wall_offset: float = 0.0,
+                 on_result: Callable[[Any, dict], None] | None = None):
         super().__init__()
+        self.on_result = on_result
         self.freq = freq
         self.evaluate = evaluate
         self.curve_csv = Path(curve_csv)
@@ -88,6 +90,8 @@ class PeriodicEval(BaseCallback):
             self.logger.record("eval/median_max_error_m", row["median_max_error_m"])
             self.logger.record("eval/success_rate", row["success_rate"])
         write_curve_png(self.curve_csv, self.curve_png, self.reference)
+        if self.on_result is not None:
+            self.on_result(self.model, row)
 
 
 def read_curve(path: Path) -> list[dict]:

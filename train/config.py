@@ -77,7 +77,7 @@ class TrainConfig:
     """Evaluate every this many env steps on the held-out development seeds (0: never)."""
     eval_seed: int = 900
     """First development seed of the periodic evaluation; episode k uses reset(seed=eval_seed + k)."""
-    eval_episodes: int = 3
+    eval_episodes: int = 5
     """Episodes per periodic evaluation."""
     final_eval_seed: int = REPORTED_SEED_START
     """First seed of the final evaluation (reported seeds start at 10,000)."""

@@ -59,33 +59,38 @@ def _slim(rec: dict) -> dict:
 
 def final_evaluation(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int,
                      tolerance: float) -> dict:
-    """`eval.run` on the saved agent and `zero` (files in run_dir/final_eval); summaries per policy."""
-    from eval import EvalConfig
+    """`eval.run` on the saved agent (`agent`), the best one on the development seeds if saved (`best`) and
+    `zero` (files in run_dir/final_eval); a summary per policy."""
     from eval import run as eval_run
 
-    cfg = eval_config(env_id, eval_env_kwargs, run_dir, first_seed, episodes, tolerance)
+    run_dir = Path(run_dir)
+    agents = {"agent": run_dir / "model.zip"}
+    if (run_dir / "best" / "model.zip").is_file():
+        agents["best"] = run_dir / "best" / "model.zip"
+    cfg = eval_config(env_id, eval_env_kwargs, list(agents.values()), run_dir / "final_eval", first_seed, episodes,
+                      tolerance)
     result = eval_run(cfg)
     by_policy: dict[str, list[dict]] = {}
     for rec in result.episodes:
         by_policy.setdefault(rec["policy"], []).append(rec)
-    agent_spec, zero_spec = cfg.policies
-    return {"agent": {**summarize(by_policy[agent_spec]), "episodes": [_slim(r) for r in by_policy[agent_spec]]},
-            "zero": {**summarize(by_policy[zero_spec]), "episodes": [_slim(r) for r in by_policy[zero_spec]]},
-            "eval_out": str(cfg.out), "eval_config": _as_eval_config_dict(cfg), "eval_command": eval_command(cfg)}
+    names = dict(zip(cfg.policies, [*agents, "zero"]))
+    out = {names[spec]: {**summarize(recs), "spec": spec, "episodes": [_slim(r) for r in recs]}
+           for spec, recs in by_policy.items()}
+    return {**out, "eval_out": str(cfg.out), "eval_config": cfg.to_dict(), "eval_command": eval_command(cfg)}
 
 
-def eval_config(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int,
+def eval_config(env_id: str, eval_env_kwargs: dict, models: list[Path], out: Path, first_seed: int, episodes: int,
                 tolerance: float):
+    """The EvalConfig of `mobman-eval run` for these saved agents plus `zero`."""
     from eval import EvalConfig
 
     kw = dict(eval_env_kwargs)
     dynamics = kw.pop("dynamics", "physics")
     model_error = kw.pop("model_error", None)
     obs_noise = kw.pop("obs_noise", None)
-    return EvalConfig(envs=(env_id,), policies=(f"sb3:{Path(run_dir) / 'model.zip'}", "zero"), episodes=episodes,
-                      seed=first_seed, out=str(Path(run_dir) / "final_eval"), overwrite=True, dynamics=(dynamics,),
-                      model_error=model_error, obs_noise=obs_noise, env_kwargs=kw, tolerance=tolerance,
-                      save_arrays="first", progress=False)
+    return EvalConfig(envs=(env_id,), policies=(*(f"sb3:{m}" for m in models), "zero"), episodes=episodes,
+                      seed=first_seed, out=str(out), overwrite=True, dynamics=(dynamics,), model_error=model_error,
+                      obs_noise=obs_noise, env_kwargs=kw, tolerance=tolerance, save_arrays="first", progress=False)
 
 
 def eval_command(cfg) -> str:
@@ -106,10 +111,6 @@ def eval_command(cfg) -> str:
     if cfg.tolerance != 0.006:
         parts += ["--tolerance", repr(cfg.tolerance)]
     return " ".join(shlex.quote(p) for p in parts)
-
-
-def _as_eval_config_dict(cfg) -> dict:
-    return cfg.to_dict()
 
 
 class ZeroPolicy:

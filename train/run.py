@@ -10,7 +10,8 @@ Run folder (DESIGN "train"):
 | `checkpoints/` | `model_<N>_steps.zip`, `vecnormalize_<N>_steps.pkl`, the latest `replay_buffer.pkl` (SAC, TD3), `latest.json` |
 | `learning_curve.csv`, `learning_curve.png` | tracking error on the development seeds vs env steps |
 | `monitor.csv` | training episodes (return, length) |
-| `final_eval.json` | the final evaluation with the benchmark's env settings on the reported seeds, and `zero`'s |
+| `best/` | the model with the lowest worst-episode RMS error on the development seeds (a run folder itself) |
+| `final_eval.json`, `final_eval/` | the final evaluation (eval's report) of `model.zip`, `best/model.zip` and `zero` with the benchmark's env settings on the reported seeds |
 | `summary.json` | status (done / interrupted), steps, wall time, final metrics |
 | `train.log`, `tensorboard/` | log; TensorBoard events with `--tensorboard` |
 
@@ -173,6 +174,26 @@ def save_checkpoint(model: Any, out: Path, off_policy: bool) -> dict:
     return entry
 
 
+#: Selection key of the best model: the worst RMS error over the development seeds (robust, not lucky).
+BEST_KEY = "max_rms_error_m"
+
+
+def save_if_best(model: Any, row: dict, config: TrainConfig, out: Path) -> bool:
+    """Keep the model with the lowest `BEST_KEY` on the development seeds in `out/best/`, a complete run
+    folder of its own (model.zip, vecnormalize.pkl, config.json, best.json), like rl-zoo's best_model."""
+    best_dir = out / "best"
+    info_path = best_dir / "best.json"
+    previous = json.loads(info_path.read_text()) if info_path.exists() else None
+    if previous is not None and previous[BEST_KEY] <= row[BEST_KEY]:
+        return False
+    best_dir.mkdir(exist_ok=True)
+    save_final(model, best_dir)
+    write_json(best_dir / "config.json", run_config_dict(config))
+    write_json(info_path, {"timesteps": int(row["timesteps"]), "selected_by": f"lowest {BEST_KEY} on development "
+                           f"seeds {config.eval_seed}..{config.eval_seed + config.eval_episodes - 1}", **row})
+    return True
+
+
 def save_final(model: Any, out: Path) -> None:
     model.save(out / "model.zip")
     vn = model.get_vec_normalize_env()
@@ -319,7 +340,8 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     callbacks = CallbackList([
         CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
         PeriodicEval(config.eval_freq, _periodic_evaluator(config), out / "learning_curve.csv",
-                     out / "learning_curve.png", reference, t0, wall_offset),
+                     out / "learning_curve.png", reference, t0, wall_offset,
+                     on_result=lambda m, row: save_if_best(m, row, config, out)),
     ])
     status = "done"
     try:
@@ -346,12 +368,17 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
             _final_curve_point(config, out, model, reference, t0, wall_offset)
         if config.final_eval_episodes:
             fe = final_evaluation(config, out)
-            summary["final_eval"] = {"agent": _drop_episodes(fe["agent"]), "zero": _drop_episodes(fe["zero"]),
-                                     "first_seed": fe["first_seed"], "episodes": fe["episodes"]}
+            summary["final_eval"] = {**{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
+                                     "first_seed": fe["first_seed"], "episodes": fe["episodes"],
+                                     "eval_command": fe["eval_command"]}
             log.info("final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, "
                      "success %.0f%%", fe["first_seed"], fe["first_seed"] + fe["episodes"] - 1, config.dynamics,
                      1e3 * fe["agent"]["median_rms_error_m"], 1e3 * fe["zero"]["median_rms_error_m"],
                      1e3 * fe["agent"]["median_max_error_m"], 100 * fe["agent"]["success_rate"])
+            if "best" in fe:
+                log.info("final eval of best/ (dev-seed selection): median RMS %.1f mm, median max %.1f mm, "
+                         "success %.0f%%", 1e3 * fe["best"]["median_rms_error_m"],
+                         1e3 * fe["best"]["median_max_error_m"], 100 * fe["best"]["success_rate"])
     write_json(out / "summary.json", summary)
     if status == "interrupted":
         raise TrainingInterrupted(out, int(model.num_timesteps))
