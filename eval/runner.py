@@ -73,7 +73,9 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     if config.progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=len(tasks), desc="episodes", unit="ep", file=sys.stderr, dynamic_ncols=True)
+        tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+        bar = tqdm(total=len(tasks), desc="episodes", unit="ep", file=sys.stderr, dynamic_ncols=True,
+                   mininterval=0.1 if tty else 5.0)  # a log file gets a line every 5 s, not every episode
 
     def on_result(rec):
         if bar is not None:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import os
 import pickle
-import queue as queue_mod
 from typing import Any, NamedTuple
 
 from eval.checks import make_policy
@@ -77,17 +76,18 @@ def keep_arrays(config: EvalConfig, task: Task) -> bool:
     return task.episode == 0 or config.save_arrays == "all"
 
 
-def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out_q) -> None:
-    """Entry point of one worker process: run `tasks` in order, put each result on `out_q`."""
+def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out) -> None:
+    """Entry point of one worker process: run `tasks` in order, send each result through the pipe `out`."""
     user = pickle.loads(user_bytes) if user_bytes else {}
     ex = Executor(config, user)
     try:
         for task in tasks:
             rec, arrays = ex.run(task)
-            out_q.put(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
+            out.send(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
     finally:
         ex.close()
-        out_q.put(("done", wid, None, None))
+        out.send(("done", wid, None, None))
+        out.close()
 
 
 def _failed_record(task: Task, config: EvalConfig, message: str) -> dict:
@@ -121,43 +121,45 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
         return records, arrays
 
     import multiprocessing as mp
+    from multiprocessing.connection import wait
 
+    # one pipe per worker: send() is synchronous, so a result sent before a crash is never lost
     ctx = mp.get_context("spawn")
-    out_q = ctx.Queue()
     shares = [tasks[i::n_workers] for i in range(n_workers)]
-    procs = [ctx.Process(target=_worker_main, args=(i, config, user_bytes, shares[i], out_q), daemon=True,
-                         name=f"mobman-eval-worker-{i}") for i in range(n_workers)]
+    readers, procs = [], []
     with _single_threaded_children():
-        for p in procs:
+        for i in range(n_workers):
+            r, w = ctx.Pipe(duplex=False)
+            p = ctx.Process(target=_worker_main, args=(i, config, user_bytes, shares[i], w), daemon=True,
+                            name=f"mobman-eval-worker-{i}")
             p.start()
-    done: set[int] = set()
+            w.close()  # the parent keeps only the read end: EOF when the worker is gone
+            readers.append(r)
+            procs.append(p)
+    active = set(range(n_workers))
     try:
-        while len(done) < n_workers:
-            try:
-                kind, a, rec, arr = out_q.get(timeout=1.0)
-            except queue_mod.Empty:
-                for i, p in enumerate(procs):
-                    if i not in done and not p.is_alive() and p.exitcode not in (0, None):
-                        # died without saying "done" (e.g. a segfault): its unfinished episodes failed
-                        _drain(out_q, take, done)
-                        if i not in done:
-                            done.add(i)
-                            for t in shares[i]:
-                                if t.index not in records:
-                                    take(t.index, _failed_record(
-                                        t, config, f"worker process {p.pid} died with exit code {p.exitcode} (its error is on stderr; "
-                                        f"a script that calls eval.run with workers > 1 needs an "
-                                        f"`if __name__ == '__main__':` guard)"), None)
-                continue
-            if kind == "result":
-                take(a, rec, arr)
-            else:
-                done.add(a)
+        while active:
+            wait([readers[i] for i in active] + [procs[i].sentinel for i in active])
+            for i in sorted(active):
+                if _read_available(readers[i], take):
+                    active.discard(i)  # said "done"
+                elif not procs[i].is_alive():
+                    _read_available(readers[i], take)
+                    procs[i].join()
+                    active.discard(i)
+                    for t in shares[i]:
+                        if t.index not in records:
+                            take(t.index, _failed_record(t, config, (
+                                f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
+                                f"is on stderr; a script that calls eval.run with workers > 1 needs an "
+                                f"`if __name__ == '__main__':` guard)")), None)
     finally:
         for p in procs:
             p.join(timeout=10)
             if p.is_alive():
                 p.terminate()
+        for r in readers:
+            r.close()
     for t in tasks:  # a worker that stopped early (it reports its own error on stderr)
         if t.index not in records:
             take(t.index, _failed_record(t, config, "the worker process stopped before running this episode"), None)
@@ -185,16 +187,17 @@ class _single_threaded_children:
                 os.environ[k] = v
 
 
-def _drain(out_q, take, done) -> None:
-    while True:
-        try:
-            kind, a, rec, arr = out_q.get(timeout=0.2)
-        except queue_mod.Empty:
-            return
-        if kind == "result":
+def _read_available(conn, take) -> bool:
+    """Take every message waiting on `conn`; True once the worker said "done" (or its pipe is closed)."""
+    try:
+        while conn.poll():
+            kind, a, rec, arr = conn.recv()
+            if kind == "done":
+                return True
             take(a, rec, arr)
-        else:
-            done.add(a)
+    except (EOFError, OSError):
+        return False
+    return False
 
 
 def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:

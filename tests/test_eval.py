@@ -292,3 +292,14 @@ def test_duplicate_policies_and_unpicklable_objects_with_workers_are_refused(tmp
     with pytest.raises(EvalError, match="cannot be sent to worker processes"):
         run(_config(tmp_path, policies=(), workers=2), policies={"local": Local()})
     assert not (tmp_path / "out").exists()
+
+
+def test_a_worker_process_that_dies_marks_its_unfinished_episodes_failed(tmp_path):
+    from test_eval_helpers import ExitOnOddSeed
+
+    result = run(_config(tmp_path, policies=("zero",), episodes=2, workers=2), policies={"exit": ExitOnOddSeed()})
+    status = {(r["policy"], r["seed"]): r["status"] for r in result.episodes}
+    # worker 1 ran zero/seed S+1, then died in exit/seed S+1; worker 0 ran the rest
+    assert status == {("zero", SEED): "ok", ("zero", SEED + 1): "ok", ("exit", SEED): "ok", ("exit", SEED + 1): "failed"}
+    died = next(r for r in result.episodes if r["status"] == "failed")
+    assert "died with exit code 3" in died["error"]

@@ -50,3 +50,18 @@ class ProportionalBatched:
         a = np.zeros((1, 8), dtype=np.float32)
         a[0, 6:] = np.clip(-err[0], -1, 1)
         return a, state
+
+
+class ExitOnOddSeed(HoldStill):
+    """Kills its own process (as a segfault would) in episodes with an odd seed."""
+
+    def reset(self, obs, info=None, *, seed=None):
+        super().reset(obs, info, seed=seed)
+        self.seed = seed
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        if self.seed % 2 == 1:
+            import os
+
+            os._exit(3)
+        return super().predict(observation, state, episode_start, deterministic)
