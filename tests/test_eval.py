@@ -303,3 +303,17 @@ def test_a_worker_process_that_dies_marks_its_unfinished_episodes_failed(tmp_pat
     assert status == {("zero", SEED): "ok", ("zero", SEED + 1): "ok", ("exit", SEED): "ok", ("exit", SEED + 1): "failed"}
     died = next(r for r in result.episodes if r["status"] == "failed")
     assert "died with exit code 3" in died["error"]
+
+
+def test_every_registered_task_runs_and_shares_its_path_across_policies(tmp_path):
+    import mobman_env
+
+    result = run(_config(tmp_path, envs=mobman_env.ENV_IDS, policies=("zero", "jmpi"), episodes=1, env_kwargs={}))
+    assert len(result.episodes) == 2 * len(mobman_env.ENV_IDS)
+    for env_id in mobman_env.ENV_IDS:
+        recs = [r for r in result.episodes if r["env"] == env_id]
+        assert all(r["status"] == "ok" and r["n_steps"] == 2000 for r in recs), env_id
+        assert recs[0]["path"] == recs[1]["path"]  # Random-v0 included: the same drawn path seed
+        assert recs[0]["true_params_hash"] == recs[1]["true_params_hash"]
+    random_path = next(r["path"] for r in result.episodes if r["env"] == "WheeledPuma-Random-v0")
+    assert "seed" in random_path
