@@ -299,7 +299,7 @@ def print_table(results: dict, out: Path | None = None) -> None:
 
 # --- the run directory -----------------------------------------------------------------------------------
 
-def write_run(result, config, tasks) -> None:
+def write_run(result, config) -> None:
     """Write every file of a run directory (see the module docstring)."""
     out = Path(result.out)
     out.mkdir(parents=True, exist_ok=True)

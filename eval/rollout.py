@@ -38,6 +38,14 @@ from eval import metrics as M
 #: Keys of the per-step arrays one rollout returns (see the module docstring).
 ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
 
+#: Every field of an episode record, in order (see eval/README.md, "results.json").
+RECORD_KEYS = (
+    "env", "policy", "episode", "seed", "dynamics", "model_error", "obs_noise", "control_freq", "path", "start",
+    "true_params_hash", "status", "error", "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m",
+    "effort", "peak_joint_speed", "peak_wheel_speed", "success", "n_steps", "joint_limit_hits", "n_clipped",
+    "tipped_over", "terminated", "predict_us_median", "predict_us_p99", "wall_s", "pid",
+)
+
 #: Env constructor arguments that the eval flags set (--dynamics, --model-error, --obs-noise); --env-kwargs may
 #: not set them too.
 FLAG_KWARGS = ("dynamics", "model_error", "obs_noise")

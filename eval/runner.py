@@ -26,6 +26,7 @@ from typing import Any
 from eval import metrics as M
 from eval.checks import _known_policies_text, check_all, check_out, check_user_policies, resolve_out
 from eval.config import EvalConfig, EvalError
+from eval.rollout import RECORD_KEYS
 from eval.workers import execute, make_tasks
 
 
@@ -82,7 +83,7 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
             bar.update(1)
             bar.set_postfix_str(f"{rec['policy']} seed {rec['seed']}: "
                                 + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None
-                                   else rec["status"]))
+                                   else rec["status"]), refresh=False)
 
     t0 = time.perf_counter()
     try:
@@ -93,6 +94,8 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     wall = time.perf_counter() - t0
     records = [rec_by_index[t.index] for t in tasks]
     for t, rec in zip(tasks, records):
+        for key in RECORD_KEYS:  # records of episodes that never ran (dead worker) get every field too
+            rec.setdefault(key, False if key in ("success", "tipped_over", "terminated") else None)
         rec["index"] = t.index
         rec["arrays_key"] = report.arrays_key(t.index) if (
             t.index in arrays and (config.save_arrays == "all" or (config.save_arrays == "first" and t.episode == 0))
@@ -103,7 +106,7 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     cfg["policy_objects"] = {name: type(obj).__name__ for name, obj in user.items()}
     results = report.build_results(cfg, records, M.aggregate(records), wall_s=wall)
     result = RunResult(out=out, results=results, arrays=arrays)
-    report.write_run(result, config, tasks)
+    report.write_run(result, config)
     if config.video:
         from eval.video import write_videos
 

@@ -317,3 +317,15 @@ def test_every_registered_task_runs_and_shares_its_path_across_policies(tmp_path
         assert recs[0]["true_params_hash"] == recs[1]["true_params_hash"]
     random_path = next(r["path"] for r in result.episodes if r["env"] == "WheeledPuma-Random-v0")
     assert "seed" in random_path
+
+
+def test_every_record_has_every_field_even_when_its_worker_died(tmp_path):
+    from eval.rollout import RECORD_KEYS
+    from test_eval_helpers import ExitOnOddSeed
+
+    result = run(_config(tmp_path, policies=(), episodes=2, workers=2), policies={"exit": ExitOnOddSeed()})
+    ok, died = result.episodes
+    assert ok["status"] == "ok" and died["status"] == "failed"
+    for rec in result.episodes:
+        assert set(RECORD_KEYS) <= set(rec)
+    assert set(ok) == set(died)
