@@ -217,7 +217,7 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
         f"`mobman-eval paper`: `{PAPER_ENV}` (theta(0) = [0, pi/4, 0, 2pi/3, -pi/4, 0] rad, wheels 0 rad, heading pi; "
         f"the circle of radius 0.4 m tilted pi/6, T_d = 20 s, 100 Hz control), {n} reported seeds "
         f"({cfg['seed']}..{cfg['seed'] + n - 1}), each a different true robot (link lengths, tool, wheel radius, "
-        f"half track and mount offset off the nominal ones by 5% relative std), dynamics: {', '.join(modes)}. "
+        f"half track and mount offset off the nominal ones by {_pct(result)} relative std), dynamics: {', '.join(modes)}. "
         f"Policies: {', '.join(f'`{s}`' for s in specs)}; `{nnbc}` has the paper's gamma = mu = 10. Success = max tracking error "
         f"<= 6 mm over the whole 20 s. Ran in {wall_s:.0f} s with {cfg['workers']} worker(s); git `{res['git']}`.",
         "",
@@ -272,6 +272,12 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
     lines += ["", "Fig. 2a = NNBC's path and platform trace, Fig. 2b = NNBC's error per axis, Fig. 3 = NNBC vs JMPI.",
               "Every number above comes from results.json in this directory.", ""]
     return "\n".join(lines)
+
+
+def _pct(result) -> str:
+    """The model error of the run's episodes as a percentage (e.g. "5%")."""
+    values = {r.get("model_error") for r in result.episodes if r.get("model_error") is not None}
+    return ", ".join(f"{v * 100:g}%" for v in sorted(values)) or "unknown"
 
 
 def _best_other(result, dyn: str, exclude: tuple) -> tuple[str, float] | None:
@@ -332,12 +338,12 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
         n_fail = sum(e > PAPER_MAX_ERROR for e in errs)
         if n_fail == len(errs):
             out.append(f"* **JMPI, {dyn}:** fails the 6 mm criterion in every seed (median {_mm(a['max_error_m']['median'])}): "
-                       f"open loop on the nominal model, its error accumulates with the 5% model error, as the paper "
+                       f"open loop on the nominal model, its error accumulates with the {_pct(result)} model error, as the paper "
                        f"argues. How badly it fails depends on how wrong the model is, which the paper does not state.")
         else:
             out.append(f"* **JMPI, {dyn}:** within 6 mm in {len(errs) - n_fail}/{len(errs)} seeds: with a true robot "
                        f"close to the nominal one the open-loop error stays small; the paper's unknown model error is "
-                       f"not stated, ours is 5% relative std per length.")
+                       f"not stated, ours is {_pct(result)} relative std per length.")
     for dyn in modes:
         a, b = _agg(result, nnbc, dyn), _agg(result, "jmpi", dyn)
         if a and b and a["max_error_m"]["median"] is not None and b["max_error_m"]["median"] is not None \
