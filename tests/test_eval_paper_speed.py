@@ -78,3 +78,41 @@ def test_speed_module_entry_point_refuses_existing_out(tmp_path, capsys):
     (out / "x").write_text("x")
     assert speed.main(["--out", str(out), "--steps", "10"]) == 2
     assert "--overwrite" in capsys.readouterr().err
+
+
+def _fake_result(errors: dict[str, list[float]], dyn: str = "kinematic"):
+    """A RunResult with hand-made max errors per policy (m), for the claim logic of paper.md."""
+    from eval.metrics import aggregate
+    from eval.runner import RunResult
+
+    recs = []
+    for policy, errs in errors.items():
+        for k, e in enumerate(errs):
+            recs.append({"env": paper.PAPER_ENV, "policy": policy, "dynamics": dyn, "model_error": 0.05,
+                         "obs_noise": 0.0, "episode": k, "seed": 10_000 + k, "status": "ok", "max_error_m": e,
+                         "success": e <= 0.006, "tipped_over": False, "index": len(recs),
+                         "path": {"type": "circle", "radius": 0.4, "tilt": math.pi / 6}})
+    results = {"config": {"dynamics": [dyn], "episodes": len(next(iter(errors.values()))), "seed": 10_000,
+                          "workers": 1}, "git": "x", "episodes": recs, "aggregate": aggregate(recs)}
+    s = np.linspace(0, 2 * math.pi, 200)
+    r_d = np.c_[0.4 * np.cos(s) - 0.4, 0.4 * math.cos(math.pi / 6) * np.sin(s), 0.2 * np.sin(s)]
+    return RunResult(out=None, results=results, arrays={0: {"r_d": r_d}})
+
+
+@pytest.mark.parametrize(
+    "nnbc, jmpi, expect",
+    [
+        ([0.002, 0.004, 0.005], [0.05, 0.08, 0.04], ["<= 6 mm in 3/3 seeds | holds", "> 6 mm in 3/3 seeds",
+                                                     "NNBC 4.0 mm vs JMPI 50.0 mm | holds",
+                                                     "within 6 mm in every seed (median 4.0 mm), as the paper says"]),
+        ([0.02, 0.03, 0.09], [0.05, 0.004, 0.003], ["<= 6 mm in 0/3 seeds | does not hold",
+                                                    "> 6 mm in 1/3 seeds, 0.13 x NNBC's median | does not hold",
+                                                    "NNBC 30.0 mm vs JMPI 4.0 mm | does not hold",
+                                                    "within 6 mm in 2/3 seeds"]),
+    ],
+)
+def test_paper_claims_follow_the_measurements(nnbc, jmpi, expect):
+    result = _fake_result({"nnbc": nnbc, "jmpi": jmpi, "oracle": [0.001, 0.001, 0.001]})
+    md = paper.paper_markdown(result, ("nnbc", "jmpi", "oracle"), [], {}, 1.0)
+    for needle in expect:
+        assert needle in md, (needle, md)
