@@ -314,12 +314,16 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
                      f"episode ended early.")
         if o is not None and o["max_error_m"]["median"] is not None:
             om = o["max_error_m"]["median"]
-            setting = "100 Hz sampled control" + (" with contact dynamics" if dyn == "physics" else "")
             if om > PAPER_MAX_ERROR:
+                limited = [r for r in result.episodes if r["policy"] == "oracle" and r["dynamics"] == dyn
+                           and r["status"] == "ok" and r.get("joint_limit_hits", 0) > 0]
                 line += (f" The oracle, the same law (eq. (10)) given the true robot's Jacobian, reaches a "
-                         f"median {_mm(om)} too: that much comes with the law itself in this setting ({setting}), "
-                         f"not from estimating J; the rest ({_mm(max(med - om, 0.0))} of the median) is the cost of "
-                         f"the online estimate.")
+                         f"median {_mm(om)} too, so that much is not the cost of estimating J: it runs into a joint "
+                         f"limit in {len(limited)}/{o['n']} seeds. The circle goes round the shoulder axis, so joint "
+                         f"1 plus the platform's yaw must turn a full 360 deg; eq. (10)'s minimum-norm solution gives "
+                         f"most of that turn to joint 1, which stops at the PUMA 560's +-160 deg late in the circle, "
+                         f"and the law has no way to hand the turn to the platform. The rest "
+                         f"({_mm(max(med - om, 0.0))} of the median) is the cost of the online estimate.")
                 best = _best_other(result, dyn, exclude=(nnbc, "oracle", "jmpi"))
                 if best is not None and best[1] < PAPER_MAX_ERROR:
                     line += (f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1])} "
