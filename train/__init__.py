@@ -5,12 +5,36 @@ from train import TrainConfig, run
 summary = run(TrainConfig(algo="sac", env_id="WheeledPuma-Circle-v0", timesteps=100_000, out="runs/sac"))
 ```
 
-* `train.config.TrainConfig` — the frozen run configuration (a docstring per field, JSON round trip).
-* `train.algos.ALGOS` — name -> SB3 class and default hyperparameters (ppo, sac, td3).
-* `train.run.run(config)` / `train.run.resume(dir)` — train into a run folder / continue one.
-* `train.cli.main(argv)` — the command line.
+```
+mobman-train --algo sac --env WheeledPuma-Circle-v0 --timesteps 100000 --seed 0 --out runs/sac
+mobman-train --resume runs/sac --timesteps 200000          # continue (also after Ctrl-C)
+mobman-eval run --policy sb3:runs/sac/model.zip --policy nnbc --dynamics kinematic
+```
 
-Importing `train` does not import torch or SB3; `run` does.
+Modules: `config` (`TrainConfig`, frozen, a docstring per field, JSON round trip), `algos` (name -> SB3 class
+and default hyperparameters, rl-zoo style), `wrappers` (the agent's view of the observation), `run` (`run`,
+`resume`, the run folder), `callbacks` (checkpoints, learning curve), `evaluation` (through `eval`), `agent`
+(the live model behind the `Policy` contract), `cli` (`main(argv)`). Importing `train` loads neither torch nor
+SB3; `run` does.
+
+## How the task is posed to the agent (the defaults)
+
+* Env arguments for learning, written into the run's config (env arguments, not a forked env):
+  `reward_weights = {"tracking": 20, "effort": 0.02}` (the error in units of 5 cm, the env's 1e-3
+  effort/tracking ratio kept) and `error_bound = 0.1` m (an episode ends once the error passes 10 cm, so early
+  experience stays near the path). A training-only wrapper adds `alive_bonus = 2` per step (= 20 x 0.1), so a
+  step inside the bound earns >= 0 and ending early never pays. Evaluations drop these learning-only
+  arguments and use the env's defaults.
+* Observation: the `pos_error` wrapper adds target_pos - ee_pos; the agent sees `pos_error, target_vel, ee_vel,
+  joint_pos, joint_vel, base_yaw, time`, normalised by VecNormalize (`vecnormalize.pkl`). `config.json` records
+  `"wrappers"` and `"obs_keys"`, which `policies.sb3.SB3Policy` reproduces at inference.
+* Actions: the env's normalised speeds. SAC/TD3 start with the actor's output layer scaled by 0.01, so the
+  untrained agent commands about zero speed instead of random full-speed motions (PPO's orthogonal init does
+  the same); SAC explores with gSDE.
+* Seeds: training seed 0-999; periodic evaluation on development seeds 900-904 (held out: training envs are
+  seeded once with the training seed); the final evaluation on reported seeds from 10,000 through `eval.run`,
+  with the same env settings as `mobman-eval run` (the exact command is in `final_eval.json`).
+* Torch runs with one thread (`torch_threads`).
 """
 
 from train.config import TrainConfig
