@@ -273,3 +273,9 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
     assert (out / "model.zip").is_file()
     assert main(["--resume", str(out), "--timesteps", str(latest["steps"] + 200), "--no-progress"]) == 0
     assert json.loads((out / "summary.json").read_text())["status"] == "done"
+
+
+def test_importing_train_loads_neither_torch_nor_sb3():
+    code = "import sys, train, train.cli, train.config; print('torch' in sys.modules, 'stable_baselines3' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["False", "False"]
