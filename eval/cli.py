@@ -17,7 +17,7 @@ import argparse
 import json
 import sys
 
-from eval.config import DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, EvalConfig, EvalError
+from eval.config import BACKEND_CHOICES, DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, EvalConfig, EvalError
 from eval.metrics import DEFAULT_TOLERANCE
 
 
@@ -54,6 +54,18 @@ def _env_kwargs(text: str) -> dict:
     return value
 
 
+def add_backend_arguments(p) -> None:
+    """--workers, --backend and --address (run and sweep)."""
+    p.add_argument("--workers", type=int, default=1,
+                   help="parallel episodes: worker processes (one PyBullet client each), or with --backend ray and "
+                        "no --address the CPUs of the local Ray instance started for the run")
+    p.add_argument("--backend", choices=BACKEND_CHOICES, default="local",
+                   help='where episodes run: local processes, or one Ray task per episode (pip install "mobman[ray]")')
+    p.add_argument("--address", default=None, metavar="ADDRESS",
+                   help="with --backend ray: the cluster to join (auto, HOST:6379, ray://HOST:10001); default: a "
+                        "local Ray instance")
+
+
 def _add_run(sub) -> None:
     p = sub.add_parser(
         "run", help="benchmark policies on identical episodes",
@@ -69,7 +81,7 @@ def _add_run(sub) -> None:
     p.add_argument("--seed", type=int, default=10_000, help="seed of episode 0 (episode k uses seed + k)")
     p.add_argument("--out", default=None, help="output directory (default: runs/run-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
-    p.add_argument("--workers", type=int, default=1, help="worker processes (one PyBullet client each)")
+    add_backend_arguments(p)
     p.add_argument("--dynamics", action="append", choices=DYNAMICS_CHOICES,
                    help="dynamics mode, repeatable (default: physics)")
     p.add_argument("--model-error", type=float, default=None,
@@ -98,6 +110,8 @@ def _run(args) -> int:
         out=args.out,
         overwrite=args.overwrite,
         workers=args.workers,
+        backend=args.backend,
+        address=args.address,
         dynamics=tuple(args.dynamics or ("physics",)),
         model_error=args.model_error,
         obs_noise=args.obs_noise,

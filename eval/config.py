@@ -12,6 +12,7 @@ from eval.rollout import FLAG_KWARGS
 
 DYNAMICS_CHOICES = ("physics", "kinematic")
 SAVE_ARRAYS_CHOICES = ("all", "first", "none")
+BACKEND_CHOICES = ("local", "ray")
 
 
 class EvalError(ValueError):
@@ -38,7 +39,15 @@ class EvalConfig:
     overwrite: bool = False
     """Write into an existing non-empty `out` (files of the same name are replaced atomically)."""
     workers: int = 1
-    """Processes for the episodes (one PyBullet client each); 1 runs in this process."""
+    """Parallel episodes. Local backend: processes (one PyBullet client each; 1 runs in this process). Ray
+    backend: the CPUs of the local Ray instance started for the run (ignored when this process already called
+    `ray.init`; must stay 1 with `address`, where the cluster's CPUs decide)."""
+    backend: str = "local"
+    """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per episode; needs
+    `pip install "mobman[ray]"`)."""
+    address: str | None = None
+    """Ray cluster to connect to ("auto", "HOST:6379", "ray://HOST:10001"); None: start a local Ray instance
+    (or use the one this process already initialised). Only with backend="ray"."""
     dynamics: tuple[str, ...] = ("physics",)
     """Dynamics modes to run ("physics", "kinematic"); each is a separate condition."""
     model_error: float | None = None
@@ -79,6 +88,7 @@ class EvalConfig:
             raise EvalError(f"seed must be an integer >= 0, got {self.seed!r}")
         if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
             raise EvalError(f"workers must be an integer >= 1, got {self.workers!r}")
+        self.validate_backend()
         for name in ("envs", "policies"):
             values = getattr(self, name)
             dup = sorted({v for v in values if values.count(v) > 1})
@@ -107,6 +117,22 @@ class EvalConfig:
             json.dumps(self.env_kwargs)
         except (TypeError, ValueError) as exc:
             raise EvalError(f"env_kwargs must be plain JSON data: {exc}") from None
+
+    def validate_backend(self) -> None:
+        """The backend, address and workers fit together, and Ray is installed if it is asked for."""
+        if self.backend not in BACKEND_CHOICES:
+            raise EvalError(f"unknown backend {self.backend!r}; accepted: {', '.join(BACKEND_CHOICES)}")
+        if self.address is not None and self.backend != "ray":
+            raise EvalError(f"--address {self.address!r} needs --backend ray (the local backend runs on this machine)")
+        if self.backend == "ray":
+            if self.address is not None and self.workers != 1:
+                raise EvalError(
+                    f"--workers {self.workers} sets the CPUs of a Ray instance started for this run; with --address "
+                    f"{self.address!r} the cluster's CPUs set the parallelism: drop --workers"
+                )
+            from eval.ray_backend import require_ray
+
+            require_ray()
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

@@ -1,9 +1,12 @@
-"""Running episodes: in this process, or dealt round-robin to N spawned worker processes.
+"""Running episodes: in this process, dealt round-robin to N spawned worker processes, or as Ray tasks.
 
-Each process builds each env (per id and dynamics mode) and each policy (per env) once and reuses them; every
-episode starts from `env.reset(seed=S + k)` and `policy.reset(..., seed=S + k)`, so results do not depend on
-which process runs an episode or what it ran before (physics mode included: tested bit-identical). A worker
-that dies marks its unfinished episodes failed.
+A `Task` describes one episode completely (env id, dynamics, policy, seed, model error, sensor noise); `run`
+fills them from its config, a sweep (`eval.sweep`) gives every task its own condition. Each process builds
+each env (per id, dynamics, model error and noise) and each policy (per env) once and reuses them (the
+`Executor.MAX_ENVS` most recently used envs are kept); every episode starts from `env.reset(seed)` and
+`policy.reset(..., seed=seed)`, so results do not depend on which process runs an episode or what it ran before
+(physics mode included: tested bit-identical). A worker that dies marks its unfinished episodes failed.
+`config.backend == "ray"` hands the tasks to `eval.ray_backend` instead.
 """
 
 from __future__ import annotations
@@ -22,47 +25,61 @@ class Task(NamedTuple):
     env: str
     dynamics: str
     policy: str
-    episode: int  # k: the episode uses seed S + k
+    episode: int  # k: the k-th seed of the run (run: seed S + k)
+    seed: int  # env.reset(seed=seed) and policy.reset(..., seed=seed)
+    model_error: float | None  # env argument; None: the env's default
+    obs_noise: float | None  # env argument; None: the env's default
 
 
 class Executor:
-    """Runs tasks in one process, building each env (per id and dynamics) and policy (per env) once."""
+    """Runs tasks in one process, building each env (per id, dynamics, model error and noise) and policy (per
+    env) once; beyond `MAX_ENVS` envs the least recently used one is closed with its policies."""
+
+    #: envs kept open per process: each holds a PyBullet client (about 25 MB); a sweep visits its conditions
+    #: one after the other, so a few suffice
+    MAX_ENVS = 8
 
     def __init__(self, config: EvalConfig, user: dict):
         self.config = config
         self.user = user
-        self._envs: dict[tuple, Any] = {}
+        self._envs: dict[tuple, Any] = {}  # insertion order = least recently used first
         self._policies: dict[tuple, Any] = {}
 
-    def env(self, env_id: str, dyn: str):
-        key = (env_id, dyn)
-        if key not in self._envs:
-            c = self.config
-            self._envs[key] = make_env(env_id, dyn, c.model_error, c.obs_noise, c.env_kwargs)
+    def env(self, task: Task):
+        key = (task.env, task.dynamics, task.model_error, task.obs_noise)
+        if key in self._envs:
+            self._envs[key] = self._envs.pop(key)  # most recently used last
+        else:
+            while len(self._envs) >= self.MAX_ENVS:
+                old = next(iter(self._envs))
+                self._envs.pop(old).close()
+                self._policies = {k: v for k, v in self._policies.items() if k[0] != old}
+            self._envs[key] = make_env(task.env, task.dynamics, task.model_error, task.obs_noise,
+                                       self.config.env_kwargs)
         return self._envs[key]
 
-    def policy(self, env_id: str, dyn: str, name: str):
-        if name in self.user:
-            return self.user[name]
-        key = (env_id, dyn, name)
+    def policy(self, task: Task):
+        if task.policy in self.user:
+            return self.user[task.policy]
+        env = self.env(task)
+        key = ((task.env, task.dynamics, task.model_error, task.obs_noise), task.policy)
         if key not in self._policies:
-            self._policies[key] = make_policy(name, self.env(env_id, dyn), self.config.seed)
+            self._policies[key] = make_policy(task.policy, env, self.config.seed)
         return self._policies[key]
 
     def run(self, task: Task) -> tuple[dict, dict | None]:
         meta = {"env": task.env, "policy": task.policy, "episode": task.episode}
-        seed = self.config.seed + task.episode
         try:
-            env = self.env(task.env, task.dynamics)
-            pol = self.policy(task.env, task.dynamics, task.policy)
+            env = self.env(task)
+            pol = self.policy(task)
         except Exception:
             import traceback
 
-            rec = {**meta, "seed": seed, "dynamics": task.dynamics, "model_error": self.config.model_error,
-                   "obs_noise": self.config.obs_noise, "status": "failed", "error": traceback.format_exc(),
+            rec = {**meta, "seed": task.seed, "dynamics": task.dynamics, "model_error": task.model_error,
+                   "obs_noise": task.obs_noise, "status": "failed", "error": traceback.format_exc(),
                    "success": False, "wall_s": 0.0, "pid": os.getpid()}
             return rec, None
-        return rollout(env, pol, seed, tolerance=self.config.tolerance, meta=meta)
+        return rollout(env, pol, task.seed, tolerance=self.config.tolerance, meta=meta)
 
     def close(self) -> None:
         for env in self._envs.values():
@@ -72,7 +89,10 @@ class Executor:
 
 
 def keep_arrays(config: EvalConfig, task: Task) -> bool:
-    """Episode 0 of every condition is kept for the plots; all of them with save_arrays="all"."""
+    """Episode 0 of every condition is kept for the plots; all of them with save_arrays="all"; none when
+    nothing uses them (save_arrays="none" and no plots)."""
+    if config.save_arrays == "none" and not config.plots:
+        return False
     return task.episode == 0 or config.save_arrays == "all"
 
 
@@ -90,15 +110,20 @@ def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: 
         out.close()
 
 
-def _failed_record(task: Task, config: EvalConfig, message: str) -> dict:
-    return {"env": task.env, "policy": task.policy, "episode": task.episode, "seed": config.seed + task.episode,
-            "dynamics": task.dynamics, "model_error": config.model_error, "obs_noise": config.obs_noise,
+def failed_record(task: Task, message: str) -> dict:
+    """The record of an episode that produced no result (its worker process died, its Ray task failed)."""
+    return {"env": task.env, "policy": task.policy, "episode": task.episode, "seed": task.seed,
+            "dynamics": task.dynamics, "model_error": task.model_error, "obs_noise": task.obs_noise,
             "status": "failed", "error": message, "success": False, "wall_s": None, "pid": None}
 
 
 def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes | None = None,
             on_result=None) -> tuple[dict[int, dict], dict[int, dict]]:
     """Run `tasks`; returns ({index: record}, {index: arrays}). `on_result(record)` is called as each ends."""
+    if config.backend == "ray":
+        from eval.ray_backend import execute_ray
+
+        return execute_ray(config, user, tasks, on_result)
     records: dict[int, dict] = {}
     arrays: dict[int, dict] = {}
 
@@ -149,7 +174,7 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
                     active.discard(i)
                     for t in shares[i]:
                         if t.index not in records:
-                            take(t.index, _failed_record(t, config, (
+                            take(t.index, failed_record(t, (
                                 f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
                                 f"is on stderr; a script that calls eval.run with workers > 1 needs an "
                                 f"`if __name__ == '__main__':` guard)")), None)
@@ -162,7 +187,7 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
             r.close()
     for t in tasks:  # a worker that stopped early (it reports its own error on stderr)
         if t.index not in records:
-            take(t.index, _failed_record(t, config, "the worker process stopped before running this episode"), None)
+            take(t.index, failed_record(t, "the worker process stopped before running this episode"), None)
     return records, arrays
 
 
@@ -206,5 +231,6 @@ def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
         for dyn in config.dynamics:
             for name in names:
                 for k in range(config.episodes):
-                    tasks.append(Task(len(tasks), env_id, dyn, name, k))
+                    tasks.append(Task(len(tasks), env_id, dyn, name, k, config.seed + k, config.model_error,
+                                      config.obs_noise))
     return tasks

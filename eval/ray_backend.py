@@ -1,0 +1,211 @@
+"""The Ray backend (`--backend ray [--address ADDRESS]`): every episode is one Ray task.
+
+* **Same results as the local backend.** A task receives the run's config and one `Task` (env id, dynamics,
+  policy, seed, model error, noise), builds the env and the policy inside the Ray worker process (its own
+  PyBullet client), runs the one rollout loop of `eval.rollout` and closes the env, so no PyBullet client or
+  temporary URDF outlives the task (Ray kills its worker processes without running their exit handlers).
+  Every episode starts from `env.reset(seed)` and `policy.reset(..., seed=seed)`: the records equal those of
+  `--backend local` except `wall_s`, `pid` and `predict_us_*` (tested on a local `ray.init(num_cpus=2)`).
+* **Failures.** An exception inside an episode (policy or env) is a result, exactly as locally: the record gets
+  `status: "failed"` and the traceback; it is not retried (same seed, same crash). A *task* that fails — its
+  worker process dies (segfault, `os._exit`, out of memory, node lost) or it raises outside the episode (e.g.
+  the policy objects cannot be unpickled because their module is missing on that node) — is run once more by
+  Ray (`max_retries=1`, `retry_exceptions=True`); if the retry fails too, the episode is recorded as failed
+  with Ray's error (and the remote traceback), `pid` and `wall_s` null, and the other episodes finish.
+* **Where Ray runs.** If this process already called `ray.init` (your script, a test fixture), that instance is
+  used as it is and left running. Otherwise the run connects to `address` (`"auto"` on a node of a cluster
+  started with `ray start --head`; `"HOST:6379"`; `"ray://HOST:10001"` for Ray Client) or, without an
+  address, starts a local instance with `num_cpus = workers` (no dashboard, a 128 MiB object store, worker
+  output not forwarded: tracebacks are in the records), and shuts it down at the end. Each task asks for one
+  CPU; Ray sets `OMP_NUM_THREADS=1` in its workers.
+* **Policy objects** given to `eval.run(config, policies={name: obj})` travel to the workers pickled (with
+  Ray's cloudpickle, so classes defined in a script or a function work too); an object that cannot be pickled
+  is refused before any rollout, naming it. Spec policies (`--policy nnbc`, `module:attr`, `sb3:PATH`) are
+  built in the workers: on a cluster, mobman, the user's modules and model files must be available on every
+  node (installed, or shipped with a Ray `runtime_env` given to your own `ray.init`).
+
+Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import pickle
+import re
+import sys
+from contextlib import contextmanager
+from typing import Any
+
+from eval.config import EvalConfig, EvalError
+from eval.workers import Executor, Task, failed_record, keep_arrays
+
+#: Ray re-runs a task once when its worker dies or it raises outside the episode; then it is recorded failed.
+MAX_RETRIES = 1
+
+#: Object store of a Ray instance started for a run: records and per-step arrays are small (0.3 MB for the
+#: arrays of a 20 s episode), and Ray spills to disk beyond it.
+OBJECT_STORE_BYTES = 128 * 2**20
+
+#: How long the driver waits for finished tasks before it looks again (progress latency), s.
+POLL_S = 0.2
+
+INSTALL_HINT = 'pip install "mobman[ray]"'
+
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def require_ray():
+    """Import and return `ray`, or raise `EvalError` saying how to install it."""
+    try:
+        import ray
+    except ImportError as exc:
+        raise EvalError(
+            f"--backend ray needs Ray, which is not installed here ({exc}); install it with {INSTALL_HINT} "
+            f"(or pip install \"ray>=2.9\"), or use --backend local"
+        ) from None
+    return ray
+
+
+def serialize_policies(user: dict[str, Any]) -> bytes | None:
+    """The user's policy objects pickled for the Ray workers (cloudpickle); EvalError if they cannot be."""
+    if not user:
+        return None
+    from ray import cloudpickle
+
+    try:
+        return cloudpickle.dumps(user)
+    except Exception as exc:
+        bad = []
+        for name, obj in user.items():
+            try:
+                cloudpickle.dumps(obj)
+            except Exception:
+                bad.append(f"{name!r} ({type(obj).__name__})")
+        raise EvalError(
+            f"policy object(s) {', '.join(bad) or sorted(user)} cannot be sent to Ray workers: with --backend ray "
+            f"every policy object must be picklable ({type(exc).__name__}: {exc}). Drop what cannot be pickled "
+            f"(open files, locks, threads, PyBullet clients) from the object or rebuild it in reset(); or make it "
+            f"importable and pass it as --policy module:attr; or use --backend local"
+        ) from None
+
+
+def run_task(config: EvalConfig, user_bytes: bytes | None, task: Task, keep: bool) -> tuple[dict, dict | None]:
+    """Body of one Ray task, in a Ray worker process: build the env and policy, run the episode, close."""
+    user = pickle.loads(user_bytes) if user_bytes else {}
+    ex = Executor(config, user)
+    try:
+        rec, arrays = ex.run(task)
+    finally:
+        ex.close()
+    return rec, (arrays if keep else None)
+
+
+_REMOTE = None
+
+
+def _remote_task():
+    global _REMOTE
+    if _REMOTE is None:
+        ray = require_ray()
+        _REMOTE = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(run_task)
+    return _REMOTE
+
+
+def local_runtime_env() -> dict[str, Any]:
+    """A Ray `runtime_env` giving local Ray workers this process's own import directories.
+
+    Ray gives its workers only the driver's script directory and working directory; spawned local worker
+    processes get the parent's whole `sys.path`. So that `--policy module:attr` and pickled policy objects
+    import in Ray workers exactly as in local ones, the entries of `sys.path` outside the Python installation
+    (a project or tests directory, a PYTHONPATH) are put on the workers' PYTHONPATH."""
+    prefixes = {os.path.realpath(p) for p in (sys.prefix, sys.base_prefix, sys.exec_prefix)}
+    extra = []
+    for entry in sys.path:
+        path = os.path.realpath(entry or os.curdir)
+        if os.path.isdir(path) and not any(path == p or path.startswith(p + os.sep) for p in prefixes) \
+                and path not in extra:
+            extra.append(path)
+    if os.environ.get("PYTHONPATH"):
+        extra.append(os.environ["PYTHONPATH"])
+    return {"env_vars": {"PYTHONPATH": os.pathsep.join(extra)}} if extra else {}
+
+
+def init_kwargs(config: EvalConfig) -> dict[str, Any]:
+    """Arguments of `ray.init` for a run that starts (no address) or joins (address) Ray itself."""
+    common = {"log_to_driver": False, "logging_level": logging.ERROR}
+    if config.address is not None:
+        return {"address": config.address, **common}
+    return {"num_cpus": config.workers, "include_dashboard": False, "object_store_memory": OBJECT_STORE_BYTES,
+            "runtime_env": local_runtime_env(), **common}
+
+
+@contextmanager
+def ray_session(config: EvalConfig):
+    """Use the Ray instance this process already initialised, or start / join one and shut it down after."""
+    ray = require_ray()
+    if ray.is_initialized():
+        yield ray
+        return
+    try:
+        ray.init(**init_kwargs(config))
+    except Exception as exc:
+        where = f"the Ray cluster at --address {config.address!r}" if config.address else "a local Ray instance"
+        raise EvalError(
+            f"cannot start or reach {where}: {type(exc).__name__}: {exc}. For a cluster, run `ray start --head` on "
+            f"the head node (and `ray start --address HEAD:6379` on the others), then pass --address auto on a "
+            f"node of it, or --address HEAD:6379"
+        ) from None
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def task_error_text(exc: BaseException) -> str:
+    """Ray's error (with the remote traceback when there is one), without terminal colour codes."""
+    text = _ANSI.sub("", str(exc)).strip()
+    msg = f"the Ray task failed and its retry failed too ({MAX_RETRIES} retry): {type(exc).__name__}: {text}"
+    if "ModuleNotFoundError" in text:
+        msg += ("\n(the Ray worker cannot import a module the policy objects need: install it on every node, or "
+                "ship it with a runtime_env (working_dir / py_modules) given to your own ray.init before eval.run)")
+    return msg
+
+
+def execute_ray(config: EvalConfig, user: dict, tasks: list[Task], on_result=None
+                ) -> tuple[dict[int, dict], dict[int, dict]]:
+    """Run `tasks` as Ray tasks; returns ({index: record}, {index: arrays}) like `eval.workers.execute`.
+
+    `on_result(record)` is called in this process as each episode ends (in completion order)."""
+    require_ray()
+    user_bytes = serialize_policies(user)  # refused here, before Ray starts, if it cannot be pickled
+    records: dict[int, dict] = {}
+    arrays: dict[int, dict] = {}
+    if not tasks:
+        return records, arrays
+    with ray_session(config) as ray:
+        remote = _remote_task()
+        cfg_ref = ray.put(config)
+        user_ref = ray.put(user_bytes)
+        pending = {remote.remote(cfg_ref, user_ref, t, keep_arrays(config, t)): t for t in tasks}
+        try:
+            while pending:
+                ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=POLL_S)
+                for ref in ready:
+                    task = pending.pop(ref)
+                    try:
+                        rec, arr = ray.get(ref)
+                    except Exception as exc:  # the task and its retry failed (RayTaskError, WorkerCrashedError, ...)
+                        rec, arr = failed_record(task, task_error_text(exc)), None
+                    records[task.index] = rec
+                    if arr is not None:
+                        arrays[task.index] = arr
+                    if on_result is not None:
+                        on_result(rec)
+        finally:
+            for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
+                try:
+                    ray.cancel(ref, force=True)
+                except Exception:
+                    pass
+    return records, arrays

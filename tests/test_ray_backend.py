@@ -1,0 +1,184 @@
+"""The Ray backend: same records as the local backend, task retries, picklability and install errors.
+
+One local Ray instance (2 CPUs) serves the whole module; episodes are short kinematic circles (1 s = 100 steps).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import threading
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from eval import EvalConfig, EvalError, run
+from eval.cli import main
+from test_eval_helpers import CrashOnOddSeed, HoldStill
+
+ENV = "WheeledPuma-Circle-v0"
+SHORT = {"path": {"type": "circle", "radius": 0.1, "duration": 1.0}}
+#: reported seeds of this module (DESIGN "Seeds")
+SEED = 10_000
+#: fields that may differ between backends (timing and process)
+VOLATILE = {"wall_s", "pid", "predict_us_median", "predict_us_p99"}
+
+
+@pytest.fixture(scope="module")
+def ray_cluster():
+    """A local Ray instance with 2 CPUs for the module; the runs use it as it is (and leave it running)."""
+    import ray
+
+    from eval.ray_backend import local_runtime_env
+
+    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR,
+             object_store_memory=100 * 2**20, runtime_env=local_runtime_env())  # tests/ importable in workers
+    yield ray
+    ray.shutdown()
+
+
+def _config(tmp_path, name="out", **kw) -> EvalConfig:
+    base = dict(envs=(ENV,), policies=("zero", "nnbc"), episodes=2, seed=SEED, out=str(tmp_path / name),
+                dynamics=("kinematic",), env_kwargs=SHORT, progress=False, plots=False)
+    base.update(kw)
+    return EvalConfig(**base)
+
+
+def _stable(rec: dict) -> dict:
+    return {k: v for k, v in rec.items() if k not in VOLATILE}
+
+
+class ExitOnce(HoldStill):
+    """Kills its worker process in the first attempt of each odd-seed episode (a marker file remembers it)."""
+
+    def __init__(self, marker_dir: str):
+        super().__init__()
+        self.marker_dir = marker_dir
+
+    def reset(self, obs, info=None, *, seed=None):
+        super().reset(obs, info, seed=seed)
+        marker = Path(self.marker_dir) / f"exited-{seed}"
+        if seed % 2 == 1 and not marker.exists():
+            marker.write_text(str(os.getpid()))
+            os._exit(3)
+
+
+class ExitAlways(HoldStill):
+    """Kills its worker process in every attempt of odd-seed episodes, logging each attempt."""
+
+    def __init__(self, log_dir: str):
+        super().__init__()
+        self.log_dir = log_dir
+
+    def reset(self, obs, info=None, *, seed=None):
+        super().reset(obs, info, seed=seed)
+        if seed % 2 == 1:
+            with open(Path(self.log_dir) / f"attempts-{seed}", "a") as f:
+                f.write(f"{os.getpid()}\n")
+            os._exit(3)
+
+
+class HoldsALock(HoldStill):
+    def __init__(self):
+        super().__init__()
+        self.lock = threading.Lock()  # cannot be pickled
+
+
+# --- same results as the local backend --------------------------------------------------------------------
+
+def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
+    """Spec policies, a user object and an in-episode crash: the records and arrays equal the local ones."""
+    local = run(_config(tmp_path, "local", save_arrays="all"), policies={"crash": CrashOnOddSeed()})
+    out = tmp_path / "ray"
+    rc = main(["run", "--env", ENV, "--dynamics", "kinematic", "--env-kwargs", json.dumps(SHORT), "--seed", str(SEED),
+               "--episodes", "2", "--policy", "zero", "--policy", "nnbc", "--policy", "test_eval_helpers:CrashOnOddSeed",
+               "--out", str(out), "--quiet", "--no-plots", "--save-arrays", "all", "--backend", "ray"])
+    assert rc == 0
+    res = json.loads((out / "results.json").read_text())
+    assert res["config"]["backend"] == "ray"
+    recs = res["episodes"]
+    local_recs = json.loads((tmp_path / "local" / "results.json").read_text())["episodes"]
+    rename = {"crash": "test_eval_helpers:CrashOnOddSeed"}
+    for a, b in zip(local_recs, recs):
+        a = {**_stable(a), "policy": rename.get(a["policy"], a["policy"])}
+        b = _stable(b)
+        if a["error"]:  # the in-episode crash: the same exception, raised from the same line
+            assert b["error"].splitlines()[-3:] == a["error"].splitlines()[-3:]
+            a["error"] = b["error"] = None
+        assert a == b
+    assert [r["status"] for r in recs] == ["ok"] * 4 + ["ok", "failed"]  # the crash is a result, not a retry
+    assert "deliberate crash at step 5" in recs[-1]["error"]
+    assert os.getpid() not in {r["pid"] for r in recs} and None not in {r["pid"] for r in recs}
+
+    z = np.load(out / "episodes.npz")
+    for rec in local.episodes:
+        for name in ("r_d", "r_a", "p_c", "error", "action"):
+            np.testing.assert_array_equal(np.asarray(local.arrays[rec["index"]][name], np.float32),
+                                          z[f"{rec['arrays_key']}__{name}"])
+
+
+# --- failed tasks -------------------------------------------------------------------------------------------
+
+def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluster):
+    markers, log = tmp_path / "markers", tmp_path / "log"
+    markers.mkdir()
+    log.mkdir()
+    result = run(_config(tmp_path, policies=("zero",), backend="ray"),
+                 policies={"once": ExitOnce(str(markers)), "always": ExitAlways(str(log))})
+    status = {(r["policy"], r["seed"]): r["status"] for r in result.episodes}
+    assert status == {("zero", SEED): "ok", ("zero", SEED + 1): "ok", ("once", SEED): "ok",
+                      ("once", SEED + 1): "ok",  # its worker died once; the retry ran it to the end
+                      ("always", SEED): "ok", ("always", SEED + 1): "failed"}
+    assert (markers / f"exited-{SEED + 1}").is_file()
+    assert len((log / f"attempts-{SEED + 1}").read_text().split()) == 2  # the first attempt and one retry
+    dead = next(r for r in result.episodes if r["status"] == "failed")
+    assert "retry failed too" in dead["error"] and "WorkerCrashedError" in dead["error"]
+    assert dead["pid"] is None and dead["max_error_m"] is None and dead["success"] is False
+    once = [r for r in result.episodes if r["policy"] == "once"]
+    zero = [r for r in result.episodes if r["policy"] == "zero"]
+    same = {"policy": "", "index": 0, "arrays_key": None}
+    assert [_stable(r) | same for r in once] == [_stable(r) | same for r in zero]
+    agg = {a["policy"]: a for a in result.aggregate}
+    assert agg["always"]["n_failed"] == 1 and agg["once"]["n_failed"] == 0
+
+
+# --- errors before any rollout --------------------------------------------------------------------------------
+
+def test_an_unpicklable_policy_object_is_refused_naming_it(tmp_path):
+    spy = HoldStill()
+    with pytest.raises(EvalError, match="cannot be sent to Ray workers") as exc:
+        run(_config(tmp_path, policies=("zero",), backend="ray"), policies={"spy": spy, "locked": HoldsALock()})
+    assert "'locked' (HoldsALock)" in str(exc.value) and "picklable" in str(exc.value)
+    assert "'spy'" not in str(exc.value)
+    assert spy.n_reset == 0 and not (tmp_path / "out").exists()
+
+
+def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` now raises ImportError
+    out = tmp_path / "noray"
+    rc = main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--out", str(out), "--quiet",
+               "--backend", "ray"])
+    assert rc == 2
+    assert 'pip install "mobman[ray]"' in capsys.readouterr().err
+    assert not out.exists()
+    spy = HoldStill()
+    with pytest.raises(EvalError, match=r'pip install "mobman\[ray\]"'):
+        run(_config(tmp_path, policies=(), backend="ray"), policies={"spy": spy})
+    assert spy.n_reset == 0 and spy.n_predict == 0
+    assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--episodes", "1", "--env-kwargs",
+                 json.dumps(SHORT), "--out", str(tmp_path / "local"), "--quiet", "--no-plots"]) == 0  # local: no Ray needed
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--address", "auto"], "--address 'auto' needs --backend ray"),
+    (["--backend", "ray", "--address", "auto", "--workers", "2"], "drop --workers"),
+])
+def test_backend_arguments_that_do_not_fit_together(tmp_path, capsys, extra, needle):
+    out = tmp_path / "bad"
+    assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--out", str(out), "--quiet",
+                 *extra]) == 2
+    assert needle in capsys.readouterr().err
+    assert not out.exists()
