@@ -11,21 +11,30 @@ What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
 -------------------------------------------------------------------------------
 1. **Measure** one linear equation per task axis: y = J(t_k) x, with x the measured actuator speeds
    (`joint_vel`, 8) and y the measured end-effector velocity (`ee_vel`, 3; minus `[arm_base_vel; 0]` in the
-   paper's formulation). With `measurement="position"` they are finite differences of `joint_pos` and
-   `ee_pos` over the last step instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt,
-   which holds at the interval's middle), for robots without velocity sensors.
+   paper's formulation). Nothing is differentiated, so position noise never reaches the estimator. With
+   `measurement="position"` they are finite differences of `joint_pos` and `ee_pos` over the last step
+   instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt, which holds at the interval's
+   middle), for sensor sets without velocities; that variant needs clean positions (1 mm of noise on ee_pos
+   is 0.14 m/s on y).
 2. **Estimate** J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
-   Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)); the three rows see the
-   same regressor, so they share one 16x16 covariance and one gain. Exponential forgetting (`forgetting` per
-   step) keeps the estimate fresh, so every direction of J follows the arm, not only the current one.
-3. **Excite** the directions the task does not use: a small random-sign dither (`dither`, rad/s) projected into
-   the null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it
-   the unexcited directions of J would only be known through the rate model.
+   Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)) driven by random-walk process
+   noise (`q_jacobian`, `q_rate`); the three rows see the same regressor, so they share one 16x16 covariance
+   and one gain. Every direction of J follows the arm, not only the current u's. Exponential `forgetting` is
+   available instead of (or with) the process noise; it was measured worse in physics mode (module README).
+   A robust update (`innov_clip`) shortens single-step outliers of the innovation.
+3. **Excite** the directions the task does not use: a random-sign dither (`dither`, rad/s) projected into the
+   null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it the
+   unexcited directions of J go stale and the estimate fails (measured). `task_dither` optionally excites J's
+   row space too with a zero-mean two-step task-space excitation (off by default: the posture pull and the
+   path's own motion excite it enough, and it costs tracking error).
 4. **Control** with the estimate extrapolated half a step (the command is held over [t_k, t_k+1]):
-   u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_a), J_c = J_hat + dt/2 J_dot_hat,
-   J_c^+ a damped (`damping`), actuator-weighted pseudo-inverse and z the null-space motion: dither plus a pull
-   of the arm joints back to their initial angles (`posture_gain`), which keeps the arm away from the reach
-   limit and lets the platform drive (Line-v0 is 3 m long).
+   u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_hat_a), J_c = J_hat + dt/2 J_dot_hat,
+   J_c^+ a damped (`damping`) pseudo-inverse, z the null-space motion: dither plus a pull of the 6 arm joints
+   back to their angles at the episode start (`posture_gain`). The pull keeps the arm away from its reach
+   limit, its joint limits and the singularities around them and lets the platform drive (Line-v0 is 3 m
+   long): without it joint 1 runs into its limit on some circles. r_hat_a is the measured ee_pos after a
+   complementary filter (`pos_filter`) that advances it by the measured motion and pulls it towards the
+   measurement, so position noise is attenuated in the feedback.
 5. **J_hat(0)** comes from a short probe at the start: each actuator in turn at +probe_speed for one step,
    then -probe_speed (back to where it was), 16 steps = 0.16 s at 100 Hz, counted in the episode like every
    other step; J_hat(0) is the least-squares fit of the measured (x, y) pairs. `j0_noise` perturbs it by a
@@ -61,11 +70,26 @@ class NNBCPlusConfig:
     """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "position": from
     finite differences of ee_pos (arm_base_pos) against joint_pos over the last step (for sensor sets without
     velocities)."""
-    forgetting: float = 0.92
+    forgetting: float = 1.0
     """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
-    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting)."""
+    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off
+    (the default: the process noise below keeps the estimate fresh; 0.92 works in kinematic mode but lets the
+    unexcited directions wander in physics mode)."""
+    q_jacobian: float = 1e-6
+    """Process noise: variance added to each J_hat entry per step, (m/rad)^2 (J_hat may drift about 1 mm/rad per
+    step beyond what its rate predicts)."""
+    q_rate: float = 2e-3
+    """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
+    0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
     meas_std: float = 1e-3
     """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R)."""
+    innov_clip: float = 4.0
+    """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
+    running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
+    Single-step violations of y = J x (a platform jolt in physics mode) then cannot throw J_hat off, while a
+    truly changed J (the RMS grows quickly) is still learnt."""
+    innov_rate: float = 0.05
+    """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
     p0_jacobian: float = 1.0
     """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted."""
     p0_rate: float = 1.0
@@ -74,11 +98,11 @@ class NNBCPlusConfig:
     """Upper bound on the covariance trace (divided by the 16 states): stops the forgetting from winding it up
     when the excitation is poor."""
     damping: float = 3e-4
-    """Damping of the pseudo-inverse, m^2/rad^2 ... added to J_c W J_c^T before inversion (safe near
-    singularities and when J_hat is poor)."""
+    """Damping of the pseudo-inverse, m^2/rad^2: added to J_c W J_c^T before inversion (bounds the speeds near a
+    singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity)."""
     dither: float = 0.05
     """Amplitude of the random-sign null-space excitation, rad/s per actuator (0 turns it off)."""
-    task_dither: float = 0.01
+    task_dither: float = 0.0
     """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
     task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
@@ -120,6 +144,7 @@ class NNBCPlusConfig:
 N_ACT = 8
 N_STATE = 2 * N_ACT  # one row of [J | J_dot]
 N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
+INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the innovations (10 mm/s RMS: permissive)
 _SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
 
 
@@ -170,6 +195,10 @@ class NNBCPlus(ControllerPolicy):
         self._whole = c.formulation == "whole_body"
         self._use_vel = c.measurement == "velocity"
         self._h = np.zeros(N_STATE)
+        q = np.r_[np.full(N_ACT, c.q_jacobian), np.full(N_ACT, c.q_rate)]
+        self._q = np.diag(q) if q.any() else None
+        self._clip = c.innov_clip
+        self._clip2 = c.innov_clip**2
         self._P0 = np.diag(np.r_[np.full(N_ACT, c.p0_jacobian), np.full(N_ACT, c.p0_rate)])
         self.X = np.zeros((3, N_STATE))
         self.P = self._P0.copy()
@@ -197,6 +226,7 @@ class NNBCPlus(ControllerPolicy):
         self._signs = np.empty((0, N_ACT))
         self.X = np.zeros((3, N_STATE))
         self.P = self._P0.copy()
+        self._innov_ms = INNOV_MS0
 
     def _task_pos(self, obs: dict) -> np.ndarray:
         """The position J_hat's output integrates to: r_a (whole body) or r_a - [p_c; 0] (paper)."""
@@ -249,13 +279,23 @@ class NNBCPlus(ControllerPolicy):
         X[:, :N_ACT] += dt * X[:, N_ACT:]
         P = self._F @ self.P @ self._FT
         P *= self._inv_lambda
+        if self._q is not None:
+            P += self._q
         h = self._h
         h[:N_ACT] = x
         if not self._use_vel:
             h[N_ACT:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
         Ph = P @ h
         K = Ph / (h @ Ph + self._r)
-        X += np.outer(y - X @ h, K)
+        innov = y - X @ h
+        if self._clip > 0:
+            n2 = innov @ innov
+            lim2 = self._clip2 * self._innov_ms
+            if n2 > lim2:
+                innov *= np.sqrt(lim2 / n2)
+                n2 = lim2
+            self._innov_ms += self.config.innov_rate * (n2 - self._innov_ms)
+        X += np.outer(innov, K)
         P -= np.outer(K, Ph)
         P += P.T
         P *= 0.5
