@@ -1,7 +1,10 @@
-"""`mobman-eval`: benchmark policies side by side (`run`), reproduce the paper (`paper`), measure speed (`speed`).
+"""`mobman-eval`: benchmark policies side by side (`run`), sweep a grid (`sweep`), reproduce the paper (`paper`),
+measure speed (`speed`).
 
 ```
 mobman-eval run --env WheeledPuma-Circle-v0 --policy nnbc --policy jmpi --episodes 20 --dynamics kinematic
+mobman-eval run ... --backend ray --address auto    # the same episodes as Ray tasks on a cluster
+mobman-eval sweep --config sweep.yaml --workers 2   # a resumable grid (`--example` prints one)
 mobman-eval paper                # the paper's section IV, both dynamics modes, 20 reported seeds
 mobman-eval speed                # env steps/s, predict microseconds, episodes/s
 ```
@@ -130,12 +133,13 @@ def _run(args) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from eval import paper, speed
+    from eval import paper, speed, sweep
 
     parser = argparse.ArgumentParser(prog="mobman-eval", description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="command", metavar="{run,paper,speed}")
+    sub = parser.add_subparsers(dest="command", metavar="{run,sweep,paper,speed}")
     sub.required = True
     _add_run(sub)
+    sweep.add_parser(sub)
     paper.add_parser(sub)
     speed.add_parser(sub)
     return parser

@@ -182,3 +182,19 @@ def test_backend_arguments_that_do_not_fit_together(tmp_path, capsys, extra, nee
                  *extra]) == 2
     assert needle in capsys.readouterr().err
     assert not out.exists()
+
+
+# --- sweeps -------------------------------------------------------------------------------------------------
+
+def test_a_sweep_started_locally_and_finished_on_ray_equals_a_local_one(tmp_path, ray_cluster):
+    from eval.sweep import run_sweep
+    from eval.sweep_config import SweepConfig
+
+    sweep = SweepConfig.from_dict({"envs": [ENV], "policies": ["zero", "nnbc"], "seeds": [SEED, SEED + 1],
+                                   "dynamics": ["kinematic"], "model_error": [0.0, 0.1], "env_kwargs": SHORT})
+    whole = run_sweep(sweep, tmp_path / "local", progress=False, plots=False)
+    run_sweep(sweep, tmp_path / "mixed", max_episodes=3, progress=False, plots=False)
+    resumed = run_sweep(sweep, tmp_path / "mixed", backend="ray", progress=False, plots=False)
+    assert (resumed.n_run, resumed.n_skipped, resumed.n_left) == (5, 3, 0)
+    assert [_stable(r) for r in resumed.episodes] == [_stable(r) for r in whole.episodes]
+    assert os.getpid() not in {r["pid"] for r in resumed.episodes[3:]}
