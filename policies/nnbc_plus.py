@@ -97,8 +97,8 @@ class NNBCPlusConfig:
     p0_rate: float = 1.0
     """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
     p_max: float = 1.0
-    """Upper bound on the covariance trace (divided by the 16 states): stops the forgetting from winding it up
-    when the excitation is poor."""
+    """Upper bound on the covariance trace (divided by the 16 states), applied when forgetting < 1: stops the
+    forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
     damping: float = 3e-4
     """Damping of the pseudo-inverse, m^2/rad^2: added to J_c W J_c^T before inversion (bounds the speeds near a
     singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity)."""
@@ -150,15 +150,19 @@ INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the innovations (10 
 _SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
 
 
-def _solve3(A: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Solve the 3x3 system A x = b by cofactors (several times faster than np.linalg.solve at this size)."""
-    (a, b_, c), (d, e, f), (g, h, i) = A.tolist()
-    c0, c1, c2 = e * i - f * h, f * g - d * i, d * h - e * g
-    det = a * c0 + b_ * c1 + c * c2
-    inv = np.array(
-        [[c0, c * h - b_ * i, b_ * f - c * e], [c1, a * i - c * g, c * d - a * f], [c2, b_ * g - a * h, a * e - b_ * d]]
+def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve the 3x3 system A x = rhs by cofactors in plain floats (several times faster than np.linalg.solve
+    at this size; A = J W J^T + damping I is symmetric positive definite)."""
+    (a, b, c), (d, e, f), (g, h, i) = A.tolist()
+    p, q, r = rhs.tolist()
+    c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
+    c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
+    c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
+    inv_det = 1.0 / (a * c00 + b * c10 + c * c20)
+    return np.array(
+        [(c00 * p + c01 * q + c02 * r) * inv_det, (c10 * p + c11 * q + c12 * r) * inv_det,
+         (c20 * p + c21 * q + c22 * r) * inv_det]
     )
-    return inv @ b / det
 
 
 class NNBCPlus(ControllerPolicy):
@@ -275,12 +279,14 @@ class NNBCPlus(ControllerPolicy):
         self.X[:, N_ACT:] = 0.0
 
     def _kalman(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Predict [J | J_dot] one step (constant rate, forgetting), then update all rows with y = J x."""
+        """Predict [J | J_dot] one step (constant rate, process noise, forgetting), then update all rows with
+        y = J x (the same regressor h for the three rows: one gain)."""
         dt = self._dt
         X = self.X
         X[:, :N_ACT] += dt * X[:, N_ACT:]
         P = self._F @ self.P @ self._FT
-        P *= self._inv_lambda
+        if self._inv_lambda != 1.0:
+            P *= self._inv_lambda
         if self._q is not None:
             P += self._q
         h = self._h
@@ -294,16 +300,18 @@ class NNBCPlus(ControllerPolicy):
             n2 = innov @ innov
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
-                innov *= np.sqrt(lim2 / n2)
+                innov *= (lim2 / n2) ** 0.5
                 n2 = lim2
             self._innov_ms += self.config.innov_rate * (n2 - self._innov_ms)
-        X += np.outer(innov, K)
-        P -= np.outer(K, Ph)
-        P += P.T
-        P *= 0.5
-        tr = P.trace()
-        if tr > self._trace_max:
-            P *= self._trace_max / tr
+        X += innov[:, None] * K
+        P -= K[:, None] * Ph
+        if self._k % 64 == 0:  # P stays symmetric in exact arithmetic; remove the round-off now and then
+            P += P.T
+            P *= 0.5
+        if self._inv_lambda != 1.0:
+            tr = P.trace()
+            if tr > self._trace_max:
+                P *= self._trace_max / tr
         self.P = P
 
     # --- one step --------------------------------------------------------------------------------------
