@@ -139,8 +139,12 @@ class NNBCPlusConfig:
             raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting!r}")
         for f in fields(self):
             v = getattr(self, f.name)
-            if isinstance(v, float) and not (v >= 0.0 and np.isfinite(v)):
-                raise ValueError(f"{f.name} must be a finite number >= 0, got {v!r}")
+            if f.type in ("float", float):
+                if isinstance(v, bool) or not isinstance(v, (int, float)):
+                    raise ValueError(f"{f.name} must be a number, got {v!r}")
+                object.__setattr__(self, f.name, float(v))  # spec strings may give ints ("gamma=20")
+                if not (v >= 0.0 and np.isfinite(v)):
+                    raise ValueError(f"{f.name} must be a finite number >= 0, got {v!r}")
 
 
 N_ACT = 8

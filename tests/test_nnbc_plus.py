@@ -64,6 +64,32 @@ def test_tracks_every_task_within_the_papers_6mm(task):
         assert median_rms <= 0.5e-3, f"Circle median RMS {median_rms * 1e3:.3f} mm > 0.5 mm"
 
 
+@pytest.mark.parametrize("task", ["Circle", "Line"])
+def test_physics_mode_tracks_within_the_papers_6mm(task):
+    """PyBullet contact dynamics (the default mode): two reported seeds per task (about 1 s per episode)."""
+    env = gym.make(f"WheeledPuma-{task}-v0", dynamics="physics")
+    try:
+        policy = NNBCPlus(EnvFacts.from_env(env))
+        results = [rollout(env, policy, seed) for seed in REPORTED_SEEDS[:2]]
+    finally:
+        env.close()
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_spec_registry_builds_it_with_options():
+    """`policies.make("nnbc-plus:...")` builds this class from EnvFacts with the spec's options."""
+    import policies
+
+    env = make_env("Circle")
+    try:
+        policy = policies.make("nnbc-plus:j0_noise=0.5,gamma=15", env)
+        assert isinstance(policy, NNBCPlus)
+        assert policy.config.j0_noise == 0.5 and policy.config.gamma == 15.0
+        assert isinstance(policy.config.gamma, float)
+    finally:
+        env.close()
+
+
 def test_robust_to_a_50_percent_perturbed_initial_jacobian():
     results = run_seeds("Circle", NNBCPlusConfig(j0_noise=0.5))
     assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
