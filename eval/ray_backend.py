@@ -136,8 +136,9 @@ def init_kwargs(config: EvalConfig) -> dict[str, Any]:
     common = {"log_to_driver": False, "logging_level": logging.ERROR}
     if config.address is not None:
         return {"address": config.address, **common}
-    return {"num_cpus": config.workers, "include_dashboard": False, "object_store_memory": OBJECT_STORE_BYTES,
-            "runtime_env": local_runtime_env(), **common}
+    # address="local": a new instance even when a cluster runs on this machine (plain ray.init() would join it)
+    return {"address": "local", "num_cpus": config.workers, "include_dashboard": False,
+            "object_store_memory": OBJECT_STORE_BYTES, "runtime_env": local_runtime_env(), **common}
 
 
 @contextmanager
@@ -152,7 +153,8 @@ def ray_session(config: EvalConfig):
     except Exception as exc:
         where = f"the Ray cluster at --address {config.address!r}" if config.address else "a local Ray instance"
         raise EvalError(
-            f"cannot start or reach {where}: {type(exc).__name__}: {exc}. For a cluster, run `ray start --head` on "
+            f"cannot start or reach {where}: {type(exc).__name__}: {str(exc).rstrip('.')}. For a cluster, run "
+            f"`ray start --head` on "
             f"the head node (and `ray start --address HEAD:6379` on the others), then pass --address auto on a "
             f"node of it, or --address HEAD:6379"
         ) from None
