@@ -34,7 +34,7 @@ def ray_cluster():
 
     from eval.ray_backend import local_runtime_env
 
-    ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR,
+    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR,
              object_store_memory=100 * 2**20, runtime_env=local_runtime_env())  # tests/ importable in workers
     yield ray
     ray.shutdown()
