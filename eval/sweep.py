@@ -11,10 +11,10 @@ Output directory (default `runs/sweep-<config file stem>`, so running the same c
 | `episodes.jsonl` | the journal: one complete episode record per line, appended (one `write`) as each ends |
 | `results.json` | schema 1 like `mobman-eval run`: config, versions, git, episodes (grid order), aggregate |
 | `results.csv` | the tidy table: one row per episode, the columns of `run`'s results.csv |
-| `aggregate.csv` | one row per (env, policy, dynamics, model_error, obs_noise): n, failures, success rate, error statistics |
+| `aggregate.csv` | per (env, policy, dynamics, model_error, obs_noise): n, failures, success rate, error stats |
 | `summary.md` | success rate and max error per policy and condition, in mm |
 | `config.json` | the resolved sweep (grid, env_kwargs, tolerance) and how it last ran |
-| `plots/<env>_<dynamics>_vs_<model_error or obs_noise>.png` | success rate and max error vs the swept variable, a line per policy |
+| `plots/<env>_<dynamics>_vs_<variable>.png` | success rate and max error vs model_error or obs_noise, per policy |
 
 **Resuming.** An episode is identified by (env, policy, seed, dynamics, model_error, obs_noise). Episodes with a
 record in the journal are skipped; the others run, in grid order. The journal is append-only and written by
@@ -117,7 +117,8 @@ class Journal:
             pass
         except OSError:
             os.close(fd)
-            raise EvalError(f"another sweep is writing to {self.path.parent}; wait for it or use another --out") from None
+            raise EvalError(f"another sweep is writing to {self.path.parent}; wait for it or use another "
+                            f"--out") from None
         self._fd = fd
 
     def append(self, rec: dict) -> None:
@@ -281,7 +282,8 @@ def _check_conditions(sweep: SweepConfig) -> None:
             try:
                 env = make_env(sweep.envs[0], sweep.dynamics[0], me, on, sweep.env_kwargs)
             except Exception as exc:
-                raise EvalError(f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: {exc}") from None
+                raise EvalError(f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: "
+                                f"{exc}") from None
             env.close()
 
 
@@ -447,7 +449,8 @@ def _main(args) -> int:
     if not args.quiet:
         print_summary(result)
         n_failed = sum(r["status"] != "ok" for r in result.episodes)
-        print(f"{len(result.episodes)} of {result.results['config']['n_episodes']} episodes in {result.out / 'results.csv'} "
+        n_grid = result.results["config"]["n_episodes"]
+        print(f"{len(result.episodes)} of {n_grid} episodes in {result.out / 'results.csv'} "
               f"({result.n_run} run now, {result.n_skipped} from earlier runs, {n_failed} failed)")
         if result.n_left:
             print(f"{result.n_left} episodes left: run the same command again to go on")

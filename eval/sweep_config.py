@@ -166,8 +166,8 @@ def _seeds(value: Any, source: str) -> tuple[int, ...]:
         unknown = sorted(set(value) - {"start", "count"})
         missing = sorted({"start", "count"} - set(value))
         if unknown or missing:
-            raise EvalError(f"{source}: seeds as a mapping takes exactly 'start' and 'count' "
-                            f"({'unknown: ' + ', '.join(map(repr, unknown)) if unknown else 'missing: ' + ', '.join(missing)})")
+            what = f"unknown: {', '.join(map(repr, unknown))}" if unknown else f"missing: {', '.join(missing)}"
+            raise EvalError(f"{source}: seeds as a mapping takes exactly 'start' and 'count' ({what})")
         start, count = value["start"], value["count"]
         if not _is_int(start) or start < 0:
             raise EvalError(f"{source}: seeds.start must be an integer >= 0, got {start!r}")

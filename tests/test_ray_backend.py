@@ -94,7 +94,8 @@ def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
     local = run(_config(tmp_path, "local", save_arrays="all"), policies={"crash": CrashOnOddSeed()})
     out = tmp_path / "ray"
     rc = main(["run", "--env", ENV, "--dynamics", "kinematic", "--env-kwargs", json.dumps(SHORT), "--seed", str(SEED),
-               "--episodes", "2", "--policy", "zero", "--policy", "nnbc", "--policy", "test_eval_helpers:CrashOnOddSeed",
+               "--episodes", "2", "--policy", "zero", "--policy", "nnbc",
+               "--policy", "test_eval_helpers:CrashOnOddSeed",
                "--out", str(out), "--quiet", "--no-plots", "--save-arrays", "all", "--backend", "ray"])
     assert rc == 0
     res = json.loads((out / "results.json").read_text())
@@ -169,7 +170,7 @@ def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatc
         run(_config(tmp_path, policies=(), backend="ray"), policies={"spy": spy})
     assert spy.n_reset == 0 and spy.n_predict == 0
     assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--episodes", "1", "--env-kwargs",
-                 json.dumps(SHORT), "--out", str(tmp_path / "local"), "--quiet", "--no-plots"]) == 0  # local: no Ray needed
+                 json.dumps(SHORT), "--out", str(tmp_path / "local"), "--quiet", "--no-plots"]) == 0  # no Ray needed
 
 
 @pytest.mark.parametrize("extra, needle", [
