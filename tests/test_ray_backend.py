@@ -81,6 +81,23 @@ class ExitAlways(HoldStill):
             os._exit(3)
 
 
+def _fail_to_unpickle(log_dir: str):
+    with open(Path(log_dir) / "unpickle-attempts", "a") as f:
+        f.write(f"{os.getpid()}\n")
+    raise ImportError("deliberate: this policy's module is missing on the worker")
+
+
+class UnpicklesBadly(HoldStill):
+    """Pickles fine here; unpickling it (in the Ray task, outside the episode) raises."""
+
+    def __init__(self, log_dir: str):
+        super().__init__()
+        self.log_dir = log_dir
+
+    def __reduce__(self):
+        return _fail_to_unpickle, (self.log_dir,)
+
+
 class HoldsALock(HoldStill):
     def __init__(self):
         super().__init__()
@@ -146,6 +163,16 @@ def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluste
     assert agg["always"]["n_failed"] == 1 and agg["once"]["n_failed"] == 0
 
 
+def test_a_task_that_raises_outside_the_episode_is_retried_once_then_recorded_failed(tmp_path, ray_cluster):
+    result = run(_config(tmp_path, policies=(), episodes=1, backend="ray"),
+                 policies={"bad": UnpicklesBadly(str(tmp_path))})
+    (rec,) = result.episodes
+    assert rec["status"] == "failed" and rec["pid"] is None
+    assert "retry failed too" in rec["error"] and "deliberate: this policy's module is missing" in rec["error"]
+    assert "\x1b[" not in rec["error"]  # no terminal colour codes in the record
+    assert len((tmp_path / "unpickle-attempts").read_text().split()) == 2
+
+
 # --- errors before any rollout --------------------------------------------------------------------------------
 
 def test_an_unpicklable_policy_object_is_refused_naming_it(tmp_path):
@@ -169,6 +196,12 @@ def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatc
     with pytest.raises(EvalError, match=r'pip install "mobman\[ray\]"'):
         run(_config(tmp_path, policies=(), backend="ray"), policies={"spy": spy})
     assert spy.n_reset == 0 and spy.n_predict == 0
+    sweep_yaml = tmp_path / "sweep.yaml"
+    sweep_yaml.write_text("policies: [zero]\ndynamics: kinematic\n")
+    assert main(["sweep", "--config", str(sweep_yaml), "--out", str(tmp_path / "sweep"), "--quiet",
+                 "--backend", "ray"]) == 2
+    assert 'pip install "mobman[ray]"' in capsys.readouterr().err
+    assert not (tmp_path / "sweep").exists()
     assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--episodes", "1", "--env-kwargs",
                  json.dumps(SHORT), "--out", str(tmp_path / "local"), "--quiet", "--no-plots"]) == 0  # no Ray needed
 
