@@ -197,8 +197,10 @@ def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str
     cfg = {"command": "sweep", "source": source, **sweep.to_dict(), "policy_objects":
            {name: type(obj).__name__ for name, obj in user.items()}, "out": str(out), "backend": backend,
            "address": address, "workers": workers, "n_episodes": len(tasks)}
+    out.mkdir(parents=True, exist_ok=True)
+    report.atomic_write_json(out / "config.json", cfg)  # first: the directory is a sweep's from now on
     journal = Journal(out / JOURNAL)
-    journal.open()  # locked first: no other sweep appends while this one reads
+    journal.open()  # locked before reading: no other sweep appends meanwhile
     try:
         done, dropped = journal.load()
         if dropped and progress:
@@ -208,7 +210,6 @@ def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str
         n_skipped = len(tasks) - len(todo)
         if max_episodes is not None:
             todo = todo[:max_episodes]
-        report.atomic_write_json(out / "config.json", cfg)
         if progress:
             print(f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
                   f"{' (resuming)' if resuming else ''}, {len(todo)} to run now", file=sys.stderr)
