@@ -279,3 +279,24 @@ def test_importing_train_loads_neither_torch_nor_sb3():
     code = "import sys, train, train.cli, train.config; print('torch' in sys.modules, 'stable_baselines3' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False"]
+
+
+def test_failed_final_evaluation_keeps_the_model_and_exits_1(tmp_path, monkeypatch, capsys):
+    import train.run
+
+    def boom(config, out):
+        raise RuntimeError("eval exploded")
+
+    monkeypatch.setattr(train.run, "final_evaluation", boom)
+    out = tmp_path / "run"
+    hp = tmp_path / "hp.json"
+    hp.write_text(json.dumps(TINY["ppo"]))
+    code = main(["--algo", "ppo", "--timesteps", "128", "--eval-freq", "0", "--final-eval-episodes", "1",
+                 "--out", str(out), "--no-progress", "--hyperparams", str(hp),
+                 "--env-kwargs", json.dumps({"path": SHORT_PATH})])
+    assert code == 1
+    assert "final evaluation failed" in capsys.readouterr().err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "done" and "eval exploded" in summary["final_eval_error"]
+    assert (out / "model.zip").is_file()
+    assert "mobman-eval run --env WheeledPuma-Circle-v0 --policy sb3:" in (out / "train.log").read_text()

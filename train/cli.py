@@ -4,7 +4,8 @@
     mobman-train --resume runs/sac-circle [--timesteps 200000]
 
 Every argument is checked (and the envs built once) before training starts. Exit codes: 0 done, 2 bad
-arguments, 130 interrupted by Ctrl-C (a checkpoint was saved; `--resume DIR` continues).
+arguments, 1 trained but the final evaluation failed (the
+command to rerun it is logged), 130 interrupted by Ctrl-C (a checkpoint was saved; `--resume DIR` continues).
 """
 
 from __future__ import annotations
@@ -129,7 +130,11 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"mobman-train: error: {exc}", file=sys.stderr)
         return 2
-    print(json.dumps(summary, indent=2))
+    print(json.dumps({k: v for k, v in summary.items() if k != "final_eval_error"}, indent=2))
+    if "final_eval_error" in summary:
+        print("mobman-train: training finished and the model is saved, but the final evaluation failed (see "
+              f"{summary['run_dir']}/train.log)", file=sys.stderr)
+        return 1
     return 0
 
 

@@ -366,8 +366,22 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     if status == "done":
         if config.eval_freq:
             _final_curve_point(config, out, model, reference, t0, wall_offset)
+        fe = None
         if config.final_eval_episodes:
-            fe = final_evaluation(config, out)
+            try:
+                fe = final_evaluation(config, out)
+            except Exception:  # the model is saved: report, do not lose the run
+                import traceback
+
+                from train.evaluation import eval_command, eval_config
+
+                cmd = eval_command(eval_config(config.env_id, config.eval_env_kwargs, [out / "model.zip"],
+                                               out / "final_eval", config.final_eval_seed,
+                                               config.final_eval_episodes, config.tolerance))
+                summary["final_eval_error"] = traceback.format_exc()
+                log.error("final evaluation failed (the model is saved); rerun it with:\n  %s\n%s", cmd,
+                          summary["final_eval_error"])
+        if fe is not None:
             summary["final_eval"] = {**{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
                                      "first_seed": fe["first_seed"], "episodes": fe["episodes"],
                                      "eval_command": fe["eval_command"]}
@@ -393,10 +407,11 @@ def _final_curve_point(config, out, model, reference, t0, wall_offset) -> None:
     if rows and int(rows[-1]["timesteps"]) == model.num_timesteps:
         return
     s = _periodic_evaluator(config)(model)
-    append_curve_row(out / "learning_curve.csv", {
-        "timesteps": model.num_timesteps, "wall_s": round(wall_offset + time.time() - t0, 1),
-        **{k: s[k] for k in ("median_rms_error_m", "max_rms_error_m", "median_max_error_m", "max_max_error_m",
-                             "success_rate")}})
+    row = {"timesteps": model.num_timesteps, "wall_s": round(wall_offset + time.time() - t0, 1),
+           **{k: s[k] for k in ("median_rms_error_m", "max_rms_error_m", "median_max_error_m", "max_max_error_m",
+                                "success_rate")}}
+    append_curve_row(out / "learning_curve.csv", row)
+    save_if_best(model, row, config, out)
     write_curve_png(out / "learning_curve.csv", out / "learning_curve.png", reference)
 
 
