@@ -7,11 +7,12 @@ result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinema
 result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
 ```
 
-Command line: `mobman-eval run|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual. Modules:
+Command line: `mobman-eval run|sweep|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual. Modules:
 `config` (EvalConfig), `rollout` (the one rollout loop), `metrics` (pure functions), `checks` (everything checked
 before the first rollout), `workers` (episodes in this process or N spawned ones), `runner` (`run`), `report`
 (results.json / csv / summary.md, atomic writes), `plots`, `video`, `paper` (the paper's section IV), `speed`
-(the speed benchmark).
+(the speed benchmark), `ray_backend` (episodes as Ray tasks), `sweep`, `sweep_config`, `sweep_plots` (resumable
+grids of policies x tasks x seeds x model errors x noise levels).
 """
 
 from eval.config import EvalConfig, EvalError

@@ -63,7 +63,8 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     config.validate()
     if not config.policies and not user:
         raise EvalError(f"no policy given; pass --policy SPEC ({_known_policies_text()})")
-    user_bytes = check_user_policies(user, config.policies, config.workers)
+    # Ray pickles policy objects itself (and ray_backend words its own error): check for local workers only
+    user_bytes = check_user_policies(user, config.policies, config.workers if config.backend == "local" else 1)
     out = resolve_out(config)
     check_out(out, config.overwrite)
     check_all(config, user)
