@@ -75,8 +75,9 @@ class NNBCPlusConfig:
     forgetting: float = 1.0
     """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
     divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off
-    (the default: the process noise below keeps the estimate fresh; 0.92 works in kinematic mode but lets the
-    unexcited directions wander in physics mode)."""
+    (the default: the process noise below keeps the estimate fresh instead). 0.92 (without process noise)
+    measured as good with the default excitation; without the task-space dither it lost a physics episode
+    (development seed 93, Random-v0) that the process-noise model kept."""
     q_jacobian: float = 1e-6
     """Process noise: variance added to each J_hat entry per step, (m/rad)^2 (J_hat may drift about 1 mm/rad per
     step beyond what its rate predicts)."""
@@ -84,12 +85,14 @@ class NNBCPlusConfig:
     """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
     0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
     meas_std: float = 1e-3
-    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R)."""
+    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R;
+    raise it to the sensor's noise when `obs_noise_vel` > 0)."""
     innov_clip: float = 4.0
     """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
     running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
-    Single-step violations of y = J x (a platform jolt in physics mode) then cannot throw J_hat off, while a
-    truly changed J (the RMS grows quickly) is still learnt."""
+    Single-step violations of y = J x (a platform jolt in physics mode: seen as 20-30 mm/s one-step residuals)
+    are damped, while a truly changed J (the RMS grows quickly) is still learnt. A safeguard: no measured effect
+    on the development seeds."""
     innov_rate: float = 0.05
     """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
     p0_jacobian: float = 1.0
@@ -103,7 +106,8 @@ class NNBCPlusConfig:
     """Damping of the pseudo-inverse, m^2/rad^2: added to J_c W J_c^T before inversion (bounds the speeds near a
     singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity)."""
     dither: float = 0.05
-    """Amplitude of the random-sign null-space excitation, rad/s per actuator (0 turns it off)."""
+    """Amplitude of the random-sign excitation, rad/s per actuator, projected into J_hat's null space by the
+    control law (it moves the actuators, not the end-effector); new signs every step (0 turns it off)."""
     task_dither: float = 0.002
     """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
@@ -112,7 +116,8 @@ class NNBCPlusConfig:
     """Null-space pull of the 6 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
     weighting: str = "none"
     """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
-    "scale" (W = diag(action_scale^2) / max: fast actuators take more of the motion)."""
+    "scale" (W = diag(action_scale^2) / max: fast actuators, i.e. the wheels, take more of the motion; measured
+    much worse: the platform's slow-to-steer motion then does most of the tracking)."""
     probe_speed: float = 0.05
     """Probe amplitude, rad/s (one step at + then one at - per actuator)."""
     j0_noise: float = 0.0
