@@ -100,6 +100,12 @@ def test_position_noise_of_1mm_keeps_the_true_error_within_6mm():
     assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
 
 
+def test_velocity_sensor_noise_is_tolerated():
+    """Beyond the issue: 0.01 m/s of noise on ee_vel and arm_base_vel too (the estimator's measurements)."""
+    results = run_seeds("Circle", obs_noise=0.001, obs_noise_vel=0.01)
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
 def test_position_filter_reduces_the_effect_of_noise():
     """The complementary filter (pos_filter) is what keeps noisy feedback small: off, the error is larger."""
     env = make_env("Circle", obs_noise=0.001)
