@@ -26,9 +26,9 @@ What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
    null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it the
    unexcited directions of J go stale and the estimate fails (measured). `task_dither` excites J's row space
    too, with a zero-mean two-step task-space excitation (+d on one step, -d on the next, so the end-effector
-   comes back): at 2 mm/s it costs no measurable tracking error and keeps the row-space estimate within about
-   10-20% of the true J (1-5% with meas_std = 1e-3; without it the path's own motion leaves 20-50% errors
-   there, which the feedback hides but which leave less margin).
+   comes back): at 2 mm/s it costs no measurable tracking error and keeps the row-space estimate within a few
+   percent of the true J (without it the path's own motion leaves 20-50% errors there, which the feedback
+   hides but which leave less margin).
 4. **Control** with the estimate extrapolated half a step (the command is held over [t_k, t_k+1]):
    u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_hat_a), J_c = J_hat + dt/2 J_dot_hat,
    J_c^+ a damped (`damping`) pseudo-inverse, z the null-space motion: dither plus a pull of the 6 arm joints
@@ -84,10 +84,11 @@ class NNBCPlusConfig:
     q_rate: float = 2e-3
     """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
     0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
-    meas_std: float = 0.01
+    meas_std: float = 1e-3
     """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R).
-    0.01 keeps the estimate sane under 0.01 m/s of velocity-sensor noise (`obs_noise_vel`; at 1e-3 that case
-    failed in physics mode) and measured as good as 1e-3 without noise."""
+    Set it to the velocity sensor's noise: with `obs_noise_vel` = 0.01 m/s, 1e-3 fails in physics mode and 0.01
+    tracks (measured); without velocity noise 0.01 makes J_hat lag when J changes fast (a physics Lemniscate-v0
+    episode lost, development seed 134) and leaves 10-20% row-space errors instead of 1-5%."""
     innov_clip: float = 4.0
     """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
     running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
