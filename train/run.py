@@ -34,7 +34,8 @@ from typing import Any
 import gymnasium as gym
 
 from train import algos
-from train.callbacks import (CheckpointSaver, PeriodicEval, truncate_curve, write_curve_png, write_json)
+from train.callbacks import (CheckpointSaver, PeriodicEval, read_curve, truncate_curve, write_curve_png,
+                             write_json)
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
 from train.wrappers import AgentObservation, AliveBonus
@@ -322,9 +323,12 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
     if ckpt["replay_buffer"]:
         model.load_replay_buffer(out / "checkpoints" / ckpt["replay_buffer"])
     truncate_curve(out / "learning_curve.csv", ckpt["steps"])
+    # wall time so far: the last session's summary, or (if it never wrote one) the curve's last row
     prev = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
+    curve = read_curve(out / "learning_curve.csv")
+    wall = float(prev.get("wall_s", curve[-1]["wall_s"] if curve else 0.0))
     log.info("resuming %s at %d steps, up to %d", out, ckpt["steps"], config.timesteps)
-    return _train(config, model, out, wall_offset=float(prev.get("wall_s", 0.0)))
+    return _train(config, model, out, wall_offset=wall)
 
 
 def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> dict:
