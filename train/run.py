@@ -362,7 +362,7 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
         save_final(model, out)
     finally:
         signal.signal(signal.SIGINT, previous)
-        model.get_env().close()
+        close_vec_env(model.get_env(), interrupted=(status == "interrupted"))
     wall = wall_offset + time.time() - t0
     summary: dict[str, Any] = {"status": status, "timesteps": int(model.num_timesteps), "wall_s": round(wall, 1),
                                "run_dir": str(out),
@@ -401,6 +401,23 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     if status == "interrupted":
         raise TrainingInterrupted(out, int(model.num_timesteps))
     return summary
+
+
+def close_vec_env(venv: Any, interrupted: bool) -> None:
+    """Close the training VecEnv. After Ctrl-C, subprocess workers are terminated instead: the interrupt may
+    have come between two of SubprocVecEnv's pipe messages, and its polite close would wait for a reply that
+    never comes."""
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    base = venv.unwrapped
+    if interrupted and isinstance(base, SubprocVecEnv):
+        for process in base.processes:
+            process.terminate()
+        for process in base.processes:
+            process.join(timeout=10)
+        base.closed = True
+        return
+    venv.close()
 
 
 def _final_curve_point(config, out, model, reference, t0, wall_offset) -> None:
