@@ -300,3 +300,18 @@ def test_failed_final_evaluation_keeps_the_model_and_exits_1(tmp_path, monkeypat
     assert summary["status"] == "done" and "eval exploded" in summary["final_eval_error"]
     assert (out / "model.zip").is_file()
     assert "mobman-eval run --env WheeledPuma-Circle-v0 --policy sb3:" in (out / "train.log").read_text()
+
+
+def test_tensorboard_logs_or_a_clear_error(tmp_path):
+    import importlib.util
+
+    from train.run import run
+
+    cfg = tiny_config("ppo", tmp_path / "tb", timesteps=128, eval_freq=0, final_eval_episodes=0, tensorboard=True)
+    if importlib.util.find_spec("tensorboard") is None:
+        with pytest.raises(ValueError, match="pip install tensorboard"):
+            run(cfg)
+        assert not (tmp_path / "tb").exists()
+    else:
+        run(cfg)
+        assert list((tmp_path / "tb" / "tensorboard").rglob("events.out.tfevents.*"))

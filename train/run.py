@@ -268,6 +268,12 @@ def _wrap_normalize(config: TrainConfig, venv: Any) -> Any:
 def _prepare(config: TrainConfig) -> None:
     """Every check that can fail before training: hyperparameter names, env arguments."""
     algos.check_keys(config.algo, config.resolved_hyperparams)
+    if config.tensorboard:
+        import importlib.util
+
+        if importlib.util.find_spec("tensorboard") is None:
+            raise ValueError("--tensorboard needs the tensorboard package, which is not installed: "
+                             "pip install tensorboard (or mobman[rl]), or drop --tensorboard")
     probe_envs(config)
 
 
