@@ -13,7 +13,7 @@ mobman-eval run --policy sb3:runs/sac/model.zip --policy nnbc --dynamics kinemat
 
 Modules: `config` (`TrainConfig`, frozen, a docstring per field, JSON round trip), `algos` (name -> SB3 class
 and default hyperparameters, rl-zoo style), `wrappers` (the agent's view of the observation), `run` (`run`,
-`resume`, the run folder), `callbacks` (checkpoints, learning curve), `evaluation` (through `eval`), `agent`
+`resume`, the run folder), `runfolder` (naming, config.json, checkpoints, best model), `callbacks` (checkpoints, learning curve), `evaluation` (through `eval`), `agent`
 (the live model behind the `Policy` contract), `cli` (`main(argv)`). Importing `train` loads neither torch nor
 SB3; `run` does.
 

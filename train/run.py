@@ -25,9 +25,7 @@ import functools
 import json
 import logging
 import signal
-import sys
 import time
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
@@ -38,10 +36,11 @@ from train.callbacks import (CheckpointSaver, PeriodicEval, read_curve, truncate
                              write_json)
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
+from train.runfolder import (latest_checkpoint, load_run_config, prepare_out, run_config_dict, save_checkpoint,
+                             save_final, save_if_best, setup_logging)
 from train.wrappers import AgentObservation, AliveBonus
 
 log = logging.getLogger("train")
-CONFIG_SCHEMA = 1
 
 
 class TrainingInterrupted(Exception):
@@ -89,117 +88,6 @@ def probe_envs(config: TrainConfig) -> None:
             env.reset(seed=0)
         finally:
             env.close()
-
-
-# --- run folder -------------------------------------------------------------------------------------------
-def default_out(config: TrainConfig) -> Path:
-    task = config.env_id.split("-")[1].lower() if "-" in config.env_id else config.env_id
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"train-{config.algo}-{task}-{stamp}"
-
-
-def prepare_out(config: TrainConfig) -> Path:
-    out = Path(config.out) if config.out else default_out(config)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a folder; choose another --out")
-    if out.is_dir() and any(out.iterdir()) and not config.overwrite:
-        raise ValueError(f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
-                         f"continue it with --resume {out}")
-    out.mkdir(parents=True, exist_ok=True)
-    return out
-
-
-def versions() -> dict:
-    import numpy
-    import stable_baselines3
-    import torch
-
-    return {"python": sys.version.split()[0], "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__, "gymnasium": gym.__version__, "numpy": numpy.__version__}
-
-
-def run_config_dict(config: TrainConfig) -> dict:
-    """What `config.json` holds."""
-    return {"schema": CONFIG_SCHEMA, **config.to_dict(), "hyperparams_resolved": config.resolved_hyperparams,
-            "env_make_kwargs": config.train_env_kwargs, "eval_env_kwargs": config.eval_env_kwargs,
-            "versions": versions()}
-
-
-def load_run_config(run_dir: Path | str) -> TrainConfig:
-    path = Path(run_dir) / "config.json"
-    if not path.exists():
-        raise ValueError(f"{run_dir} is not a run folder (no config.json); pass the --out folder of a mobman-train run")
-    return TrainConfig.from_dict(json.loads(path.read_text()), ignore_extra=True)
-
-
-def latest_checkpoint(run_dir: Path) -> dict | None:
-    path = Path(run_dir) / "checkpoints" / "latest.json"
-    return json.loads(path.read_text()) if path.exists() else None
-
-
-def _setup_logging(out: Path, verbose: bool = True) -> None:
-    log.setLevel(logging.INFO)
-    for h in list(log.handlers):
-        log.removeHandler(h)
-        h.close()
-    fh = logging.FileHandler(out / "train.log")
-    fh.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
-    log.addHandler(fh)
-    sh = logging.StreamHandler(sys.stderr)
-    sh.setFormatter(logging.Formatter("[train] %(message)s"))
-    log.addHandler(sh)
-    log.propagate = False
-
-
-# --- saving -----------------------------------------------------------------------------------------------
-def save_checkpoint(model: Any, out: Path, off_policy: bool) -> dict:
-    """Model, normaliser and (off-policy) replay buffer at the current step; `latest.json` points at them."""
-    import os
-
-    ckpt = out / "checkpoints"
-    ckpt.mkdir(exist_ok=True)
-    n = int(model.num_timesteps)
-    entry = {"steps": n, "model": f"model_{n}_steps.zip", "vecnormalize": None, "replay_buffer": None}
-    model.save(ckpt / entry["model"])
-    vn = model.get_vec_normalize_env()
-    if vn is not None:
-        entry["vecnormalize"] = f"vecnormalize_{n}_steps.pkl"
-        vn.save(ckpt / entry["vecnormalize"])
-    if off_policy:
-        tmp = ckpt / ".replay_buffer.tmp.pkl"
-        model.save_replay_buffer(tmp)
-        os.replace(tmp, ckpt / "replay_buffer.pkl")
-        entry["replay_buffer"] = "replay_buffer.pkl"
-    write_json(ckpt / "latest.json", entry)
-    log.info("checkpoint at %d steps", n)
-    return entry
-
-
-#: Selection key of the best model: the worst RMS error over the development seeds (robust, not lucky).
-BEST_KEY = "max_rms_error_m"
-
-
-def save_if_best(model: Any, row: dict, config: TrainConfig, out: Path) -> bool:
-    """Keep the model with the lowest `BEST_KEY` on the development seeds in `out/best/`, a complete run
-    folder of its own (model.zip, vecnormalize.pkl, config.json, best.json), like rl-zoo's best_model."""
-    best_dir = out / "best"
-    info_path = best_dir / "best.json"
-    previous = json.loads(info_path.read_text()) if info_path.exists() else None
-    if previous is not None and previous[BEST_KEY] <= row[BEST_KEY]:
-        return False
-    best_dir.mkdir(exist_ok=True)
-    save_final(model, best_dir)
-    write_json(best_dir / "config.json", run_config_dict(config))
-    write_json(info_path, {"timesteps": int(row["timesteps"]), "selected_by": f"lowest {BEST_KEY} on development "
-                           f"seeds {config.eval_seed}..{config.eval_seed + config.eval_episodes - 1}", **row})
-    return True
-
-
-def save_final(model: Any, out: Path) -> None:
-    model.save(out / "model.zip")
-    vn = model.get_vec_normalize_env()
-    if vn is not None:
-        vn.save(out / "vecnormalize.pkl")
 
 
 # --- evaluation hooks -------------------------------------------------------------------------------------
@@ -284,7 +172,7 @@ def run(config: TrainConfig) -> dict:
 
     _prepare(config)
     out = prepare_out(config)
-    _setup_logging(out)
+    setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)
     venv = _wrap_normalize(config, VecMonitor(make_vec_env(config), str(out / "monitor.csv")))
@@ -314,7 +202,7 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
         raise ValueError(f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
                          f"--timesteps to train further")
     _prepare(config)
-    _setup_logging(out)
+    setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)
     venv = VecMonitor(make_vec_env(config, seed_offset=ckpt["steps"]), str(out / f"monitor_{ckpt['steps']}.csv"))
