@@ -250,15 +250,37 @@ def summary_markdown(results: dict) -> str:
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
         lines += [f"## {env} — {dyn} (model_error {me}, obs_noise {on} m)", "",
                   markdown_table(SUMMARY_HEADER, [summary_row(a) for a in rows]), ""]
-    failed = [r for r in results["episodes"] if r["status"] != "ok"]
-    if failed:
-        lines += ["## Failed episodes", ""]
-        for r in failed:
-            last = (r.get("error") or "").strip().splitlines()
-            lines.append(f"* {r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}: "
-                         f"`{last[-1] if last else 'unknown error'}` (traceback in results.json)")
-        lines.append("")
+    lines += failed_episode_lines(
+        results["episodes"], lambda r: f"{r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}",
+        " (traceback in results.json)")
     return "\n".join(lines)
+
+
+class ResultsView:
+    """`episodes` and `aggregate` of the results.json dict held in `self.results` (run and sweep results)."""
+
+    results: dict
+
+    @property
+    def episodes(self) -> list[dict]:
+        return self.results["episodes"]
+
+    @property
+    def aggregate(self) -> list[dict]:
+        return self.results["aggregate"]
+
+
+def failed_episode_lines(episodes: list[dict], describe, suffix: str = "") -> list[str]:
+    """A Markdown section listing the failed episodes (last line of each traceback); [] when none failed.
+    `describe(record)` names the episode's condition."""
+    failed = [r for r in episodes if r["status"] != "ok"]
+    if not failed:
+        return []
+    lines = [f"## Failed episodes ({len(failed)})", ""]
+    for r in failed:
+        last = (r.get("error") or "").strip().splitlines()
+        lines.append(f"* {describe(r)}: `{last[-1] if last else 'unknown error'}`{suffix}")
+    return lines + [""]
 
 
 CONSOLE_HEADER = ("policy", "n", "failed\n/tipped", "succ", "max\nmed", "max\nmean", "rms\nmed", "final\nmed",

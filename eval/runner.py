@@ -26,26 +26,19 @@ from typing import Any
 from eval import metrics as M
 from eval.checks import _known_policies_text, check_all, check_out, check_user_policies, resolve_out
 from eval.config import EvalConfig, EvalError
+from eval.report import ResultsView
 from eval.rollout import RECORD_KEYS
 from eval.workers import execute, make_tasks
 
 
 @dataclass
-class RunResult:
+class RunResult(ResultsView):
     """What `run` returns: the output directory, the results.json content and the per-step arrays kept in
     memory (those of episode 0 of every condition, or all with save_arrays="all"), keyed by task index."""
 
     out: Path
     results: dict
     arrays: dict[int, dict] = field(default_factory=dict)
-
-    @property
-    def episodes(self) -> list[dict]:
-        return self.results["episodes"]
-
-    @property
-    def aggregate(self) -> list[dict]:
-        return self.results["aggregate"]
 
 
 # --- the entry point -------------------------------------------------------------------------------------

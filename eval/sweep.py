@@ -141,7 +141,7 @@ class Journal:
 # --- the run ---------------------------------------------------------------------------------------------
 
 @dataclass
-class SweepResult:
+class SweepResult(report.ResultsView):
     """What `run_sweep` returns: the output directory, the results.json content and this run's counts."""
 
     out: Path
@@ -149,14 +149,6 @@ class SweepResult:
     n_run: int  # episodes run now
     n_skipped: int  # episodes already in the journal
     n_left: int  # episodes of the grid still to run (max_episodes, or interrupted)
-
-    @property
-    def episodes(self) -> list[dict]:
-        return self.results["episodes"]
-
-    @property
-    def aggregate(self) -> list[dict]:
-        return self.results["aggregate"]
 
 
 def default_out(source: str | None) -> Path:
@@ -347,14 +339,9 @@ def summary_markdown(results: dict) -> str:
     for (env, dyn), rows in groups.items():
         rows = sorted(rows, key=lambda a: (str(a["policy"]), a["model_error"], a["obs_noise"]))
         lines += [f"## {env} — {dyn}", "", report.markdown_table(SUMMARY_HEADER, [_summary_row(a) for a in rows]), ""]
-    failed = [r for r in eps if r["status"] != "ok"]
-    if failed:
-        lines += [f"## Failed episodes ({len(failed)})", ""]
-        for r in failed:
-            last = (r.get("error") or "").strip().splitlines()
-            lines.append(f"* {r['env']} / {r['dynamics']} / {r['policy']} / model_error {r['model_error']} / obs_noise "
-                         f"{r['obs_noise']} / seed {r['seed']}: `{last[-1] if last else 'unknown error'}`")
-        lines.append("")
+    lines += report.failed_episode_lines(
+        eps, lambda r: (f"{r['env']} / {r['dynamics']} / {r['policy']} / model_error {r['model_error']} / "
+                        f"obs_noise {r['obs_noise']} / seed {r['seed']}"))
     return "\n".join(lines)
 
 
