@@ -53,6 +53,9 @@ def run_dir(tmp_path_factory):
     venv.seed(0)
     model = SAC("MultiInputPolicy", venv, learning_starts=100, batch_size=32, buffer_size=1000,
                 policy_kwargs={"net_arch": [16, 16]}, seed=0, device="cpu")
+    from stable_baselines3.common.logger import configure
+
+    model.set_logger(configure(str(out), []))  # not SB3's default /tmp/SB3-<date> folder
     model.learn(200)
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))

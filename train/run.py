@@ -14,6 +14,7 @@ Run folder (DESIGN "train"):
 | `final_eval.json`, `final_eval/` | the final evaluation (eval's report) of `model.zip`, `best/model.zip` and `zero` with the benchmark's env settings on the reported seeds |
 | `summary.json` | status (done / interrupted), steps, wall time, final metrics |
 | `train.log`, `tensorboard/` | log; TensorBoard events with `--tensorboard` |
+| `progress.csv` | SB3's training statistics of the latest session (without `--tensorboard`) |
 
 Ctrl-C during training saves a checkpoint and the model, then raises `TrainingInterrupted`; `resume(run_dir)`
 continues from the latest checkpoint up to `config.timesteps` (or a new total).
@@ -241,6 +242,11 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
                      out / "learning_curve.png", reference, t0, wall_offset,
                      on_result=lambda m, row: save_if_best(m, row, config, out)),
     ])
+    if not config.tensorboard:
+        # SB3 would otherwise create an empty /tmp/SB3-<date> folder for its logger on every learn()
+        from stable_baselines3.common.logger import configure
+
+        model.set_logger(configure(str(out), ["stdout", "csv"] if config.verbose else ["csv"]))
     status = "done"
     try:
         model.learn(total_timesteps=config.timesteps - model.num_timesteps, callback=callbacks,

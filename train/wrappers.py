@@ -26,11 +26,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-
-def _pos_error(obs: dict) -> dict:
-    out = dict(obs)
-    out["pos_error"] = (np.asarray(obs["target_pos"]) - np.asarray(obs["ee_pos"])).astype(np.float32)
-    return out
+from policies.sb3 import OBS_WRAPPERS as AGENT_OBS_TRANSFORMS
 
 
 def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
@@ -39,9 +35,10 @@ def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
     return spaces.Dict(new)
 
 
-#: name -> (obs transform, observation-space transform)
+#: name -> (obs transform, observation-space transform). The transforms are `policies.sb3`'s, the one
+#: definition that `SB3Policy` also applies at test time.
 OBS_WRAPPERS: dict[str, tuple[Callable[[dict], dict], Callable[[spaces.Dict], spaces.Dict]]] = {
-    "pos_error": (_pos_error, _pos_error_space),
+    "pos_error": (AGENT_OBS_TRANSFORMS["pos_error"][0], _pos_error_space),
 }
 
 
