@@ -15,15 +15,11 @@ from matplotlib.figure import Figure
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
-from test_eval_helpers import CrashOnOddSeed, HoldStill, ProportionalBatched
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, ProportionalBatched, short_config, stable
 
-ENV = "WheeledPuma-Circle-v0"
-SHORT = {"path": {"type": "circle", "radius": 0.1, "duration": 1.0}}
 SHORT_JSON = json.dumps(SHORT)
 #: reported seeds of this module (DESIGN "Seeds")
 SEED = 10_000
-#: fields that may differ between runs of the same episodes (timing and process)
-VOLATILE = {"wall_s", "pid", "predict_us_median", "predict_us_p99"}
 
 EPISODE_KEYS = {
     "env", "policy", "seed", "dynamics", "model_error", "obs_noise", "control_freq", "path", "true_params_hash",
@@ -36,14 +32,7 @@ AGGREGATE_KEYS = {"env", "policy", "dynamics", "model_error", "obs_noise", "n", 
 
 
 def _config(tmp_path, name="out", **kw) -> EvalConfig:
-    base = dict(envs=(ENV,), policies=("zero", "random"), episodes=2, seed=SEED, out=str(tmp_path / name),
-                dynamics=("kinematic",), env_kwargs=SHORT, progress=False, plots=False)
-    base.update(kw)
-    return EvalConfig(**base)
-
-
-def _stable(rec: dict) -> dict:
-    return {k: v for k, v in rec.items() if k not in VOLATILE}
+    return short_config(tmp_path, name, **{"policies": ("zero", "random"), **kw})
 
 
 def _run_args(out, *extra):
@@ -123,14 +112,14 @@ def test_identical_tasks_across_policies(tmp_path):
 def test_workers_2_equal_workers_1_and_use_2_processes(tmp_path):
     one = run(_config(tmp_path, "w1", workers=1, save_arrays="all"))
     two = run(_config(tmp_path, "w2", workers=2, save_arrays="all"))
-    assert [_stable(r) for r in one.episodes] == [_stable(r) for r in two.episodes]
+    assert [stable(r) for r in one.episodes] == [stable(r) for r in two.episodes]
     pids = {r["pid"] for r in two.episodes}
     assert len(pids) == 2 and os.getpid() not in pids
     for rec in one.episodes:
         a, b = one.arrays[rec["index"]], two.arrays[rec["index"]]
         for name in ("r_d", "r_a", "p_c", "error", "action"):
             np.testing.assert_array_equal(a[name], b[name])
-    assert [_stable(a) for a in one.aggregate] != [] and one.aggregate[0]["max_error_m"] == two.aggregate[0]["max_error_m"]
+    assert [stable(a) for a in one.aggregate] != [] and one.aggregate[0]["max_error_m"] == two.aggregate[0]["max_error_m"]
 
 
 def test_user_policy_through_module_attr_matches_zero(tmp_path):
@@ -141,8 +130,8 @@ def test_user_policy_through_module_attr_matches_zero(tmp_path):
     recs = json.loads((out / "results.json").read_text())["episodes"]
     assert [r["policy"] for r in recs] == ["test_eval_helpers:HoldStill", "zero"]
     assert recs[0]["status"] == "ok"
-    assert _stable(recs[0]) | {"policy": "", "index": 0, "arrays_key": None} == \
-        _stable(recs[1]) | {"policy": "", "index": 0, "arrays_key": None}
+    assert stable(recs[0]) | {"policy": "", "index": 0, "arrays_key": None} == \
+        stable(recs[1]) | {"policy": "", "index": 0, "arrays_key": None}
 
 
 def test_user_policy_objects_through_run(tmp_path):

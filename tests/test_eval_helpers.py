@@ -1,4 +1,5 @@
-"""User policies for the eval tests, importable as `test_eval_helpers:<Name>` (a researcher's own module).
+"""Shared pieces of the eval tests: the short task, the fields that may differ between runs, and user
+policies importable as `test_eval_helpers:<Name>` (a researcher's own module).
 
 No tests here: pytest collects nothing from this file.
 """
@@ -6,6 +7,27 @@ No tests here: pytest collects nothing from this file.
 from __future__ import annotations
 
 import numpy as np
+
+ENV = "WheeledPuma-Circle-v0"
+#: a 1 s circle of radius 0.1 m (100 steps at 100 Hz): keeps the eval tests fast
+SHORT = {"path": {"type": "circle", "radius": 0.1, "duration": 1.0}}
+#: fields that may differ between runs of the same episodes (timing and process)
+VOLATILE = {"wall_s", "pid", "predict_us_median", "predict_us_p99"}
+
+
+def stable(rec: dict) -> dict:
+    """An episode record without its timing and process fields."""
+    return {k: v for k, v in rec.items() if k not in VOLATILE}
+
+
+def short_config(tmp_path, name="out", **kw):
+    """An EvalConfig of 2 short kinematic episodes into tmp_path/name; keyword arguments override."""
+    from eval import EvalConfig
+
+    base = dict(envs=(ENV,), episodes=2, seed=10_000, out=str(tmp_path / name), dynamics=("kinematic",),
+                env_kwargs=SHORT, progress=False, plots=False)
+    base.update(kw)
+    return EvalConfig(**base)
 
 
 class HoldStill:

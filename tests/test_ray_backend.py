@@ -17,14 +17,10 @@ import pytest
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
-from test_eval_helpers import CrashOnOddSeed, HoldStill
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
 
-ENV = "WheeledPuma-Circle-v0"
-SHORT = {"path": {"type": "circle", "radius": 0.1, "duration": 1.0}}
 #: reported seeds of this module (DESIGN "Seeds")
 SEED = 10_000
-#: fields that may differ between backends (timing and process)
-VOLATILE = {"wall_s", "pid", "predict_us_median", "predict_us_p99"}
 
 
 @pytest.fixture(scope="module")
@@ -41,14 +37,7 @@ def ray_cluster():
 
 
 def _config(tmp_path, name="out", **kw) -> EvalConfig:
-    base = dict(envs=(ENV,), policies=("zero", "nnbc"), episodes=2, seed=SEED, out=str(tmp_path / name),
-                dynamics=("kinematic",), env_kwargs=SHORT, progress=False, plots=False)
-    base.update(kw)
-    return EvalConfig(**base)
-
-
-def _stable(rec: dict) -> dict:
-    return {k: v for k, v in rec.items() if k not in VOLATILE}
+    return short_config(tmp_path, name, **{"policies": ("zero", "nnbc"), **kw})
 
 
 class ExitOnce(HoldStill):
@@ -121,8 +110,8 @@ def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
     local_recs = json.loads((tmp_path / "local" / "results.json").read_text())["episodes"]
     rename = {"crash": "test_eval_helpers:CrashOnOddSeed"}
     for a, b in zip(local_recs, recs):
-        a = {**_stable(a), "policy": rename.get(a["policy"], a["policy"])}
-        b = _stable(b)
+        a = {**stable(a), "policy": rename.get(a["policy"], a["policy"])}
+        b = stable(b)
         if a["error"]:  # the in-episode crash: the same exception, raised from the same line
             assert b["error"].splitlines()[-3:] == a["error"].splitlines()[-3:]
             a["error"] = b["error"] = None
@@ -158,7 +147,7 @@ def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluste
     once = [r for r in result.episodes if r["policy"] == "once"]
     zero = [r for r in result.episodes if r["policy"] == "zero"]
     same = {"policy": "", "index": 0, "arrays_key": None}
-    assert [_stable(r) | same for r in once] == [_stable(r) | same for r in zero]
+    assert [stable(r) | same for r in once] == [stable(r) | same for r in zero]
     agg = {a["policy"]: a for a in result.aggregate}
     assert agg["always"]["n_failed"] == 1 and agg["once"]["n_failed"] == 0
 
@@ -230,5 +219,5 @@ def test_a_sweep_started_locally_and_finished_on_ray_equals_a_local_one(tmp_path
     run_sweep(sweep, tmp_path / "mixed", max_episodes=3, progress=False, plots=False)
     resumed = run_sweep(sweep, tmp_path / "mixed", backend="ray", progress=False, plots=False)
     assert (resumed.n_run, resumed.n_skipped, resumed.n_left) == (5, 3, 0)
-    assert [_stable(r) for r in resumed.episodes] == [_stable(r) for r in whole.episodes]
+    assert [stable(r) for r in resumed.episodes] == [stable(r) for r in whole.episodes]
     assert os.getpid() not in {r["pid"] for r in resumed.episodes[3:]}

@@ -24,14 +24,10 @@ from eval.cli import main
 from eval.rollout import RECORD_KEYS
 from eval.sweep import JOURNAL, Journal, run_sweep
 from eval.sweep_config import KEYS, SweepConfig, example_path, load_sweep
-from test_eval_helpers import CrashOnOddSeed
+from test_eval_helpers import ENV, SHORT, VOLATILE, CrashOnOddSeed, stable
 
-ENV = "WheeledPuma-Circle-v0"
-SHORT = {"path": {"type": "circle", "radius": 0.1, "duration": 1.0}}
 #: reported seeds of this module (DESIGN "Seeds")
 SEEDS = [10_000, 10_001]
-#: fields that may differ between runs of the same episodes (timing and process)
-VOLATILE = {"wall_s", "pid", "predict_us_median", "predict_us_p99"}
 #: a small grid: 2 policies x 2 model errors x 2 noise levels x 2 seeds = 16 episodes
 GRID = {"envs": [ENV], "policies": ["zero", "jmpi"], "seeds": SEEDS, "dynamics": ["kinematic"],
         "model_error": [0.0, 0.1], "obs_noise": [0.0, 0.002], "env_kwargs": SHORT}
@@ -41,16 +37,12 @@ def _sweep(**kw) -> SweepConfig:
     return SweepConfig.from_dict({**GRID, **kw})
 
 
-def _stable(rec: dict) -> dict:
-    return {k: v for k, v in rec.items() if k not in VOLATILE}
-
-
 def _table(out: Path) -> tuple[list[dict], list[dict], list[dict]]:
     """(results.json episodes, results.csv rows, aggregate) without the timing and pid fields."""
     res = json.loads((out / "results.json").read_text())
     rows = list(csv.DictReader((out / "results.csv").open()))
     agg = [{k: v for k, v in a.items() if not k.startswith("predict_us")} for a in res["aggregate"]]
-    return ([_stable(r) for r in res["episodes"]], [{k: v for k, v in r.items() if k not in VOLATILE} for r in rows],
+    return ([stable(r) for r in res["episodes"]], [{k: v for k, v in r.items() if k not in VOLATILE} for r in rows],
             agg)
 
 
