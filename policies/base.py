@@ -135,22 +135,23 @@ class ControllerPolicy:
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
         if seed is not None:
             self.rng = np.random.default_rng(seed)
-        single, _ = unbatch(obs, self.uses_keys)
-        self.last_u = np.zeros(len(self._scale))
-        self._reset(single)
-        self._initialised = True
+        self._start(unbatch(obs, self.uses_keys)[0])
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         single, batched = unbatch(observation, self.uses_keys)
         if first_flag(episode_start) or not self._initialised:
-            self.last_u = np.zeros(len(self._scale))
-            self._reset(single)
-            self._initialised = True
+            self._start(single)
         # np.minimum(np.maximum(...)) is np.clip at a third of its cost for an 8-vector
         u = np.minimum(np.maximum(self._act(single), -self._scale), self._scale)
         self.last_u = u
         action = (u / self._scale).astype(np.float32)
         return (action[None] if batched else action), state
+
+    def _start(self, single: dict) -> None:
+        """Begin an episode from its first (unbatched) observation: what reset() and episode_start share."""
+        self.last_u = np.zeros(len(self._scale))
+        self._reset(single)
+        self._initialised = True
 
     # --- to implement ----------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
