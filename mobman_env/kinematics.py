@@ -110,20 +110,26 @@ def _wheel_maps(params: RobotParams, yaw: float) -> tuple[np.ndarray, np.ndarray
     return dphi, dpc
 
 
+def _paper_parts(params: RobotParams, q_arm: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """g = R(phi) f(theta) (3,), the paper's J (3, 8) and d p_c_dot / d u (2, 8), from one FK pass."""
+    R = _rot_z(yaw)
+    f, J_arm = arm_point_and_jacobian(params, q_arm)
+    g = R @ f
+    dphi, dpc = _wheel_maps(params, yaw)
+    J = np.empty((3, N_ACT))
+    J[:, :N_ARM] = R @ J_arm
+    J[:, N_ARM:] = np.outer([-g[1], g[0], 0.0], dphi)  # d g / d phi * d phi_dot / d w
+    J_pc = np.zeros((2, N_ACT))
+    J_pc[:, N_ARM:] = dpc
+    return g, J, J_pc
+
+
 def paper_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
     """The paper's J of eq. (6), shape (3, 8): r_a_dot = [p_c_dot; 0] + J u.
 
     Arm columns: R(phi) df/dtheta. Wheel columns: d g / d phi * d phi_dot / d w, with g = R(phi) f(theta).
     """
-    R = _rot_z(yaw)
-    f, J_arm = arm_point_and_jacobian(params, q_arm)
-    g = R @ f
-    J = np.zeros((3, N_ACT))
-    J[:, :N_ARM] = R @ J_arm
-    dphi, _ = _wheel_maps(params, yaw)
-    dg_dphi = np.array([-g[1], g[0], 0.0])
-    J[:, N_ARM:] = np.outer(dg_dphi, dphi)
-    return J
+    return _paper_parts(params, q_arm, yaw)[1]
 
 
 def arm_base_jacobian(params: RobotParams, yaw: float) -> np.ndarray:
@@ -135,8 +141,8 @@ def arm_base_jacobian(params: RobotParams, yaw: float) -> np.ndarray:
 
 def whole_body_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
     """The whole-body Jacobian, shape (3, 8): r_a_dot = J_wb u (platform translation included)."""
-    J = paper_jacobian(params, q_arm, yaw)
-    J[:2] += arm_base_jacobian(params, yaw)
+    _, J, J_pc = _paper_parts(params, q_arm, yaw)
+    J[:2] += J_pc
     return J
 
 
@@ -156,17 +162,7 @@ def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds:
 def ee_and_jacobian(params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """r_a (3,), the whole-body Jacobian (3, 8) and d p_c_dot / d u (2, 8) from one FK pass (the hot path of
     the kinematic simulation)."""
-    yaw = float(base_pose[2])
-    R = _rot_z(yaw)
-    f, J_arm = arm_point_and_jacobian(params, q_arm)
-    g = R @ f
-    dphi, dpc = _wheel_maps(params, yaw)
-    J = np.empty((3, N_ACT))
-    J[:, :N_ARM] = R @ J_arm
-    J[0, N_ARM:] = -g[1] * dphi + dpc[0]
-    J[1, N_ARM:] = g[0] * dphi + dpc[1]
-    J[2, N_ARM:] = 0.0
-    J_pc = np.zeros((2, N_ACT))
-    J_pc[:, N_ARM:] = dpc
+    g, J, J_pc = _paper_parts(params, q_arm, float(base_pose[2]))
+    J[:2] += J_pc
     pc = arm_base_xy(params, base_pose)
     return np.array([pc[0] + g[0], pc[1] + g[1], params.shoulder_height + g[2]]), J, J_pc
