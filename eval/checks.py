@@ -101,8 +101,9 @@ def check_all(config: EvalConfig, user: dict) -> None:
             try:
                 env = make_env(env_id, dyn, config.model_error, config.obs_noise, config.env_kwargs)
             except Exception as exc:
-                raise EvalError(f"cannot make {env_id!r} with dynamics={dyn!r} and env kwargs "
-                                f"{config.env_kwargs}: {exc}") from None
+                raise EvalError(
+                    f"cannot make {env_id!r} with dynamics={dyn!r} and env kwargs {config.env_kwargs}: {exc}"
+                ) from None
             try:
                 if dyn == config.dynamics[0]:
                     for spec in config.policies:

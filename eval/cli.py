@@ -49,8 +49,7 @@ def _env_kwargs(text: str) -> dict:
         value = json.loads(text)
     except json.JSONDecodeError as exc:
         raise argparse.ArgumentTypeError(
-            f"--env-kwargs must be a JSON object such as '{{\"path\": {{\"type\": \"circle\", \"duration\": 2.0}}}}' "
-            f"({exc})"
+            f'--env-kwargs must be a JSON object such as \'{{"path": {{"type": "circle", "duration": 2.0}}}}\' ({exc})'
         ) from None
     if not isinstance(value, dict):
         raise argparse.ArgumentTypeError(f"--env-kwargs must be a JSON object, got {text!r}")
@@ -59,46 +58,80 @@ def _env_kwargs(text: str) -> dict:
 
 def add_backend_arguments(p) -> None:
     """--workers, --backend and --address (run and sweep)."""
-    p.add_argument("--workers", type=int, default=1,
-                   help="parallel episodes: worker processes (one PyBullet client each), or with --backend ray and "
-                        "no --address the CPUs of the local Ray instance started for the run")
-    p.add_argument("--backend", choices=BACKEND_CHOICES, default="local",
-                   help='where episodes run: local processes, or one Ray task per episode (pip install "mobman[ray]")')
-    p.add_argument("--address", default=None, metavar="ADDRESS",
-                   help="with --backend ray: the cluster to join (auto, HOST:6379, ray://HOST:10001); default: a "
-                        "local Ray instance")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=1,
+        help="parallel episodes: worker processes (one PyBullet client each), or with --backend ray and "
+        "no --address the CPUs of the local Ray instance started for the run",
+    )
+    p.add_argument(
+        "--backend",
+        choices=BACKEND_CHOICES,
+        default="local",
+        help='where episodes run: local processes, or one Ray task per episode (pip install "mobman[ray]")',
+    )
+    p.add_argument(
+        "--address",
+        default=None,
+        metavar="ADDRESS",
+        help="with --backend ray: the cluster to join (auto, HOST:6379, ray://HOST:10001); default: a "
+        "local Ray instance",
+    )
 
 
 def _add_run(sub) -> None:
     p = sub.add_parser(
-        "run", help="benchmark policies on identical episodes",
+        "run",
+        help="benchmark policies on identical episodes",
         description="Run every policy on the same episodes (episode k of every env/dynamics/policy uses "
-                    "seed S + k) and write results.json, results.csv, summary.md, plots and config.json.",
+        "seed S + k) and write results.json, results.csv, summary.md, plots and config.json.",
         formatter_class=HelpFormatter,
     )
-    p.add_argument("--env", action="append", dest="envs", metavar="ID",
-                   help="env id, repeatable (default: WheeledPuma-Circle-v0)")
-    p.add_argument("--policy", action="append", dest="policies", metavar="SPEC",
-                   help="policy spec, repeatable (default: nnbc, jmpi, oracle). " + _policy_help())
+    p.add_argument(
+        "--env", action="append", dest="envs", metavar="ID", help="env id, repeatable (default: WheeledPuma-Circle-v0)"
+    )
+    p.add_argument(
+        "--policy",
+        action="append",
+        dest="policies",
+        metavar="SPEC",
+        help="policy spec, repeatable (default: nnbc, jmpi, oracle). " + _policy_help(),
+    )
     p.add_argument("--episodes", type=int, default=5, help="episodes per env, dynamics mode and policy")
     p.add_argument("--seed", type=int, default=10_000, help="seed of episode 0 (episode k uses seed + k)")
     p.add_argument("--out", default=None, help="output directory (default: runs/run-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     add_backend_arguments(p)
-    p.add_argument("--dynamics", action="append", choices=DYNAMICS_CHOICES,
-                   help="dynamics mode, repeatable (default: physics)")
-    p.add_argument("--model-error", type=float, default=None,
-                   help="relative std of the true robot's lengths (default: the env's, 0.05)")
+    p.add_argument(
+        "--dynamics", action="append", choices=DYNAMICS_CHOICES, help="dynamics mode, repeatable (default: physics)"
+    )
+    p.add_argument(
+        "--model-error",
+        type=float,
+        default=None,
+        help="relative std of the true robot's lengths (default: the env's, 0.05)",
+    )
     p.add_argument("--obs-noise", type=float, default=None, help="position sensor noise std, m (default: 0)")
-    p.add_argument("--env-kwargs", type=_env_kwargs, default={}, metavar="JSON",
-                   help='further env arguments as JSON, e.g. \'{"path": {"type": "circle", "duration": 2.0}}\'')
-    p.add_argument("--tolerance", type=float, default=DEFAULT_TOLERANCE,
-                   help="success threshold on the max tracking error, m")
+    p.add_argument(
+        "--env-kwargs",
+        type=_env_kwargs,
+        default={},
+        metavar="JSON",
+        help='further env arguments as JSON, e.g. \'{"path": {"type": "circle", "duration": 2.0}}\'',
+    )
+    p.add_argument(
+        "--tolerance", type=float, default=DEFAULT_TOLERANCE, help="success threshold on the max tracking error, m"
+    )
     p.add_argument("--video", action="store_true", help="also write an MP4 (or GIF) of episode 0 per policy")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--save-arrays", choices=SAVE_ARRAYS_CHOICES, default="first",
-                   help="per-step arrays in episodes.npz: episode 0 of each condition (first), every episode (all: "
-                        "about 0.3 MB of memory per 20 s episode until the end of the run), or none")
+    p.add_argument(
+        "--save-arrays",
+        choices=SAVE_ARRAYS_CHOICES,
+        default="first",
+        help="per-step arrays in episodes.npz: episode 0 of each condition (first), every episode (all: "
+        "about 0.3 MB of memory per 20 s episode until the end of the run), or none",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
 
 

@@ -97,8 +97,9 @@ def timing_stats(us: np.ndarray) -> tuple[float, float]:
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
-def is_success(max_err: float | None, tolerance: float = DEFAULT_TOLERANCE, *, status: str = "ok",
-               tipped_over: bool = False) -> bool:
+def is_success(
+    max_err: float | None, tolerance: float = DEFAULT_TOLERANCE, *, status: str = "ok", tipped_over: bool = False
+) -> bool:
     """Max error within tolerance, the episode ran to its end and did not tip over. Failed -> False."""
     if status != "ok" or tipped_over or max_err is None or not math.isfinite(max_err):
         return False
@@ -148,8 +149,9 @@ def describe(values: Iterable[float | None]) -> dict[str, float | None]:
     }
 
 
-def aggregate(records: Sequence[dict], group_keys: Sequence[str] = GROUP_KEYS,
-              metrics: Sequence[str] = SUMMARY_METRICS) -> list[dict]:
+def aggregate(
+    records: Sequence[dict], group_keys: Sequence[str] = GROUP_KEYS, metrics: Sequence[str] = SUMMARY_METRICS
+) -> list[dict]:
     """One row per condition (the distinct values of `group_keys`, in first-seen order): n, n_failed,
     success_rate (successes / n, failed episodes counting as failures) and `describe()` of each metric over the
     episodes with status "ok"."""

@@ -18,8 +18,8 @@ import matplotlib
 
 matplotlib.use("Agg")  # no display needed; set before pyplot is imported anywhere in this process
 
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
 _COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:gray")
 
@@ -83,7 +83,7 @@ def plot_axis_errors(records: Sequence[dict]) -> Figure:
     rows, cols = _grid(n)
     fig = Figure(figsize=(4.6 * cols, 3.2 * rows), layout="constrained")
     axes = fig.subplots(rows, cols, squeeze=False).ravel()
-    for ax in axes[len(records):]:
+    for ax in axes[len(records) :]:
         ax.set_visible(False)
     for ax, rec in zip(axes, records):
         e = (np.asarray(rec["r_d"]) - np.asarray(rec["r_a"])) * 1e3

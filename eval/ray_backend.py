@@ -29,6 +29,7 @@ Without Ray installed, `--backend ray` stops before any rollout saying `pip inst
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import pickle
@@ -62,7 +63,7 @@ def require_ray():
     except ImportError as exc:
         raise EvalError(
             f"--backend ray needs Ray, which is not installed here ({exc}); install it with {INSTALL_HINT} "
-            f"(or pip install \"ray>=2.9\"), or use --backend local"
+            f'(or pip install "ray>=2.9"), or use --backend local'
         ) from None
     return ray
 
@@ -123,8 +124,11 @@ def local_runtime_env() -> dict[str, Any]:
     extra = []
     for entry in sys.path:
         path = os.path.realpath(entry or os.curdir)
-        if os.path.isdir(path) and not any(path == p or path.startswith(p + os.sep) for p in prefixes) \
-                and path not in extra:
+        if (
+            os.path.isdir(path)
+            and not any(path == p or path.startswith(p + os.sep) for p in prefixes)
+            and path not in extra
+        ):
             extra.append(path)
     if os.environ.get("PYTHONPATH"):
         extra.append(os.environ["PYTHONPATH"])
@@ -137,8 +141,14 @@ def init_kwargs(config: EvalConfig) -> dict[str, Any]:
     if config.address is not None:
         return {"address": config.address, **common}
     # address="local": a new instance even when a cluster runs on this machine (plain ray.init() would join it)
-    return {"address": "local", "num_cpus": config.workers, "include_dashboard": False,
-            "object_store_memory": OBJECT_STORE_BYTES, "runtime_env": local_runtime_env(), **common}
+    return {
+        "address": "local",
+        "num_cpus": config.workers,
+        "include_dashboard": False,
+        "object_store_memory": OBJECT_STORE_BYTES,
+        "runtime_env": local_runtime_env(),
+        **common,
+    }
 
 
 @contextmanager
@@ -169,13 +179,16 @@ def task_error_text(exc: BaseException) -> str:
     text = _ANSI.sub("", str(exc)).strip()
     msg = f"the Ray task failed and its retry failed too ({MAX_RETRIES} retry): {type(exc).__name__}: {text}"
     if "ModuleNotFoundError" in text:
-        msg += ("\n(the Ray worker cannot import a module the policy objects need: install it on every node, or "
-                "ship it with a runtime_env (working_dir / py_modules) given to your own ray.init before eval.run)")
+        msg += (
+            "\n(the Ray worker cannot import a module the policy objects need: install it on every node, or "
+            "ship it with a runtime_env (working_dir / py_modules) given to your own ray.init before eval.run)"
+        )
     return msg
 
 
-def execute_ray(config: EvalConfig, user: dict, tasks: list[Task], on_result=None
-                ) -> tuple[dict[int, dict], dict[int, dict]]:
+def execute_ray(
+    config: EvalConfig, user: dict, tasks: list[Task], on_result=None
+) -> tuple[dict[int, dict], dict[int, dict]]:
     """Run `tasks` as Ray tasks; returns ({index: record}, {index: arrays}) like `eval.workers.execute`.
 
     `on_result(record)` is called in this process as each episode ends (in completion order)."""
@@ -206,8 +219,6 @@ def execute_ray(config: EvalConfig, user: dict, tasks: list[Task], on_result=Non
                         on_result(rec)
         finally:
             for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
-                try:
+                with contextlib.suppress(Exception):
                     ray.cancel(ref, force=True)
-                except Exception:
-                    pass
     return records, arrays

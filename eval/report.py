@@ -61,6 +61,7 @@ _VERSION_PACKAGES = ("mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "
 
 # --- atomic writes ---------------------------------------------------------------------------------------
 
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -119,6 +120,7 @@ def to_jsonable(x: Any) -> Any:
 
 # --- provenance ------------------------------------------------------------------------------------------
 
+
 def versions() -> dict[str, str | None]:
     out: dict[str, str | None] = {"python": platform.python_version()}
     for name in _VERSION_PACKAGES:
@@ -136,23 +138,30 @@ def git_rev() -> str:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5)
         if sha.returncode != 0:
             return "unknown"
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                               capture_output=True, text=True, timeout=5)
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"],
+            cwd=here,
+            capture_output=True,
+            text=True,
+            timeout=5,
+        )
         return sha.stdout.strip() + ("-dirty" if dirty.stdout.strip() else "")
     except (OSError, subprocess.SubprocessError):
         return "unknown"
 
 
 def build_results(config: dict, records: list[dict], aggregate: list[dict], wall_s: float | None = None) -> dict:
-    return to_jsonable({
-        "schema": SCHEMA,
-        "config": config,
-        "versions": versions(),
-        "git": git_rev(),
-        "wall_s": wall_s,
-        "episodes": records,
-        "aggregate": aggregate,
-    })
+    return to_jsonable(
+        {
+            "schema": SCHEMA,
+            "config": config,
+            "versions": versions(),
+            "git": git_rev(),
+            "wall_s": wall_s,
+            "episodes": records,
+            "aggregate": aggregate,
+        }
+    )
 
 
 def arrays_key(index: int) -> str:
@@ -162,11 +171,39 @@ def arrays_key(index: int) -> str:
 # --- tidy rows -------------------------------------------------------------------------------------------
 
 CSV_COLUMNS = (
-    "index", "env", "policy", "episode", "seed", "dynamics", "model_error", "obs_noise", "control_freq",
-    "path_type", "path", "true_params_hash", "status", "success", "max_error_m", "rms_error_m", "final_error_m",
-    "axis_max_error_x_m", "axis_max_error_y_m", "axis_max_error_z_m", "effort", "peak_joint_speed",
-    "peak_wheel_speed", "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps",
-    "predict_us_median", "predict_us_p99", "wall_s", "pid", "error_summary",
+    "index",
+    "env",
+    "policy",
+    "episode",
+    "seed",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "control_freq",
+    "path_type",
+    "path",
+    "true_params_hash",
+    "status",
+    "success",
+    "max_error_m",
+    "rms_error_m",
+    "final_error_m",
+    "axis_max_error_x_m",
+    "axis_max_error_y_m",
+    "axis_max_error_z_m",
+    "effort",
+    "peak_joint_speed",
+    "peak_wheel_speed",
+    "joint_limit_hits",
+    "n_clipped",
+    "tipped_over",
+    "terminated",
+    "n_steps",
+    "predict_us_median",
+    "predict_us_p99",
+    "wall_s",
+    "pid",
+    "error_summary",
 )
 
 
@@ -178,12 +215,16 @@ def csv_rows(records: list[dict]) -> list[dict]:
         path = r.get("path")
         err = r.get("error")
         row = {k: r.get(k) for k in CSV_COLUMNS}
-        row.update({
-            "path_type": path.get("type") if isinstance(path, dict) else None,
-            "path": json.dumps(path, sort_keys=True) if path is not None else None,
-            "axis_max_error_x_m": axis[0], "axis_max_error_y_m": axis[1], "axis_max_error_z_m": axis[2],
-            "error_summary": err.strip().splitlines()[-1] if err else None,
-        })
+        row.update(
+            {
+                "path_type": path.get("type") if isinstance(path, dict) else None,
+                "path": json.dumps(path, sort_keys=True) if path is not None else None,
+                "axis_max_error_x_m": axis[0],
+                "axis_max_error_y_m": axis[1],
+                "axis_max_error_z_m": axis[2],
+                "error_summary": err.strip().splitlines()[-1] if err else None,
+            }
+        )
         rows.append(row)
     return rows
 
@@ -205,20 +246,38 @@ def _num(x: float | None, fmt: str = "{:.2f}") -> str:
     return "-" if x is None else fmt.format(x)
 
 
-SUMMARY_HEADER = ("policy", "n", "failed", "tipped over", "success", "max err median (mm)", "max err mean ± std (mm)",
-                  "rms median (mm)", "final median (mm)", "effort median (s)", "peak joint (rad/s)",
-                  "peak wheel (rad/s)", "predict median / p99 (µs)")
+SUMMARY_HEADER = (
+    "policy",
+    "n",
+    "failed",
+    "tipped over",
+    "success",
+    "max err median (mm)",
+    "max err mean ± std (mm)",
+    "rms median (mm)",
+    "final median (mm)",
+    "effort median (s)",
+    "peak joint (rad/s)",
+    "peak wheel (rad/s)",
+    "predict median / p99 (µs)",
+)
 
 
 def summary_row(a: dict) -> list[str]:
     me = a["max_error_m"]
     return [
-        str(a["policy"]), str(a["n"]), str(a["n_failed"]), str(a.get("n_tipped_over", 0)),
+        str(a["policy"]),
+        str(a["n"]),
+        str(a["n_failed"]),
+        str(a.get("n_tipped_over", 0)),
         f"{a['success_rate'] * 100:.0f}%",
         _mm(me["median"]),
         "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
-        _mm(a["rms_error_m"]["median"]), _mm(a["final_error_m"]["median"]),
-        _num(a["effort"]["median"]), _num(a["peak_joint_speed"]["median"]), _num(a["peak_wheel_speed"]["median"]),
+        _mm(a["rms_error_m"]["median"]),
+        _mm(a["final_error_m"]["median"]),
+        _num(a["effort"]["median"]),
+        _num(a["peak_joint_speed"]["median"]),
+        _num(a["peak_wheel_speed"]["median"]),
         f"{_num(a['predict_us_median']['median'], '{:.0f}')} / {_num(a['predict_us_p99']['median'], '{:.0f}')}",
     ]
 
@@ -248,11 +307,17 @@ def summary_markdown(results: dict) -> str:
         "",
     ]
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
-        lines += [f"## {env} — {dyn} (model_error {me}, obs_noise {on} m)", "",
-                  markdown_table(SUMMARY_HEADER, [summary_row(a) for a in rows]), ""]
+        lines += [
+            f"## {env} — {dyn} (model_error {me}, obs_noise {on} m)",
+            "",
+            markdown_table(SUMMARY_HEADER, [summary_row(a) for a in rows]),
+            "",
+        ]
     lines += failed_episode_lines(
-        results["episodes"], lambda r: f"{r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}",
-        " (traceback in results.json)")
+        results["episodes"],
+        lambda r: f"{r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}",
+        " (traceback in results.json)",
+    )
     return "\n".join(lines)
 
 
@@ -283,16 +348,32 @@ def failed_episode_lines(episodes: list[dict], describe, suffix: str = "") -> li
     return lines + [""]
 
 
-CONSOLE_HEADER = ("policy", "n", "failed\n/tipped", "succ", "max\nmed", "max\nmean", "rms\nmed", "final\nmed",
-                  "pred\nµs")
+CONSOLE_HEADER = (
+    "policy",
+    "n",
+    "failed\n/tipped",
+    "succ",
+    "max\nmed",
+    "max\nmean",
+    "rms\nmed",
+    "final\nmed",
+    "pred\nµs",
+)
 
 
 def console_row(a: dict) -> list[str]:
     me = a["max_error_m"]
-    return [str(a["policy"]), str(a["n"]), f"{a['n_failed']}/{a.get('n_tipped_over', 0)}",
-            f"{a['success_rate'] * 100:.0f}%", _mm(me["median"], 1), _mm(me["mean"], 1),
-            _mm(a["rms_error_m"]["median"], 1), _mm(a["final_error_m"]["median"], 1),
-            _num(a["predict_us_median"]["median"], "{:.0f}")]
+    return [
+        str(a["policy"]),
+        str(a["n"]),
+        f"{a['n_failed']}/{a.get('n_tipped_over', 0)}",
+        f"{a['success_rate'] * 100:.0f}%",
+        _mm(me["median"], 1),
+        _mm(me["mean"], 1),
+        _mm(a["rms_error_m"]["median"], 1),
+        _mm(a["final_error_m"]["median"], 1),
+        _num(a["predict_us_median"]["median"], "{:.0f}"),
+    ]
 
 
 def print_table(results: dict, out: Path | None = None) -> None:
@@ -303,9 +384,13 @@ def print_table(results: dict, out: Path | None = None) -> None:
 
     console = Console()
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
-        table = Table(title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)", box=box.SIMPLE_HEAD,
-                      caption="errors in mm: max over each episode, then median/mean over episodes; pred: median "
-                              "predict call; summary.md has all columns", padding=(0, 1))
+        table = Table(
+            title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)",
+            box=box.SIMPLE_HEAD,
+            caption="errors in mm: max over each episode, then median/mean over episodes; pred: median "
+            "predict call; summary.md has all columns",
+            padding=(0, 1),
+        )
         for h in CONSOLE_HEADER:
             if h == "policy":
                 longest = max(len(str(a["policy"])) for a in rows)
@@ -320,6 +405,7 @@ def print_table(results: dict, out: Path | None = None) -> None:
 
 
 # --- the run directory -----------------------------------------------------------------------------------
+
 
 def write_run(result, config) -> None:
     """Write every file of a run directory (see the module docstring)."""

@@ -28,7 +28,8 @@ from __future__ import annotations
 import os
 import time
 import traceback
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -40,10 +41,36 @@ ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
 
 #: Every field of an episode record, in order (see eval/README.md, "results.json").
 RECORD_KEYS = (
-    "env", "policy", "episode", "seed", "dynamics", "model_error", "obs_noise", "control_freq", "path", "start",
-    "true_params_hash", "status", "error", "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m",
-    "effort", "peak_joint_speed", "peak_wheel_speed", "success", "n_steps", "joint_limit_hits", "n_clipped",
-    "tipped_over", "terminated", "predict_us_median", "predict_us_p99", "wall_s", "pid",
+    "env",
+    "policy",
+    "episode",
+    "seed",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "control_freq",
+    "path",
+    "start",
+    "true_params_hash",
+    "status",
+    "error",
+    "max_error_m",
+    "rms_error_m",
+    "final_error_m",
+    "axis_max_error_m",
+    "effort",
+    "peak_joint_speed",
+    "peak_wheel_speed",
+    "success",
+    "n_steps",
+    "joint_limit_hits",
+    "n_clipped",
+    "tipped_over",
+    "terminated",
+    "predict_us_median",
+    "predict_us_p99",
+    "wall_s",
+    "pid",
 )
 
 #: Env constructor arguments that the eval flags set (--dynamics, --model-error, --obs-noise); --env-kwargs may
@@ -51,8 +78,14 @@ RECORD_KEYS = (
 FLAG_KWARGS = ("dynamics", "model_error", "obs_noise")
 
 
-def make_env(env_id: str, dynamics: str | None = None, model_error: float | None = None,
-             obs_noise: float | None = None, env_kwargs: dict | None = None, render_mode: str | None = None):
+def make_env(
+    env_id: str,
+    dynamics: str | None = None,
+    model_error: float | None = None,
+    obs_noise: float | None = None,
+    env_kwargs: dict | None = None,
+    render_mode: str | None = None,
+):
     """`gym.make(env_id, **kwargs)` with the eval flags (None: the env's default) and extra constructor kwargs."""
     import mobman_env  # noqa: F401  (registers the ids)
 
@@ -67,13 +100,26 @@ def make_env(env_id: str, dynamics: str | None = None, model_error: float | None
 
 def _metrics_none() -> dict[str, Any]:
     return {
-        "max_error_m": None, "rms_error_m": None, "final_error_m": None, "axis_max_error_m": None,
-        "effort": None, "peak_joint_speed": None, "peak_wheel_speed": None, "success": False,
+        "max_error_m": None,
+        "rms_error_m": None,
+        "final_error_m": None,
+        "axis_max_error_m": None,
+        "effort": None,
+        "peak_joint_speed": None,
+        "peak_wheel_speed": None,
+        "success": False,
     }
 
 
-def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
-            meta: dict | None = None, on_step: Callable[[int], None] | None = None) -> tuple[dict, dict | None]:
+def rollout(
+    env,
+    policy,
+    seed: int,
+    *,
+    tolerance: float = M.DEFAULT_TOLERANCE,
+    meta: dict | None = None,
+    on_step: Callable[[int], None] | None = None,
+) -> tuple[dict, dict | None]:
     """Run one episode of `policy` on `env` from `env.reset(seed=seed)`.
 
     Returns (record, arrays): the episode record of the `results.json` schema (without the fields only the
@@ -82,21 +128,32 @@ def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
     to grab video frames)."""
     base = env.unwrapped
     rec: dict[str, Any] = dict(meta or {})
-    rec.update({
-        "seed": int(seed),
-        "dynamics": getattr(base, "dynamics", None),
-        "model_error": getattr(base, "model_error", None),
-        "obs_noise": getattr(base, "obs_noise", None),
-        "control_freq": getattr(base, "control_freq", None),
-        "path": None,
-        "start": None,
-        "true_params_hash": None,
-        "status": "ok",
-        "error": None,
-    })
+    rec.update(
+        {
+            "seed": int(seed),
+            "dynamics": getattr(base, "dynamics", None),
+            "model_error": getattr(base, "model_error", None),
+            "obs_noise": getattr(base, "obs_noise", None),
+            "control_freq": getattr(base, "control_freq", None),
+            "path": None,
+            "start": None,
+            "true_params_hash": None,
+            "status": "ok",
+            "error": None,
+        }
+    )
     rec.update(_metrics_none())
-    rec.update({"n_steps": 0, "joint_limit_hits": 0, "n_clipped": 0, "tipped_over": False, "terminated": False,
-                "predict_us_median": None, "predict_us_p99": None})
+    rec.update(
+        {
+            "n_steps": 0,
+            "joint_limit_hits": 0,
+            "n_clipped": 0,
+            "tipped_over": False,
+            "terminated": False,
+            "predict_us_median": None,
+            "predict_us_p99": None,
+        }
+    )
     dt = float(base.dt)
     scale = np.asarray(base.action_scale, float)
     arrays = None
@@ -115,9 +172,21 @@ def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
         err = np.empty(n + 1)
         act = np.empty((n, 8))
         us = np.empty(n)
-        r_d[0], r_a[0], p_c[0], err[0] = obs["target_pos"], info["ee_pos_true"], obs["arm_base_pos"], info["tracking_error"]
-        arrays = {"t": np.arange(n + 1) * dt, "r_d": r_d[:1], "r_a": r_a[:1], "p_c": p_c[:1], "error": err[:1],
-                  "action": act[:0], "predict_us": us[:0]}
+        r_d[0], r_a[0], p_c[0], err[0] = (
+            obs["target_pos"],
+            info["ee_pos_true"],
+            obs["arm_base_pos"],
+            info["tracking_error"],
+        )
+        arrays = {
+            "t": np.arange(n + 1) * dt,
+            "r_d": r_d[:1],
+            "r_a": r_a[:1],
+            "p_c": p_c[:1],
+            "error": err[:1],
+            "action": act[:0],
+            "predict_us": us[:0],
+        }
         reset = getattr(policy, "reset", None)
         if reset is not None:
             reset(obs, info, seed=seed)
@@ -136,7 +205,12 @@ def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
             obs, _, terminated, truncated, info = env.step(a)
             act[k] = np.clip(a, -1.0, 1.0)
             k += 1
-            r_d[k], r_a[k], p_c[k], err[k] = obs["target_pos"], info["ee_pos_true"], obs["arm_base_pos"], info["tracking_error"]
+            r_d[k], r_a[k], p_c[k], err[k] = (
+                obs["target_pos"],
+                info["ee_pos_true"],
+                obs["arm_base_pos"],
+                info["tracking_error"],
+            )
             if on_step is not None:
                 on_step(k)
             if terminated or truncated:
@@ -147,8 +221,18 @@ def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
         rec["n_clipped"] = int(info.get("n_clipped", 0))
         rec["tipped_over"] = bool(info.get("tipped_over", False))
         arrays = _trim(arrays, r_d, r_a, p_c, err, act, us, k)
-        rec.update(M.episode_metrics(arrays["r_d"], arrays["r_a"], arrays["action"], dt, scale, tolerance,
-                                     tipped_over=rec["tipped_over"], err=arrays["error"]))
+        rec.update(
+            M.episode_metrics(
+                arrays["r_d"],
+                arrays["r_a"],
+                arrays["action"],
+                dt,
+                scale,
+                tolerance,
+                tipped_over=rec["tipped_over"],
+                err=arrays["error"],
+            )
+        )
         rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
     except Exception:
         rec["status"] = "failed"
@@ -163,5 +247,12 @@ def rollout(env, policy, seed: int, *, tolerance: float = M.DEFAULT_TOLERANCE,
 
 
 def _trim(arrays, r_d, r_a, p_c, err, act, us, k):
-    return {"t": arrays["t"][: k + 1], "r_d": r_d[: k + 1], "r_a": r_a[: k + 1], "p_c": p_c[: k + 1],
-            "error": err[: k + 1], "action": act[:k], "predict_us": us[:k]}
+    return {
+        "t": arrays["t"][: k + 1],
+        "r_d": r_d[: k + 1],
+        "r_a": r_a[: k + 1],
+        "p_c": p_c[: k + 1],
+        "error": err[: k + 1],
+        "action": act[:k],
+        "predict_us": us[:k],
+    }

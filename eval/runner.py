@@ -43,6 +43,7 @@ class RunResult(ResultsView):
 
 # --- the entry point -------------------------------------------------------------------------------------
 
+
 def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult:
     """Benchmark `config.policies` (specs) and `policies` ({name: object with predict/reset}) side by side.
 
@@ -69,15 +70,23 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
         from tqdm import tqdm
 
         tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
-        bar = tqdm(total=len(tasks), desc="episodes", unit="ep", file=sys.stderr, dynamic_ncols=True,
-                   mininterval=0.1 if tty else 5.0)  # a log file gets a line every 5 s, not every episode
+        bar = tqdm(
+            total=len(tasks),
+            desc="episodes",
+            unit="ep",
+            file=sys.stderr,
+            dynamic_ncols=True,
+            mininterval=0.1 if tty else 5.0,
+        )  # a log file gets a line every 5 s, not every episode
 
     def on_result(rec):
         if bar is not None:
             bar.update(1)
-            bar.set_postfix_str(f"{rec['policy']} seed {rec['seed']}: "
-                                + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None
-                                   else rec["status"]), refresh=False)
+            bar.set_postfix_str(
+                f"{rec['policy']} seed {rec['seed']}: "
+                + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None else rec["status"]),
+                refresh=False,
+            )
 
     t0 = time.perf_counter()
     try:
@@ -91,9 +100,14 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
         for key in RECORD_KEYS:  # records of episodes that never ran (dead worker) get every field too
             rec.setdefault(key, False if key in ("success", "tipped_over", "terminated") else None)
         rec["index"] = t.index
-        rec["arrays_key"] = report.arrays_key(t.index) if (
-            t.index in arrays and (config.save_arrays == "all" or (config.save_arrays == "first" and t.episode == 0))
-        ) else None
+        rec["arrays_key"] = (
+            report.arrays_key(t.index)
+            if (
+                t.index in arrays
+                and (config.save_arrays == "all" or (config.save_arrays == "first" and t.episode == 0))
+            )
+            else None
+        )
 
     cfg = config.to_dict()
     cfg["out"] = str(out)

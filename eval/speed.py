@@ -40,22 +40,31 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--steps", type=int, default=4000, help="control steps per timed block")
     p.add_argument("--repeats", type=int, default=3, help="repeats per timed block (the best is reported)")
     p.add_argument("--episodes", type=int, default=8, help="20 s episodes per workers setting")
-    p.add_argument("--policy", action="append", dest="policies", metavar="SPEC",
-                   help="policies whose predict is timed (default: every built-in name)")
+    p.add_argument(
+        "--policy",
+        action="append",
+        dest="policies",
+        metavar="SPEC",
+        help="policies whose predict is timed (default: every built-in name)",
+    )
     p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     p.add_argument("--quiet", action="store_true", help="no table")
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("speed", help="the speed benchmark (env steps/s, predict µs, episodes/s)",
-                       description=__doc__.split("\n\n")[0],
-                       formatter_class=HelpFormatter)
+    p = sub.add_parser(
+        "speed",
+        help="the speed benchmark (env steps/s, predict µs, episodes/s)",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=HelpFormatter,
+    )
     add_arguments(p)
     p.set_defaults(func=run_from_args)
 
 
 # --- timed blocks ----------------------------------------------------------------------------------------
+
 
 def _env(dynamics: str, n_substeps: int = 2):
     from eval.rollout import make_env
@@ -127,15 +136,22 @@ def env_vs_bare(dynamics: str, n_substeps: int, steps: int, repeats: int, seed: 
         if phys is not env:
             phys.close()
     env_sps, bare_sps = steps / min(env_t), steps / min(bare_t)
-    return {"dynamics": dynamics, "n_substeps": n_substeps, "steps": steps, "env_steps_per_s": env_sps,
-            "bare_steps_per_s": bare_sps, "ratio_env_to_bare": env_sps / bare_sps,
-            "env_steps_per_s_all": [steps / t for t in env_t], "bare_steps_per_s_all": [steps / t for t in bare_t]}
+    return {
+        "dynamics": dynamics,
+        "n_substeps": n_substeps,
+        "steps": steps,
+        "env_steps_per_s": env_sps,
+        "bare_steps_per_s": bare_sps,
+        "ratio_env_to_bare": env_sps / bare_sps,
+        "env_steps_per_s_all": [steps / t for t in env_t],
+        "bare_steps_per_s_all": [steps / t for t in bare_t],
+    }
 
 
 def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     """Median and p99 of the whole predict call of each policy over one kinematic episode (the eval loop)."""
-    from eval.rollout import rollout
     from eval.checks import make_policy
+    from eval.rollout import rollout
 
     rows = []
     env = _env("kinematic")
@@ -150,8 +166,15 @@ def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
             if rec["status"] != "ok":
                 rows.append({"policy": spec, "status": "failed: " + rec["error"].strip().splitlines()[-1]})
                 continue
-            rows.append({"policy": spec, "status": "ok", "calls": int(len(arrays["predict_us"])),
-                         "predict_us_median": rec["predict_us_median"], "predict_us_p99": rec["predict_us_p99"]})
+            rows.append(
+                {
+                    "policy": spec,
+                    "status": "ok",
+                    "calls": int(len(arrays["predict_us"])),
+                    "predict_us_median": rec["predict_us_median"],
+                    "predict_us_p99": rec["predict_us_p99"],
+                }
+            )
     finally:
         env.close()
     return rows
@@ -162,18 +185,37 @@ def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed:
     from eval.runner import run
 
     with tempfile.TemporaryDirectory(prefix="mobman-speed-") as tmp:
-        cfg = EvalConfig(envs=(SPEED_ENV,), policies=(policy,), episodes=episodes, seed=seed, out=tmp,
-                         overwrite=True, workers=workers, dynamics=("kinematic",), plots=False, save_arrays="none",
-                         progress=False, command="speed")
+        cfg = EvalConfig(
+            envs=(SPEED_ENV,),
+            policies=(policy,),
+            episodes=episodes,
+            seed=seed,
+            out=tmp,
+            overwrite=True,
+            workers=workers,
+            dynamics=("kinematic",),
+            plots=False,
+            save_arrays="none",
+            progress=False,
+            command="speed",
+        )
         t0 = time.perf_counter()
         result = run(cfg)
         total = time.perf_counter() - t0
     pids = {r["pid"] for r in result.episodes}
     steps = sum(r.get("n_steps") or 0 for r in result.episodes)
-    return {"workers": workers, "episodes": episodes, "policy": policy, "dynamics": "kinematic",
-            "episodes_per_s": episodes / result.results["wall_s"], "env_steps_per_s": steps / result.results["wall_s"],
-            "run_wall_s": result.results["wall_s"], "total_wall_s": total, "processes": len(pids),
-            "episode_wall_s_median": float(np.median([r["wall_s"] for r in result.episodes]))}
+    return {
+        "workers": workers,
+        "episodes": episodes,
+        "policy": policy,
+        "dynamics": "kinematic",
+        "episodes_per_s": episodes / result.results["wall_s"],
+        "env_steps_per_s": steps / result.results["wall_s"],
+        "run_wall_s": result.results["wall_s"],
+        "total_wall_s": total,
+        "processes": len(pids),
+        "episode_wall_s_median": float(np.median([r["wall_s"] for r in result.episodes])),
+    }
 
 
 def default_policies() -> list[str]:
@@ -186,17 +228,30 @@ def default_policies() -> list[str]:
     return names + ["sb3:sac-circle"]
 
 
-def measure(steps: int = 4000, repeats: int = 3, episodes: int = 8, specs: list[str] | None = None,
-            progress=print) -> dict:
+def measure(
+    steps: int = 4000, repeats: int = 3, episodes: int = 8, specs: list[str] | None = None, progress=print
+) -> dict:
     from eval.report import git_rev, versions
 
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
-    out: dict = {"schema": 1, "when": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                 "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                             "loadavg_1_5_15_at_start": list(load) if load else None},
-                 "versions": versions(), "git": git_rev(),
-                 "settings": {"env": SPEED_ENV, "steps": steps, "repeats": repeats, "episodes": episodes,
-                              "control_freq_hz": 100.0}}
+    out: dict = {
+        "schema": 1,
+        "when": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "machine": {
+            "cpus": os.cpu_count(),
+            "platform": platform.platform(),
+            "loadavg_1_5_15_at_start": list(load) if load else None,
+        },
+        "versions": versions(),
+        "git": git_rev(),
+        "settings": {
+            "env": SPEED_ENV,
+            "steps": steps,
+            "repeats": repeats,
+            "episodes": episodes,
+            "control_freq_hz": 100.0,
+        },
+    }
     progress("timing env vs bare PyBullet (kinematic, physics at 2/4/10 substeps) ...")
     blocks = [env_vs_bare("kinematic", 2, steps, repeats)]
     blocks += [env_vs_bare("physics", n, steps, repeats) for n in SUBSTEPS]
@@ -217,24 +272,39 @@ def print_table(res: dict) -> None:
     for h in ("dynamics", "substeps", "env steps/s", "bare PyBullet steps/s", "env / bare", "sim s per wall s"):
         t.add_column(h, justify="right")
     for b in res["env"]:
-        t.add_row(b["dynamics"], str(b["n_substeps"]) if b["dynamics"] == "physics" else "- (bare at 2)",
-                  f"{b['env_steps_per_s']:,.0f}", f"{b['bare_steps_per_s']:,.0f}", f"{b['ratio_env_to_bare']:.2f}",
-                  f"{b['env_steps_per_s'] / 100.0:.0f}")
+        t.add_row(
+            b["dynamics"],
+            str(b["n_substeps"]) if b["dynamics"] == "physics" else "- (bare at 2)",
+            f"{b['env_steps_per_s']:,.0f}",
+            f"{b['bare_steps_per_s']:,.0f}",
+            f"{b['ratio_env_to_bare']:.2f}",
+            f"{b['env_steps_per_s'] / 100.0:.0f}",
+        )
     c.print(t)
     t = Table(title="predict, whole call (µs), one kinematic episode")
     for h in ("policy", "median", "p99", "status"):
         t.add_column(h, justify="left" if h in ("policy", "status") else "right")
     for r in res["predict"]:
-        t.add_row(r["policy"], f"{r['predict_us_median']:.0f}" if "predict_us_median" in r else "-",
-                  f"{r['predict_us_p99']:.0f}" if "predict_us_p99" in r else "-",
-                  r["status"].split(":")[0] + (" (reason in speed.json)" if r["status"] != "ok" else ""))
+        t.add_row(
+            r["policy"],
+            f"{r['predict_us_median']:.0f}" if "predict_us_median" in r else "-",
+            f"{r['predict_us_p99']:.0f}" if "predict_us_p99" in r else "-",
+            r["status"].split(":")[0] + (" (reason in speed.json)" if r["status"] != "ok" else ""),
+        )
     c.print(t)
     t = Table(title="episodes/s (20 s kinematic nnbc episodes, worker start-up included)")
     for h in ("workers", "processes", "episodes", "episodes/s", "steps/s incl. policy", "wall s", "s per episode"):
         t.add_column(h, justify="right")
     for e in res["episodes"]:
-        t.add_row(str(e["workers"]), str(e["processes"]), str(e["episodes"]), f"{e['episodes_per_s']:.2f}",
-                  f"{e['env_steps_per_s']:,.0f}", f"{e['run_wall_s']:.1f}", f"{e['episode_wall_s_median']:.2f}")
+        t.add_row(
+            str(e["workers"]),
+            str(e["processes"]),
+            str(e["episodes"]),
+            f"{e['episodes_per_s']:.2f}",
+            f"{e['env_steps_per_s']:,.0f}",
+            f"{e['run_wall_s']:.1f}",
+            f"{e['episode_wall_s_median']:.2f}",
+        )
     c.print(t)
     load = res["machine"]["loadavg_1_5_15_at_start"]
     if load:
@@ -242,9 +312,9 @@ def print_table(res: dict) -> None:
 
 
 def run_from_args(args) -> int:
+    from eval.checks import check_out
     from eval.config import EvalError
     from eval.report import atomic_write_json
-    from eval.checks import check_out
 
     for name in ("steps", "repeats", "episodes"):
         if getattr(args, name) < 1:
@@ -263,8 +333,9 @@ def run_from_args(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     from eval.config import EvalError
 
-    p = argparse.ArgumentParser(prog="python -m eval.speed", description=__doc__.split("\n\n")[0],
-                                formatter_class=HelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m eval.speed", description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter
+    )
     add_arguments(p)
     args = p.parse_args(argv)
     try:

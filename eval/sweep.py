@@ -56,8 +56,14 @@ FIXED_KEYS = ("env_kwargs", "tolerance")
 def episode_key(rec: dict | Task) -> tuple:
     """(env, policy, seed, dynamics, model_error, obs_noise) of a record or a task: what identifies an episode."""
     get = rec.get if isinstance(rec, dict) else lambda k: getattr(rec, k)
-    return (get("env"), get("policy"), int(get("seed")), get("dynamics"), float(get("model_error")),
-            float(get("obs_noise")))
+    return (
+        get("env"),
+        get("policy"),
+        int(get("seed")),
+        get("dynamics"),
+        float(get("model_error")),
+        float(get("obs_noise")),
+    )
 
 
 def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
@@ -74,6 +80,7 @@ def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
 
 
 # --- the journal -----------------------------------------------------------------------------------------
+
 
 class Journal:
     """`episodes.jsonl`: one complete JSON episode record per line; later lines win for the same episode."""
@@ -97,8 +104,10 @@ class Journal:
                 rec = json.loads(line)
                 records[episode_key(rec)] = rec
             except (ValueError, KeyError, TypeError) as exc:
-                raise EvalError(f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
-                                f"damaged: delete that line (its episode then runs again)") from None
+                raise EvalError(
+                    f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
+                    f"damaged: delete that line (its episode then runs again)"
+                ) from None
         dropped = 0
         if end < len(data):
             dropped = 1
@@ -117,8 +126,9 @@ class Journal:
             pass
         except OSError:
             os.close(fd)
-            raise EvalError(f"another sweep is writing to {self.path.parent}; wait for it or use another "
-                            f"--out") from None
+            raise EvalError(
+                f"another sweep is writing to {self.path.parent}; wait for it or use another --out"
+            ) from None
         self._fd = fd
 
     def append(self, rec: dict) -> None:
@@ -140,6 +150,7 @@ class Journal:
 
 # --- the run ---------------------------------------------------------------------------------------------
 
+
 @dataclass
 class SweepResult(report.ResultsView):
     """What `run_sweep` returns: the output directory, the results.json content and this run's counts."""
@@ -156,10 +167,20 @@ def default_out(source: str | None) -> Path:
     return Path("runs") / f"sweep-{report.slug(stem)}"
 
 
-def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str = "local",
-              address: str | None = None, workers: int = 1, max_episodes: int | None = None,
-              retry_failed: bool = False, plots: bool = True, progress: bool = True,
-              policies: dict[str, Any] | None = None, source: str | None = None) -> SweepResult:
+def run_sweep(
+    sweep: SweepConfig,
+    out: str | Path | None = None,
+    *,
+    backend: str = "local",
+    address: str | None = None,
+    workers: int = 1,
+    max_episodes: int | None = None,
+    retry_failed: bool = False,
+    plots: bool = True,
+    progress: bool = True,
+    policies: dict[str, Any] | None = None,
+    source: str | None = None,
+) -> SweepResult:
     """Run the episodes of `sweep` not yet in `out`, then rebuild the table, summary and plots.
 
     `policies` adds the user's own objects ({name: object with predict/reset}) beside the specs; `source` is
@@ -168,14 +189,30 @@ def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str
 
     user = dict(policies or {})
     out = Path(out) if out is not None else default_out(source)
-    if max_episodes is not None and (isinstance(max_episodes, bool) or not isinstance(max_episodes, int)
-                                     or max_episodes < 0):
+    if max_episodes is not None and (
+        isinstance(max_episodes, bool) or not isinstance(max_episodes, int) or max_episodes < 0
+    ):
         raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
-    base = EvalConfig(envs=sweep.envs, policies=sweep.policies, episodes=len(sweep.seeds), seed=sweep.seeds[0],
-                      out=str(out), overwrite=True, workers=workers, backend=backend, address=address,
-                      dynamics=sweep.dynamics, model_error=sweep.model_error[0], obs_noise=sweep.obs_noise[0],
-                      env_kwargs=sweep.env_kwargs, tolerance=sweep.tolerance, plots=False, save_arrays="none",
-                      progress=False, command="sweep")
+    base = EvalConfig(
+        envs=sweep.envs,
+        policies=sweep.policies,
+        episodes=len(sweep.seeds),
+        seed=sweep.seeds[0],
+        out=str(out),
+        overwrite=True,
+        workers=workers,
+        backend=backend,
+        address=address,
+        dynamics=sweep.dynamics,
+        model_error=sweep.model_error[0],
+        obs_noise=sweep.obs_noise[0],
+        env_kwargs=sweep.env_kwargs,
+        tolerance=sweep.tolerance,
+        plots=False,
+        save_arrays="none",
+        progress=False,
+        command="sweep",
+    )
     base.validate()
     if not sweep.policies and not user:
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
@@ -186,9 +223,17 @@ def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str
 
     names = list(sweep.policies) + list(user)
     tasks = grid_tasks(sweep, names)
-    cfg = {"command": "sweep", "source": source, **sweep.to_dict(), "policy_objects":
-           {name: type(obj).__name__ for name, obj in user.items()}, "out": str(out), "backend": backend,
-           "address": address, "workers": workers, "n_episodes": len(tasks)}
+    cfg = {
+        "command": "sweep",
+        "source": source,
+        **sweep.to_dict(),
+        "policy_objects": {name: type(obj).__name__ for name, obj in user.items()},
+        "out": str(out),
+        "backend": backend,
+        "address": address,
+        "workers": workers,
+        "n_episodes": len(tasks),
+    }
     out.mkdir(parents=True, exist_ok=True)
     report.atomic_write_json(out / "config.json", cfg)  # first: the directory is a sweep's from now on
     journal = Journal(out / JOURNAL)
@@ -197,14 +242,20 @@ def run_sweep(sweep: SweepConfig, out: str | Path | None = None, *, backend: str
         done, dropped = journal.load()
         if dropped and progress:
             print(f"sweep: dropped a torn last line of {journal.path} (its episode runs again)", file=sys.stderr)
-        todo = [t for t in tasks if episode_key(t) not in done
-                or (retry_failed and done[episode_key(t)].get("status") != "ok")]
+        todo = [
+            t
+            for t in tasks
+            if episode_key(t) not in done or (retry_failed and done[episode_key(t)].get("status") != "ok")
+        ]
         n_skipped = len(tasks) - len(todo)
         if max_episodes is not None:
             todo = todo[:max_episodes]
         if progress:
-            print(f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
-                  f"{' (resuming)' if resuming else ''}, {len(todo)} to run now", file=sys.stderr)
+            print(
+                f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
+                f"{' (resuming)' if resuming else ''}, {len(todo)} to run now",
+                file=sys.stderr,
+            )
         lost: dict[tuple, dict] = {}  # episodes without any result (dead worker, failed Ray task): not journaled
         n_run = 0
         bar = _progress_bar(len(todo)) if progress and todo else None
@@ -255,14 +306,17 @@ def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
     except (OSError, ValueError):
         old = None
     if not isinstance(old, dict) or old.get("command") != "sweep":
-        raise EvalError(f"--out {str(out)!r} exists and does not hold a sweep (no sweep config.json); choose "
-                        f"another --out")
+        raise EvalError(
+            f"--out {str(out)!r} exists and does not hold a sweep (no sweep config.json); choose another --out"
+        )
     new = sweep.to_dict()
     changed = [k for k in FIXED_KEYS if old.get(k) != new[k]]
     if changed:
         diff = "; ".join(f"{k}: {old.get(k)!r} there, {new[k]!r} now" for k in changed)
-        raise EvalError(f"--out {str(out)!r} holds a sweep with other settings ({diff}); its episodes would not be "
-                        f"comparable: use another --out, or delete that directory to start over")
+        raise EvalError(
+            f"--out {str(out)!r} holds a sweep with other settings ({diff}); its episodes would not be "
+            f"comparable: use another --out, or delete that directory to start over"
+        )
     return True
 
 
@@ -275,8 +329,9 @@ def _check_conditions(sweep: SweepConfig) -> None:
             try:
                 env = make_env(sweep.envs[0], sweep.dynamics[0], me, on, sweep.env_kwargs)
             except Exception as exc:
-                raise EvalError(f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: "
-                                f"{exc}") from None
+                raise EvalError(
+                    f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: {exc}"
+                ) from None
             env.close()
 
 
@@ -284,14 +339,24 @@ def _progress_bar(total: int):
     from tqdm import tqdm
 
     tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
-    return tqdm(total=total, desc="sweep", unit="ep", file=sys.stderr, dynamic_ncols=True,
-                mininterval=0.1 if tty else 5.0)
+    return tqdm(
+        total=total, desc="sweep", unit="ep", file=sys.stderr, dynamic_ncols=True, mininterval=0.1 if tty else 5.0
+    )
 
 
 # --- tables, summary, plots ------------------------------------------------------------------------------
 
-AGGREGATE_COLUMNS = ("env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over",
-                     "success_rate")
+AGGREGATE_COLUMNS = (
+    "env",
+    "policy",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "n",
+    "n_failed",
+    "n_tipped_over",
+    "success_rate",
+)
 
 
 def aggregate_csv_text(aggregate: list[dict]) -> str:
@@ -310,16 +375,32 @@ def aggregate_csv_text(aggregate: list[dict]) -> str:
     return buf.getvalue()
 
 
-SUMMARY_HEADER = ("policy", "model_error", "obs_noise (mm)", "n", "failed", "success", "max err median (mm)",
-                  "max err mean ± std (mm)", "rms median (mm)")
+SUMMARY_HEADER = (
+    "policy",
+    "model_error",
+    "obs_noise (mm)",
+    "n",
+    "failed",
+    "success",
+    "max err median (mm)",
+    "max err mean ± std (mm)",
+    "rms median (mm)",
+)
 
 
 def _summary_row(a: dict) -> list[str]:
     me = a["max_error_m"]
-    return [str(a["policy"]), f"{a['model_error']:g}", f"{a['obs_noise'] * 1e3:g}", str(a["n"]), str(a["n_failed"]),
-            f"{a['success_rate'] * 100:.0f}%", report._mm(me["median"]),
-            "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
-            report._mm(a["rms_error_m"]["median"])]
+    return [
+        str(a["policy"]),
+        f"{a['model_error']:g}",
+        f"{a['obs_noise'] * 1e3:g}",
+        str(a["n"]),
+        str(a["n_failed"]),
+        f"{a['success_rate'] * 100:.0f}%",
+        report._mm(me["median"]),
+        "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
+        report._mm(a["rms_error_m"]["median"]),
+    ]
 
 
 def summary_markdown(results: dict) -> str:
@@ -340,8 +421,12 @@ def summary_markdown(results: dict) -> str:
         rows = sorted(rows, key=lambda a: (str(a["policy"]), a["model_error"], a["obs_noise"]))
         lines += [f"## {env} — {dyn}", "", report.markdown_table(SUMMARY_HEADER, [_summary_row(a) for a in rows]), ""]
     lines += report.failed_episode_lines(
-        eps, lambda r: (f"{r['env']} / {r['dynamics']} / {r['policy']} / model_error {r['model_error']} / "
-                        f"obs_noise {r['obs_noise']} / seed {r['seed']}"))
+        eps,
+        lambda r: (
+            f"{r['env']} / {r['dynamics']} / {r['policy']} / model_error {r['model_error']} / "
+            f"obs_noise {r['obs_noise']} / seed {r['seed']}"
+        ),
+    )
     return "\n".join(lines)
 
 
@@ -381,34 +466,53 @@ def print_summary(result: SweepResult) -> None:
     for a in result.aggregate:
         groups.setdefault((a["env"], a["dynamics"]), []).append(a)
     for (env, dyn), rows in groups.items():
-        table = Table(title=f"{env} — {dyn}", box=box.SIMPLE_HEAD, padding=(0, 1),
-                      caption="max error in mm: median over the episodes that ran")
+        table = Table(
+            title=f"{env} — {dyn}",
+            box=box.SIMPLE_HEAD,
+            padding=(0, 1),
+            caption="max error in mm: median over the episodes that ran",
+        )
         for h in ("policy", "model err", "noise mm", "n", "failed", "succ", "max med"):
             table.add_column(h, justify="left" if h == "policy" else "right")
         for a in sorted(rows, key=lambda a: (str(a["policy"]), a["model_error"], a["obs_noise"])):
-            table.add_row(str(a["policy"]), f"{a['model_error']:g}", f"{a['obs_noise'] * 1e3:g}", str(a["n"]),
-                          str(a["n_failed"]), f"{a['success_rate'] * 100:.0f}%",
-                          report._mm(a["max_error_m"]["median"], 1))
+            table.add_row(
+                str(a["policy"]),
+                f"{a['model_error']:g}",
+                f"{a['obs_noise'] * 1e3:g}",
+                str(a["n"]),
+                str(a["n_failed"]),
+                f"{a['success_rate'] * 100:.0f}%",
+                report._mm(a["max_error_m"]["median"], 1),
+            )
         console.print(table)
 
 
 # --- command line ----------------------------------------------------------------------------------------
 
+
 def add_parser(sub) -> None:
     from eval.cli import HelpFormatter, add_backend_arguments
 
     p = sub.add_parser(
-        "sweep", help="run a grid of policies x envs x seeds x model errors x noise levels from a YAML file "
-                      "(resumable)",
+        "sweep",
+        help="run a grid of policies x envs x seeds x model errors x noise levels from a YAML file (resumable)",
         description=__doc__.split("\n\n")[0] + " Run the same command again to resume.",
         formatter_class=HelpFormatter,
     )
     p.add_argument("--config", metavar="YAML", help="the sweep file (`--example` prints one to start from)")
-    p.add_argument("--out", default=None, help="output directory (default: runs/sweep-<config file stem>); an "
-                                               "existing sweep there is resumed")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="output directory (default: runs/sweep-<config file stem>); an existing sweep there is resumed",
+    )
     add_backend_arguments(p)
-    p.add_argument("--max-episodes", type=int, default=None, metavar="N",
-                   help="run at most N episodes not yet done, then write the table and stop (run again to go on)")
+    p.add_argument(
+        "--max-episodes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="run at most N episodes not yet done, then write the table and stop (run again to go on)",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run again the episodes recorded as failed")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
@@ -426,20 +530,34 @@ def _main(args) -> int:
         raise EvalError(f"unknown backend {args.backend!r}")
     sweep = load_sweep(args.config)
     try:
-        result = run_sweep(sweep, args.out, backend=args.backend, address=args.address, workers=args.workers,
-                           max_episodes=args.max_episodes, retry_failed=args.retry_failed, plots=not args.no_plots,
-                           progress=not args.quiet, source=args.config)
+        result = run_sweep(
+            sweep,
+            args.out,
+            backend=args.backend,
+            address=args.address,
+            workers=args.workers,
+            max_episodes=args.max_episodes,
+            retry_failed=args.retry_failed,
+            plots=not args.no_plots,
+            progress=not args.quiet,
+            source=args.config,
+        )
     except KeyboardInterrupt:
         out = Path(args.out) if args.out else default_out(args.config)
-        print(f"\nsweep interrupted; the episodes that ended are in {out / JOURNAL} and the table; run the same "
-              f"command again to go on", file=sys.stderr)
+        print(
+            f"\nsweep interrupted; the episodes that ended are in {out / JOURNAL} and the table; run the same "
+            f"command again to go on",
+            file=sys.stderr,
+        )
         return 130
     if not args.quiet:
         print_summary(result)
         n_failed = sum(r["status"] != "ok" for r in result.episodes)
         n_grid = result.results["config"]["n_episodes"]
-        print(f"{len(result.episodes)} of {n_grid} episodes in {result.out / 'results.csv'} "
-              f"({result.n_run} run now, {result.n_skipped} from earlier runs, {n_failed} failed)")
+        print(
+            f"{len(result.episodes)} of {n_grid} episodes in {result.out / 'results.csv'} "
+            f"({result.n_run} run now, {result.n_skipped} from earlier runs, {n_failed} failed)"
+        )
         if result.n_left:
             print(f"{result.n_left} episodes left: run the same command again to go on")
     return 0

@@ -53,8 +53,14 @@ class SweepConfig:
 
     @property
     def n_episodes(self) -> int:
-        return (len(self.envs) * len(self.dynamics) * len(self.model_error) * len(self.obs_noise)
-                * len(self.policies) * len(self.seeds))
+        return (
+            len(self.envs)
+            * len(self.dynamics)
+            * len(self.model_error)
+            * len(self.obs_noise)
+            * len(self.policies)
+            * len(self.seeds)
+        )
 
     def to_dict(self) -> dict[str, Any]:
         return {k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(self).items()}
@@ -65,8 +71,9 @@ class SweepConfig:
         if data is None:
             data = {}
         if not isinstance(data, dict):
-            raise EvalError(f"{source}: the top level must be a mapping of keys ({', '.join(KEYS)}), "
-                            f"got {type(data).__name__}")
+            raise EvalError(
+                f"{source}: the top level must be a mapping of keys ({', '.join(KEYS)}), got {type(data).__name__}"
+            )
         unknown = [k for k in data if k not in KEYS]
         if unknown:
             hints = []
@@ -112,8 +119,10 @@ def load_sweep(path: str | Path) -> SweepConfig:
     try:
         text = path.read_text()
     except FileNotFoundError:
-        raise EvalError(f"sweep config {str(path)!r} not found; `mobman-eval sweep --example > sweep.yaml` writes "
-                        f"an example to start from") from None
+        raise EvalError(
+            f"sweep config {str(path)!r} not found; `mobman-eval sweep --example > sweep.yaml` writes "
+            f"an example to start from"
+        ) from None
     except OSError as exc:
         raise EvalError(f"cannot read sweep config {str(path)!r}: {exc}") from None
     try:
@@ -129,6 +138,7 @@ def example_path() -> Path:
 
 
 # --- value checks ----------------------------------------------------------------------------------------
+
 
 def _is_number(x: Any) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
@@ -191,12 +201,16 @@ def _env_kwargs(value: Any, source: str) -> dict:
     if value is None:
         return {}
     if not isinstance(value, dict):
-        raise EvalError(f"{source}: env_kwargs must be a mapping of env arguments, e.g. "
-                        f"{{path: {{type: circle, duration: 2.0}}}}; got {value!r}")
+        raise EvalError(
+            f"{source}: env_kwargs must be a mapping of env arguments, e.g. "
+            f"{{path: {{type: circle, duration: 2.0}}}}; got {value!r}"
+        )
     clash = sorted(set(value) & (set(FLAG_KWARGS) | {"render_mode"}))
     if clash:
-        raise EvalError(f"{source}: env_kwargs sets {clash}; use the sweep keys dynamics / model_error / obs_noise "
-                        f"instead (render_mode is not available in sweeps)")
+        raise EvalError(
+            f"{source}: env_kwargs sets {clash}; use the sweep keys dynamics / model_error / obs_noise "
+            f"instead (render_mode is not available in sweeps)"
+        )
     try:
         json.dumps(value, allow_nan=False)
     except (TypeError, ValueError) as exc:

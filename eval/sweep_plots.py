@@ -15,10 +15,10 @@ import matplotlib
 
 matplotlib.use("Agg")
 
-import numpy as np  # noqa: E402
-from matplotlib.figure import Figure  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
-from eval.plots import _COLORS  # noqa: E402
+from eval.plots import _COLORS
 
 #: the swept variables and their axis labels
 VARIABLES = {
@@ -69,8 +69,10 @@ def plot_vs(rows: Sequence[dict], x: str, tolerance: float | None = None) -> Fig
         bottom.grid(True, which="both", alpha=0.3)
     axes[1, 0].legend(fontsize=7)
     if rows:
-        fig.suptitle(f"{rows[0]['env']} · {rows[0]['dynamics']}: success and max error (median, min-max band) "
-                     f"vs {x}", fontsize=11)
+        fig.suptitle(
+            f"{rows[0]['env']} · {rows[0]['dynamics']}: success and max error (median, min-max band) vs {x}",
+            fontsize=11,
+        )
     return fig
 
 

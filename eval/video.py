@@ -45,8 +45,9 @@ def encode(frames: list[np.ndarray], path_stem: Path, fps: float) -> Path:
         return path
 
 
-def record_episode(env_id: str, name: str, user: dict, seed: int, config, dynamics: str
-                   ) -> tuple[list[np.ndarray], float, dict]:
+def record_episode(
+    env_id: str, name: str, user: dict, seed: int, config, dynamics: str
+) -> tuple[list[np.ndarray], float, dict]:
     """Frames of one episode of policy `name` (a spec, or a key of `user`), the frame rate, and its record."""
     from eval.checks import make_policy
 

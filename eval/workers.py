@@ -54,8 +54,9 @@ class Executor:
                 old = next(iter(self._envs))
                 self._envs.pop(old).close()
                 self._policies = {k: v for k, v in self._policies.items() if k[0] != old}
-            self._envs[key] = make_env(task.env, task.dynamics, task.model_error, task.obs_noise,
-                                       self.config.env_kwargs)
+            self._envs[key] = make_env(
+                task.env, task.dynamics, task.model_error, task.obs_noise, self.config.env_kwargs
+            )
         return self._envs[key]
 
     def policy(self, task: Task):
@@ -75,9 +76,18 @@ class Executor:
         except Exception:
             import traceback
 
-            rec = {**meta, "seed": task.seed, "dynamics": task.dynamics, "model_error": task.model_error,
-                   "obs_noise": task.obs_noise, "status": "failed", "error": traceback.format_exc(),
-                   "success": False, "wall_s": 0.0, "pid": os.getpid()}
+            rec = {
+                **meta,
+                "seed": task.seed,
+                "dynamics": task.dynamics,
+                "model_error": task.model_error,
+                "obs_noise": task.obs_noise,
+                "status": "failed",
+                "error": traceback.format_exc(),
+                "success": False,
+                "wall_s": 0.0,
+                "pid": os.getpid(),
+            }
             return rec, None
         return rollout(env, pol, task.seed, tolerance=self.config.tolerance, meta=meta)
 
@@ -112,13 +122,25 @@ def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: 
 
 def failed_record(task: Task, message: str) -> dict:
     """The record of an episode that produced no result (its worker process died, its Ray task failed)."""
-    return {"env": task.env, "policy": task.policy, "episode": task.episode, "seed": task.seed,
-            "dynamics": task.dynamics, "model_error": task.model_error, "obs_noise": task.obs_noise,
-            "status": "failed", "error": message, "success": False, "wall_s": None, "pid": None}
+    return {
+        "env": task.env,
+        "policy": task.policy,
+        "episode": task.episode,
+        "seed": task.seed,
+        "dynamics": task.dynamics,
+        "model_error": task.model_error,
+        "obs_noise": task.obs_noise,
+        "status": "failed",
+        "error": message,
+        "success": False,
+        "wall_s": None,
+        "pid": None,
+    }
 
 
-def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes | None = None,
-            on_result=None) -> tuple[dict[int, dict], dict[int, dict]]:
+def execute(
+    config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes | None = None, on_result=None
+) -> tuple[dict[int, dict], dict[int, dict]]:
     """Run `tasks`; returns ({index: record}, {index: arrays}). `on_result(record)` is called as each ends."""
     if config.backend == "ray":
         from eval.ray_backend import execute_ray
@@ -155,8 +177,12 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
     with _single_threaded_children():
         for i in range(n_workers):
             r, w = ctx.Pipe(duplex=False)
-            p = ctx.Process(target=_worker_main, args=(i, config, user_bytes, shares[i], w), daemon=True,
-                            name=f"mobman-eval-worker-{i}")
+            p = ctx.Process(
+                target=_worker_main,
+                args=(i, config, user_bytes, shares[i], w),
+                daemon=True,
+                name=f"mobman-eval-worker-{i}",
+            )
             p.start()
             w.close()  # the parent keeps only the read end: EOF when the worker is gone
             readers.append(r)
@@ -174,10 +200,18 @@ def execute(config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes
                     active.discard(i)
                     for t in shares[i]:
                         if t.index not in records:
-                            take(t.index, failed_record(t, (
-                                f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
-                                f"is on stderr; a script that calls eval.run with workers > 1 needs an "
-                                f"`if __name__ == '__main__':` guard)")), None)
+                            take(
+                                t.index,
+                                failed_record(
+                                    t,
+                                    (
+                                        f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
+                                        f"is on stderr; a script that calls eval.run with workers > 1 needs an "
+                                        f"`if __name__ == '__main__':` guard)"
+                                    ),
+                                ),
+                                None,
+                            )
     finally:
         for p in procs:
             p.join(timeout=10)
@@ -231,6 +265,7 @@ def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
         for dyn in config.dynamics:
             for name in names:
                 for k in range(config.episodes):
-                    tasks.append(Task(len(tasks), env_id, dyn, name, k, config.seed + k, config.model_error,
-                                      config.obs_noise))
+                    tasks.append(
+                        Task(len(tasks), env_id, dyn, name, k, config.seed + k, config.model_error, config.obs_noise)
+                    )
     return tasks

@@ -21,16 +21,30 @@ from gymnasium.envs.registration import register, registry
 from mobman_env.env import OBS_KEYS, PAPER_ARM_JOINT_POS, PAPER_BASE_POSE, PAPER_CIRCLE, WheeledPumaEnv
 from mobman_env.params import RobotParams
 
-__all__ = ["WheeledPumaEnv", "RobotParams", "ENV_IDS", "OBS_KEYS", "PAPER_ARM_JOINT_POS", "PAPER_BASE_POSE",
-           "PAPER_CIRCLE", "register_envs"]
+__all__ = [
+    "ENV_IDS",
+    "OBS_KEYS",
+    "PAPER_ARM_JOINT_POS",
+    "PAPER_BASE_POSE",
+    "PAPER_CIRCLE",
+    "RobotParams",
+    "WheeledPumaEnv",
+    "register_envs",
+]
 __version__ = "0.1.0"
 
 #: id -> path spec of each registered task (all start at the paper's theta(0), heading pi).
 TASKS = {
     "WheeledPuma-Circle-v0": PAPER_CIRCLE,
     "WheeledPuma-Line-v0": {"type": "line", "length": 3.0, "direction": [-1.0, 0.0, 0.0], "duration": 20.0},
-    "WheeledPuma-Lemniscate-v0": {"type": "lemniscate", "width": 0.6, "height": 0.3, "tilt": math.pi / 6,
-                                  "yaw": math.pi, "duration": 20.0},
+    "WheeledPuma-Lemniscate-v0": {
+        "type": "lemniscate",
+        "width": 0.6,
+        "height": 0.3,
+        "tilt": math.pi / 6,
+        "yaw": math.pi,
+        "duration": 20.0,
+    },
     "WheeledPuma-Random-v0": {"type": "random", "size": 0.3, "n_terms": 3, "duration": 20.0},
 }
 ENV_IDS = tuple(TASKS)

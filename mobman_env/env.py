@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from mobman_env import kinematics as K
 from mobman_env.params import RobotParams
 from mobman_env.paths import path_from_spec, validate_spec
 from mobman_env.sim import DYNAMICS_MODES, Sim
@@ -23,8 +22,18 @@ PAPER_CIRCLE = {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": mat
 DEFAULT_REWARD_WEIGHTS = {"tracking": 1.0, "effort": 1e-3}
 TIP_ANGLE = math.radians(30.0)  # rad, roll or pitch beyond which the platform counts as tipped over
 
-OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_pos", "arm_base_vel", "base_yaw", "joint_pos", "joint_vel",
-            "target_pos", "target_vel", "time")
+OBS_KEYS = (
+    "ee_pos",
+    "ee_vel",
+    "arm_base_pos",
+    "arm_base_vel",
+    "base_yaw",
+    "joint_pos",
+    "joint_vel",
+    "target_pos",
+    "target_vel",
+    "time",
+)
 
 
 def _check_nonneg(value: Any, name: str) -> float:
@@ -123,7 +132,7 @@ class WheeledPumaEnv(gym.Env):
     * v0: initial release.
     """
 
-    metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
 
     def __init__(
         self,
@@ -247,7 +256,9 @@ class WheeledPumaEnv(gym.Env):
         spec = validate_spec(options["path"]) if "path" in options else self.path_spec
         q0 = self._joint_vector(options["arm_joint_pos"]) if "arm_joint_pos" in options else self.arm_joint_pos
         pose = (
-            _vector(options["base_pose"], 3, "base_pose", "[0, 0, 3.1416]") if "base_pose" in options else self.base_pose
+            _vector(options["base_pose"], 3, "base_pose", "[0, 0, 3.1416]")
+            if "base_pose" in options
+            else self.base_pose
         )
         # one RNG stream, in a fixed order: true robot, then the path's own seed, then sensor noise
         self.true_params = self.nominal_params.perturbed(self.np_random, self.model_error)
@@ -287,9 +298,13 @@ class WheeledPumaEnv(gym.Env):
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action, dtype=np.float64)
         if a.shape != (8,):
-            raise ValueError(f"action must have shape (8,) (6 arm joints, left wheel, right wheel), got shape {a.shape}")
+            raise ValueError(
+                f"action must have shape (8,) (6 arm joints, left wheel, right wheel), got shape {a.shape}"
+            )
         if not np.all(np.isfinite(a)):
-            raise ValueError(f"action must be finite, got {a.tolist()} (NaN or inf at {np.flatnonzero(~np.isfinite(a)).tolist()})")
+            raise ValueError(
+                f"action must be finite, got {a.tolist()} (NaN or inf at {np.flatnonzero(~np.isfinite(a)).tolist()})"
+            )
         clipped = bool(np.any(np.abs(a) > 1.0))
         if clipped:
             a = np.clip(a, -1.0, 1.0)

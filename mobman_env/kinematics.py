@@ -65,8 +65,13 @@ def arm_point_and_jacobian(params: RobotParams, q: np.ndarray) -> tuple[np.ndarr
     z = frames[:6, :3, 2]
     v = p - frames[:6, :3, 3]
     # the cross product written out: np.cross costs ~10x more for these tiny arrays
-    J = np.array([z[:, 1] * v[:, 2] - z[:, 2] * v[:, 1], z[:, 2] * v[:, 0] - z[:, 0] * v[:, 2],
-                  z[:, 0] * v[:, 1] - z[:, 1] * v[:, 0]])
+    J = np.array(
+        [
+            z[:, 1] * v[:, 2] - z[:, 2] * v[:, 1],
+            z[:, 2] * v[:, 0] - z[:, 0] * v[:, 2],
+            z[:, 0] * v[:, 1] - z[:, 1] * v[:, 0],
+        ]
+    )
     return p, J
 
 
@@ -159,7 +164,9 @@ def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds:
     return np.array([x + rho * (math.sin(yaw1) - math.sin(yaw)), y - rho * (math.cos(yaw1) - math.cos(yaw)), yaw1])
 
 
-def ee_and_jacobian(params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def ee_and_jacobian(
+    params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """r_a (3,), the whole-body Jacobian (3, 8) and d p_c_dot / d u (2, 8) from one FK pass (the hot path of
     the kinematic simulation)."""
     g, J, J_pc = _paper_parts(params, q_arm, float(base_pose[2]))

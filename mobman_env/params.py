@@ -99,9 +99,7 @@ class RobotParams:
         if rel_std == 0.0:
             return dataclasses.replace(self)
         z = np.clip(rng.standard_normal(len(PERTURBED_FIELDS)), -3.0, 3.0)
-        changes = {
-            name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)
-        }
+        changes = {name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)}
         return dataclasses.replace(self, **changes)
 
     # --- derived ---------------------------------------------------------------------------------------

@@ -199,8 +199,12 @@ class LinePath:
         return self.length * _timing(t, self.duration)[2] * self._unit()
 
     def to_spec(self) -> dict:
-        return {"type": "line", "length": self.length, "direction": [float(v) for v in self.direction],
-                "duration": self.duration}
+        return {
+            "type": "line",
+            "length": self.length,
+            "direction": [float(v) for v in self.direction],
+            "duration": self.duration,
+        }
 
 
 @dataclass(frozen=True, eq=False)
@@ -234,8 +238,13 @@ class RandomPath(_PhasePath):
         return ((amp * (sin - np.sin(phase))).sum(1), (amp * k * cos).sum(1), (-amp * k * k * sin).sum(1))
 
     def to_spec(self) -> dict:
-        return {"type": "random", "seed": self.seed, "size": self.size, "n_terms": self.n_terms,
-                "duration": self.duration}
+        return {
+            "type": "random",
+            "seed": self.seed,
+            "size": self.size,
+            "n_terms": self.n_terms,
+            "duration": self.duration,
+        }
 
 
 _FIELDS = {
@@ -270,7 +279,11 @@ def validate_spec(spec: Any) -> dict:
                 raise ValueError(f"line path: direction must be non-zero, got {value!r}")
             out[key] = [float(v) for v in d]
         elif key in ("seed", "n_terms"):
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < (0 if key == "seed" else 1):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, np.integer))
+                or value < (0 if key == "seed" else 1)
+            ):
                 lo = 0 if key == "seed" else 1
                 raise ValueError(f"random path: {key} must be an integer >= {lo}, got {value!r}")
             out[key] = int(value)

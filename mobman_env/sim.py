@@ -14,6 +14,7 @@ Every PyBullet call goes through `self.client`; `close()` is safe to call twice.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import shutil
@@ -224,8 +225,9 @@ class Sim:
         q_arm = np.array([s[0] for s in c.getJointStates(self.body, self.arm_ids)])
         u, hits = self._limit(q_arm, u)
         forces = [*self.params.arm_torque_limit, self.params.wheel_torque_limit, self.params.wheel_torque_limit]
-        c.setJointMotorControlArray(self.body, self.act_ids, pybullet.VELOCITY_CONTROL,
-                                    targetVelocities=u.tolist(), forces=forces)
+        c.setJointMotorControlArray(
+            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=u.tolist(), forces=forces
+        )
         for _ in range(self.n_substeps):
             c.stepSimulation()
         return hits
@@ -301,7 +303,12 @@ class Sim:
         self.sync_bodies()
         c = self.client
         view = c.computeViewMatrixFromYawPitchRoll(
-            cameraTargetPosition=[float(v) for v in target], distance=distance, yaw=40.0, pitch=-20.0, roll=0.0, upAxisIndex=2
+            cameraTargetPosition=[float(v) for v in target],
+            distance=distance,
+            yaw=40.0,
+            pitch=-20.0,
+            roll=0.0,
+            upAxisIndex=2,
         )
         proj = c.computeProjectionMatrixFOV(fov=50.0, aspect=width / height, nearVal=0.05, farVal=20.0)
         img = c.getCameraImage(width, height, view, proj, renderer=pybullet.ER_TINY_RENDERER)
@@ -322,7 +329,5 @@ class Sim:
                 self._tmpdir = None
 
     def __del__(self):
-        try:
+        with contextlib.suppress(Exception):
             self.close()
-        except Exception:
-            pass

@@ -125,7 +125,7 @@ def urdf_string(params: RobotParams) -> str:
         parts += [
             f'<link name="{name}">',
             _inertial(0.5, diag=(1e-4, 1e-4, 1e-4)),
-            f"<visual>{geom}<material name=\"tire\"/></visual><collision>{geom}</collision>",
+            f'<visual>{geom}<material name="tire"/></visual><collision>{geom}</collision>',
             '<contact><lateral_friction value="0"/><rolling_friction value="0"/><spinning_friction value="0"/>'
             "</contact>",
             "</link>",
@@ -145,13 +145,13 @@ def urdf_string(params: RobotParams) -> str:
         Rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
         com = np.asarray(fx) + Rx @ com_i
         end = np.asarray(fx)
-        visuals = _segment((0, 0, 0), (0, 0, d[i]), ARM_RADIUS, "arm") + _segment(
-            (0, 0, d[i]), end, ARM_RADIUS, "arm"
-        )
+        visuals = _segment((0, 0, 0), (0, 0, d[i]), ARM_RADIUS, "arm") + _segment((0, 0, d[i]), end, ARM_RADIUS, "arm")
         if i == 5:  # link6 carries the tool: frame 6 plus `tool` along z6
             ee_xyz = np.asarray(fx) + Rx @ np.array([0.0, 0.0, params.tool])
             visuals += _segment(end, ee_xyz, ARM_RADIUS * 0.5, "tool")
-        joint_ball = f'<visual><geometry><sphere radius="{ARM_RADIUS * 1.3}"/></geometry><material name="joint"/></visual>'
+        joint_ball = (
+            f'<visual><geometry><sphere radius="{ARM_RADIUS * 1.3}"/></geometry><material name="joint"/></visual>'
+        )
         parts += [
             f'<link name="{name}">',
             _inertial(params.masses[i], com, frpy, params.inertias[i]),
@@ -168,7 +168,7 @@ def urdf_string(params: RobotParams) -> str:
     parts += [
         f'<link name="{EE_LINK}">',
         _inertial(0.0),
-        f'<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
+        '<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
         "</link>",
         f'<joint name="ee_joint" type="fixed"><parent link="link6"/><child link="{EE_LINK}"/>'
         f'<origin xyz="{_f(ee_xyz)}" rpy="{_f(origin_rpy)}"/></joint>',

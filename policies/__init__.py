@@ -30,7 +30,25 @@ from policies.sb3 import SB3Policy, resolve_model_path
 from policies.simple import Random, RandomConfig, Zero, ZeroConfig
 
 __all__ = [
-    "Policy", "EnvFacts", "ControllerPolicy", "unwrap_env", "make", "parse_spec", "KNOWN_POLICIES", "SPEC_FORMS",
-    "true_params_provider", "NNBC", "NNBCConfig", "JMPI", "JMPIConfig", "Oracle", "OracleConfig", "Zero",
-    "ZeroConfig", "Random", "RandomConfig", "SB3Policy", "resolve_model_path",
+    "JMPI",
+    "KNOWN_POLICIES",
+    "NNBC",
+    "SPEC_FORMS",
+    "ControllerPolicy",
+    "EnvFacts",
+    "JMPIConfig",
+    "NNBCConfig",
+    "Oracle",
+    "OracleConfig",
+    "Policy",
+    "Random",
+    "RandomConfig",
+    "SB3Policy",
+    "Zero",
+    "ZeroConfig",
+    "make",
+    "parse_spec",
+    "resolve_model_path",
+    "true_params_provider",
+    "unwrap_env",
 ]

@@ -18,8 +18,9 @@ away from singularities, so these are the plain pseudo-inverse methods on this t
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -92,8 +93,15 @@ class JMPI(_ModelPolicy):
     name = "jmpi"
     uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")
 
-    def __init__(self, facts: EnvFacts, config: JMPIConfig | None = None, seed: int | None = None, *,
-                 nominal_params: Any = None, **extra: Any):
+    def __init__(
+        self,
+        facts: EnvFacts,
+        config: JMPIConfig | None = None,
+        seed: int | None = None,
+        *,
+        nominal_params: Any = None,
+        **extra: Any,
+    ):
         if extra:
             raise TypeError(f"JMPI got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
         if nominal_params is None:
@@ -121,8 +129,15 @@ class Oracle(_ModelPolicy):
     name = "oracle"
     uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel", "target_pos", "ee_pos")
 
-    def __init__(self, facts: EnvFacts, config: OracleConfig | None = None, seed: int | None = None, *,
-                 params_provider: Callable[[], Any] | None = None, **extra: Any):
+    def __init__(
+        self,
+        facts: EnvFacts,
+        config: OracleConfig | None = None,
+        seed: int | None = None,
+        *,
+        params_provider: Callable[[], Any] | None = None,
+        **extra: Any,
+    ):
         if extra:
             raise TypeError(f"Oracle got unexpected keyword argument(s) {sorted(extra)}; accepted: params_provider")
         if params_provider is None or not callable(params_provider):

@@ -124,7 +124,7 @@ def sigma_min_3(A: list) -> float:
     if p2 <= 1e-30 * (q * q + 1e-300):
         return q
     p = math.sqrt(p2 / 6.0)
-    det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02))
+    det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
     r = det / (2.0 * p * p * p)
     r = -1.0 if r < -1.0 else (1.0 if r > 1.0 else r)
     phi = math.acos(r) / 3.0
@@ -159,9 +159,13 @@ def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_thresh
     c22 = a00 * a11 - a01 * a01
     v0, v1, v2 = float(v[0]), float(v[1]), float(v[2])
     inv = 1.0 / det
-    w = np.array([(c00 * v0 + c01 * v1 + c02 * v2) * inv,
-                  (c01 * v0 + c11 * v1 + c12 * v2) * inv,
-                  (c02 * v0 + c12 * v1 + c22 * v2) * inv])
+    w = np.array(
+        [
+            (c00 * v0 + c01 * v1 + c02 * v2) * inv,
+            (c01 * v0 + c11 * v1 + c12 * v2) * inv,
+            (c02 * v0 + c12 * v1 + c22 * v2) * inv,
+        ]
+    )
     return w @ J
 
 
@@ -226,8 +230,16 @@ class NNBC(ControllerPolicy):
 
     name = "nnbc"
 
-    def __init__(self, facts: EnvFacts, config: NNBCConfig | None = None, seed: int | None = None, *,
-                 J0: Any = None, nominal_params: Any = None, **extra: Any):
+    def __init__(
+        self,
+        facts: EnvFacts,
+        config: NNBCConfig | None = None,
+        seed: int | None = None,
+        *,
+        J0: Any = None,
+        nominal_params: Any = None,
+        **extra: Any,
+    ):
         if extra:
             raise TypeError(f"NNBC got unexpected keyword argument(s) {sorted(extra)}; accepted: J0, nominal_params")
         super().__init__(facts, seed)
@@ -246,8 +258,10 @@ class NNBC(ControllerPolicy):
         else:
             self.j0_source = self.config.j0
         if self.j0_source == "nominal" and nominal_params is None:
-            raise ValueError("NNBC with j0='nominal' needs nominal_params (the registry passes the env's nominal "
-                             "model); use j0='probe' for the model-free start")
+            raise ValueError(
+                "NNBC with j0='nominal' needs nominal_params (the registry passes the env's nominal "
+                "model); use j0='probe' for the model-free start"
+            )
         self._J0 = J0
         self._nominal = nominal_params if self.j0_source == "nominal" else None
         self._full = bool(self.config.full)

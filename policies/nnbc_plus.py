@@ -171,8 +171,11 @@ def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
     inv_det = 1.0 / (a * c00 + b * c10 + c * c20)
     return np.array(
-        [(c00 * p + c01 * q + c02 * r) * inv_det, (c10 * p + c11 * q + c12 * r) * inv_det,
-         (c20 * p + c21 * q + c22 * r) * inv_det]
+        [
+            (c00 * p + c01 * q + c02 * r) * inv_det,
+            (c10 * p + c11 * q + c12 * r) * inv_det,
+            (c20 * p + c21 * q + c22 * r) * inv_det,
+        ]
     )
 
 

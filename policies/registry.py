@@ -23,8 +23,9 @@ import difflib
 import importlib
 import inspect
 import typing
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
 
@@ -40,23 +41,61 @@ class _Entry:
 
 
 _REGISTRY: dict[str, _Entry] = {
-    "nnbc": _Entry("the paper's model-free NNBC, eqs. (7)-(15) (J_hat of r_a_dot - [p_c_dot; 0])",
-                   "policies.nnbc", "NNBC", "NNBCConfig", {}, "none"),
-    "nnbc-full": _Entry("NNBC with J_hat of the whole r_a_dot (the platform can drive)",
-                        "policies.nnbc", "NNBC", "NNBCConfig", {"full": True}, "none"),
-    "nnbc-plus": _Entry("improved model-free controller beside the paper's NNBC (see policies.nnbc_plus)",
-                        "policies.nnbc_plus", "NNBCPlus", "NNBCPlusConfig", {}, "none"),
-    "jmpi": _Entry("open-loop Jacobian pseudo-inverse on the nominal model (the paper's comparison)",
-                   "policies.jmpi", "JMPI", "JMPIConfig", {}, "nominal"),
-    "jmpi-full": _Entry("open-loop pseudo-inverse of the nominal whole-body Jacobian",
-                        "policies.jmpi", "JMPI", "JMPIConfig", {"full": True}, "nominal"),
-    "oracle": _Entry("eq. (10) with the true robot's Jacobian: the known-model bound",
-                     "policies.jmpi", "Oracle", "OracleConfig", {}, "true"),
-    "oracle-full": _Entry("eq. (10) with the true whole-body Jacobian",
-                          "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"),
+    "nnbc": _Entry(
+        "the paper's model-free NNBC, eqs. (7)-(15) (J_hat of r_a_dot - [p_c_dot; 0])",
+        "policies.nnbc",
+        "NNBC",
+        "NNBCConfig",
+        {},
+        "none",
+    ),
+    "nnbc-full": _Entry(
+        "NNBC with J_hat of the whole r_a_dot (the platform can drive)",
+        "policies.nnbc",
+        "NNBC",
+        "NNBCConfig",
+        {"full": True},
+        "none",
+    ),
+    "nnbc-plus": _Entry(
+        "improved model-free controller beside the paper's NNBC (see policies.nnbc_plus)",
+        "policies.nnbc_plus",
+        "NNBCPlus",
+        "NNBCPlusConfig",
+        {},
+        "none",
+    ),
+    "jmpi": _Entry(
+        "open-loop Jacobian pseudo-inverse on the nominal model (the paper's comparison)",
+        "policies.jmpi",
+        "JMPI",
+        "JMPIConfig",
+        {},
+        "nominal",
+    ),
+    "jmpi-full": _Entry(
+        "open-loop pseudo-inverse of the nominal whole-body Jacobian",
+        "policies.jmpi",
+        "JMPI",
+        "JMPIConfig",
+        {"full": True},
+        "nominal",
+    ),
+    "oracle": _Entry(
+        "eq. (10) with the true robot's Jacobian: the known-model bound",
+        "policies.jmpi",
+        "Oracle",
+        "OracleConfig",
+        {},
+        "true",
+    ),
+    "oracle-full": _Entry(
+        "eq. (10) with the true whole-body Jacobian", "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"
+    ),
     "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
-    "random": _Entry("uniform random actions from the policy's own seed",
-                     "policies.simple", "Random", "RandomConfig", {}, "none"),
+    "random": _Entry(
+        "uniform random actions from the policy's own seed", "policies.simple", "Random", "RandomConfig", {}, "none"
+    ),
 }
 
 #: name -> one-line description of every built-in policy name (for the CLI's help and error messages).
@@ -81,8 +120,10 @@ def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
         key, eq, text = item.partition("=")
         key, text = key.strip(), text.strip()
         if not eq or not key or not text:
-            raise ValueError(f"bad option {item!r} in policy spec {spec!r}: write key=value pairs separated by "
-                             f"commas, e.g. 'nnbc:gamma=20,mu=20,j0=probe'")
+            raise ValueError(
+                f"bad option {item!r} in policy spec {spec!r}: write key=value pairs separated by "
+                f"commas, e.g. 'nnbc:gamma=20,mu=20,j0=probe'"
+            )
         if key in kwargs:
             raise ValueError(f"option {key!r} given twice in policy spec {spec!r}")
         kwargs[key] = _parse_value(text)
@@ -112,8 +153,9 @@ def _coerce(cfg_cls: type, key: str, value: Any, hint: Any, spec: str) -> Any:
         return value
     if hint not in (float, int, bool, str):
         return value
-    raise ValueError(f"option {key}={value!r} in policy spec {spec!r} must be a {hint.__name__} "
-                     f"({cfg_cls.__name__}.{key})")
+    raise ValueError(
+        f"option {key}={value!r} in policy spec {spec!r} must be a {hint.__name__} ({cfg_cls.__name__}.{key})"
+    )
 
 
 def build_config(cfg_cls: type, options: dict[str, Any], spec: str = "") -> Any:
@@ -133,8 +175,9 @@ def _load_entry(name: str, entry: _Entry) -> tuple[type, type]:
         module = importlib.import_module(entry.module)
     except ModuleNotFoundError as exc:
         if exc.name == entry.module:
-            raise ValueError(f"policy {name!r} is not available in this install: module {entry.module} is "
-                             f"missing") from None
+            raise ValueError(
+                f"policy {name!r} is not available in this install: module {entry.module} is missing"
+            ) from None
         raise
     return getattr(module, entry.cls), getattr(module, entry.config_cls)
 
@@ -146,8 +189,10 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
     `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).
     """
     if not isinstance(spec, str) or not spec.strip():
-        raise TypeError(f"policy spec must be a non-empty string such as 'nnbc' or 'sb3:runs/x/model.zip', "
-                        f"got {spec!r}; known: {_known_text()}")
+        raise TypeError(
+            f"policy spec must be a non-empty string such as 'nnbc' or 'sb3:runs/x/model.zip', "
+            f"got {spec!r}; known: {_known_text()}"
+        )
     spec = spec.strip()
     if spec.startswith("sb3:"):
         from policies.sb3 import SB3Policy
@@ -199,8 +244,10 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
         # the module itself (or its package) is missing: an unknown spec. A missing import *inside* the user's
         # module is their error and propagates unchanged.
         if exc.name is not None and (module_name == exc.name or module_name.startswith(exc.name + ".")):
-            raise ValueError(f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
-                             f"module; known: {_known_text()}") from None
+            raise ValueError(
+                f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
+                f"module; known: {_known_text()}"
+            ) from None
         raise
     obj: Any = module
     for part in attr.split("."):
@@ -211,8 +258,7 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
     if not inspect.isclass(obj) and _is_policy(obj):
         return obj
     if not callable(obj):
-        raise TypeError(f"policy spec {spec!r}: {attr!r} is neither a policy (reset + predict) nor a class or "
-                        f"factory")
+        raise TypeError(f"policy spec {spec!r}: {attr!r} is neither a policy (reset + predict) nor a class or factory")
     try:
         sig = inspect.signature(obj)
     except (TypeError, ValueError):
@@ -224,9 +270,11 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
     else:
         raise TypeError(f"policy spec {spec!r}: {attr}{sig} can be called neither with (env) nor with no arguments")
     if not _is_policy(policy):
-        raise TypeError(f"policy spec {spec!r}: {attr} returned a {type(policy).__name__}, which lacks "
-                        f"reset(obs, info=None, *, seed=None) and/or predict(observation, state=None, "
-                        f"episode_start=None, deterministic=True); see policies.base.Policy")
+        raise TypeError(
+            f"policy spec {spec!r}: {attr} returned a {type(policy).__name__}, which lacks "
+            f"reset(obs, info=None, *, seed=None) and/or predict(observation, state=None, "
+            f"episode_start=None, deterministic=True); see policies.base.Policy"
+        )
     return policy
 
 

@@ -51,8 +51,17 @@ def _pos_error(obs: dict) -> dict:
 #: Same names and semantics as `mobman-train`'s `train.wrappers` (which may not be imported from here: the
 #: dependencies point mobman_env <- policies <- eval <- train).
 OBS_WRAPPERS = {"pos_error": (_pos_error, ("target_pos", "ee_pos"))}
-_NEUTRAL_WRAPPERS = ("TimeLimit", "Monitor", "RecordEpisodeStatistics", "ClipAction", "TransformReward",
-                     "NormalizeReward", "ClipReward", "OrderEnforcing", "PassiveEnvChecker")
+_NEUTRAL_WRAPPERS = (
+    "TimeLimit",
+    "Monitor",
+    "RecordEpisodeStatistics",
+    "ClipAction",
+    "TransformReward",
+    "NormalizeReward",
+    "ClipReward",
+    "OrderEnforcing",
+    "PassiveEnvChecker",
+)
 
 
 def resolve_model_path(text: str) -> Path:
@@ -64,12 +73,16 @@ def resolve_model_path(text: str) -> Path:
         try:
             root = importlib.resources.files("train")
         except ModuleNotFoundError:
-            raise FileNotFoundError(f"sb3:{text} is the model shipped with the `train` package, which is not "
-                                    f"installed; install mobman with `pip install -e .`") from None
+            raise FileNotFoundError(
+                f"sb3:{text} is the model shipped with the `train` package, which is not "
+                f"installed; install mobman with `pip install -e .`"
+            ) from None
         path = Path(str(root.joinpath(ALIASES[text])))
         if not path.is_file():
-            raise FileNotFoundError(f"sb3:{text}: the packaged model {path} is missing (it ships with the train "
-                                    f"package's baseline); train one with mobman-train and use sb3:DIR/model.zip")
+            raise FileNotFoundError(
+                f"sb3:{text}: the packaged model {path} is missing (it ships with the train "
+                f"package's baseline); train one with mobman-train and use sb3:DIR/model.zip"
+            )
         return path
     if not text:
         raise FileNotFoundError(f"sb3: needs a path, e.g. sb3:runs/sac/model.zip, or an alias: {', '.join(ALIASES)}")
@@ -77,8 +90,10 @@ def resolve_model_path(text: str) -> Path:
     if path.is_dir():
         path = path / "model.zip"
     if not path.is_file():
-        raise FileNotFoundError(f"no SB3 model at {str(path)!r}; give a model.zip of a mobman-train run folder "
-                                f"(sb3:DIR/model.zip) or an alias: {', '.join('sb3:' + a for a in ALIASES)}")
+        raise FileNotFoundError(
+            f"no SB3 model at {str(path)!r}; give a model.zip of a mobman-train run folder "
+            f"(sb3:DIR/model.zip) or an alias: {', '.join('sb3:' + a for a in ALIASES)}"
+        )
     return path
 
 
@@ -113,8 +128,10 @@ def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
         if name in OBS_WRAPPERS:
             names.append(name)
         elif name not in _NEUTRAL_WRAPPERS:
-            raise ValueError(f"{where}: wrapper {name!r} cannot be reproduced at inference; supported: "
-                             f"{', '.join((*OBS_WRAPPERS, *_NEUTRAL_WRAPPERS))}")
+            raise ValueError(
+                f"{where}: wrapper {name!r} cannot be reproduced at inference; supported: "
+                f"{', '.join((*OBS_WRAPPERS, *_NEUTRAL_WRAPPERS))}"
+            )
     return tuple(names)
 
 
@@ -161,8 +178,10 @@ class SB3Policy:
                 continue
             self.algo = key
             return model
-        raise ValueError(f"could not load {self.path} with any of {', '.join(ALGOS)}; add \"algo\" to "
-                         f"{self.run_dir / 'config.json'}. Errors: " + "; ".join(errors))
+        raise ValueError(
+            f'could not load {self.path} with any of {", ".join(ALGOS)}; add "algo" to '
+            f"{self.run_dir / 'config.json'}. Errors: " + "; ".join(errors)
+        )
 
     def _observation_keys(self) -> tuple[str, ...] | None:
         """The Dict keys the agent sees, in order (None: the agent takes the observation unchanged)."""
@@ -172,8 +191,10 @@ class SB3Policy:
             return model_keys
         keys = tuple(keys)
         if model_keys is not None and set(keys) != set(model_keys):
-            raise ValueError(f"{self.run_dir / 'config.json'}: obs_keys {list(keys)} differ from the model's "
-                             f"observation keys {list(model_keys)}")
+            raise ValueError(
+                f"{self.run_dir / 'config.json'}: obs_keys {list(keys)} differ from the model's "
+                f"observation keys {list(model_keys)}"
+            )
         return keys
 
     def _load_normalisation(self) -> None:
@@ -208,8 +229,10 @@ class SB3Policy:
         if facts.obs_keys:
             missing = [k for k in self.required_keys() if k not in facts.obs_keys]
             if missing:
-                raise ValueError(f"the agent {self.path} needs observation keys {missing} that the env lacks "
-                                 f"(env keys: {list(facts.obs_keys)})")
+                raise ValueError(
+                    f"the agent {self.path} needs observation keys {missing} that the env lacks "
+                    f"(env keys: {list(facts.obs_keys)})"
+                )
         n = int(np.prod(self.model.action_space.shape))
         if n != len(facts.action_scale):
             raise ValueError(f"the agent {self.path} outputs {n} actions; the env takes {len(facts.action_scale)}")
@@ -237,5 +260,6 @@ class SB3Policy:
         return np.clip((np.asarray(obs, dtype=np.float32) - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
-        return self.model.predict(self.transform(observation), state=state, episode_start=episode_start,
-                                  deterministic=deterministic)
+        return self.model.predict(
+            self.transform(observation), state=state, episode_start=episode_start, deterministic=deterministic
+        )

@@ -9,9 +9,9 @@ import matplotlib
 matplotlib.use("Agg")
 os.environ.setdefault("MPLBACKEND", "Agg")
 
-import pytest  # noqa: E402
+import pytest
 
-import mobman_env  # noqa: E402,F401  (registers the ids)
+import mobman_env
 
 #: a short task for fast tests: the paper's circle shape, 1 s
 SHORT_CIRCLE = {"type": "circle", "radius": 0.1, "tilt": 0.5235987755982988, "yaw": 3.141592653589793, "duration": 1.0}

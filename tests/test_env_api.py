@@ -12,11 +12,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import SHORT_CIRCLE
 
 import mobman_env
 from mobman_env import ENV_IDS, WheeledPumaEnv
-
-from conftest import SHORT_CIRCLE
 
 # Warnings the checkers may legitimately raise for this env (regex, with the reason); anything else fails the
 # test. Empty on purpose: neither gymnasium's nor SB3's checker warns about this env (finite Dict boxes, float32,
@@ -42,8 +41,9 @@ def _sb3_check(env):
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-@pytest.mark.parametrize("checker, dynamics", [(_gymnasium_check, "kinematic"), (_sb3_check, "physics")],
-                         ids=["gymnasium", "sb3"])
+@pytest.mark.parametrize(
+    "checker, dynamics", [(_gymnasium_check, "kinematic"), (_sb3_check, "physics")], ids=["gymnasium", "sb3"]
+)
 def test_env_checkers(env_id, checker, dynamics):
     env = gym.make(env_id, dynamics=dynamics)
     try:
@@ -158,8 +158,10 @@ def test_sensor_noise_changes_obs_not_truth(make_env):
 
 def test_reset_options_override_for_one_episode(make_env):
     env = make_env(dynamics="kinematic")
-    obs, info = env.reset(seed=0, options={"path": SHORT_CIRCLE, "base_pose": [1.0, 2.0, 0.0],
-                                           "arm_joint_pos": [0.1, 0.7, -0.2, 1.0, -0.5, 0.0]})
+    obs, info = env.reset(
+        seed=0,
+        options={"path": SHORT_CIRCLE, "base_pose": [1.0, 2.0, 0.0], "arm_joint_pos": [0.1, 0.7, -0.2, 1.0, -0.5, 0.0]},
+    )
     assert info["task"]["path"]["duration"] == 1.0 and info["task"]["base_pose"] == [1.0, 2.0, 0.0]
     assert obs["joint_pos"][:6] == pytest.approx([0.1, 0.7, -0.2, 1.0, -0.5, 0.0], abs=1e-6)
     obs, info = env.reset(seed=0)
@@ -236,8 +238,9 @@ def test_make_without_prior_import_and_import_is_light():
 
 
 def test_make_vec_async():
-    envs = gym.make_vec("mobman_env:WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="async",
-                        dynamics="kinematic")
+    envs = gym.make_vec(
+        "mobman_env:WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="async", dynamics="kinematic"
+    )
     try:
         obs, info = envs.reset(seed=[0, 1])
         assert obs["ee_pos"].shape == (2, 3)
@@ -256,8 +259,16 @@ def test_docstring_arguments_table_matches_signature():
     assert set(rows) == set(sig) - {"self"}
     for name, default in rows.items():
         assert repr(sig[name].default) == default.strip().replace('"', "'"), name
-    for section in ("Description", "Action Space", "Observation Space", "Rewards", "Starting State",
-                    "Episode End", "Arguments", "Version History"):
+    for section in (
+        "Description",
+        "Action Space",
+        "Observation Space",
+        "Rewards",
+        "Starting State",
+        "Episode End",
+        "Arguments",
+        "Version History",
+    ):
         assert f"## {section}" in doc
 
 

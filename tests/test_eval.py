@@ -12,23 +12,57 @@ import os
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, ProportionalBatched, short_config, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
-from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, ProportionalBatched, short_config, stable
 
 SHORT_JSON = json.dumps(SHORT)
 #: reported seeds of this module (DESIGN "Seeds")
 SEED = 10_000
 
 EPISODE_KEYS = {
-    "env", "policy", "seed", "dynamics", "model_error", "obs_noise", "control_freq", "path", "true_params_hash",
-    "status", "error", "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m", "effort",
-    "peak_joint_speed", "peak_wheel_speed", "joint_limit_hits", "n_clipped", "tipped_over", "success",
-    "predict_us_median", "predict_us_p99", "wall_s", "pid",
+    "env",
+    "policy",
+    "seed",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "control_freq",
+    "path",
+    "true_params_hash",
+    "status",
+    "error",
+    "max_error_m",
+    "rms_error_m",
+    "final_error_m",
+    "axis_max_error_m",
+    "effort",
+    "peak_joint_speed",
+    "peak_wheel_speed",
+    "joint_limit_hits",
+    "n_clipped",
+    "tipped_over",
+    "success",
+    "predict_us_median",
+    "predict_us_p99",
+    "wall_s",
+    "pid",
 }
-AGGREGATE_KEYS = {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "success_rate",
-                  "max_error_m", "rms_error_m", "final_error_m", "effort"}
+AGGREGATE_KEYS = {
+    "env",
+    "policy",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "n",
+    "n_failed",
+    "success_rate",
+    "max_error_m",
+    "rms_error_m",
+    "final_error_m",
+    "effort",
+}
 
 
 def _config(tmp_path, name="out", **kw) -> EvalConfig:
@@ -36,11 +70,25 @@ def _config(tmp_path, name="out", **kw) -> EvalConfig:
 
 
 def _run_args(out, *extra):
-    return ["run", "--env", ENV, "--dynamics", "kinematic", "--env-kwargs", SHORT_JSON, "--seed", str(SEED),
-            "--out", str(out), "--quiet", *extra]
+    return [
+        "run",
+        "--env",
+        ENV,
+        "--dynamics",
+        "kinematic",
+        "--env-kwargs",
+        SHORT_JSON,
+        "--seed",
+        str(SEED),
+        "--out",
+        str(out),
+        "--quiet",
+        *extra,
+    ]
 
 
 # --- the CLI end to end -----------------------------------------------------------------------------------
+
 
 def test_main_run_writes_every_output_with_schema_1(tmp_path):
     out = tmp_path / "run"
@@ -58,7 +106,7 @@ def test_main_run_writes_every_output_with_schema_1(tmp_path):
     assert res["versions"]["gymnasium"] and res["versions"]["pybullet"] and isinstance(res["git"], str)
     assert len(res["episodes"]) == 4
     for rec in res["episodes"]:
-        assert EPISODE_KEYS <= set(rec), EPISODE_KEYS - set(rec)
+        assert set(rec) >= EPISODE_KEYS, EPISODE_KEYS - set(rec)
         assert rec["status"] == "ok" and rec["error"] is None
         assert rec["dynamics"] == "kinematic" and rec["control_freq"] == 100.0
         assert rec["path"]["type"] == "circle" and rec["path"]["radius"] == 0.1
@@ -67,7 +115,7 @@ def test_main_run_writes_every_output_with_schema_1(tmp_path):
     assert [r["seed"] for r in res["episodes"]] == [SEED, SEED + 1, SEED, SEED + 1]
     assert [(a["policy"], a["n"]) for a in res["aggregate"]] == [("zero", 2), ("random", 2)]
     for agg in res["aggregate"]:
-        assert AGGREGATE_KEYS <= set(agg)
+        assert set(agg) >= AGGREGATE_KEYS
         assert set(agg["max_error_m"]) >= {"median", "mean", "std"}
 
     # the zero policy leaves the end-effector where it starts: its error is |r_d(t) - r_d(0)|, the whole path
@@ -98,7 +146,7 @@ def test_identical_tasks_across_policies(tmp_path):
         by_k.setdefault(rec["episode"], []).append(rec)
     assert sorted(by_k) == [0, 1]
     hashes = []
-    for k, recs in by_k.items():
+    for recs in by_k.values():
         assert len(recs) == 3
         assert len({r["true_params_hash"] for r in recs}) == 1
         assert len({json.dumps(r["start"]) for r in recs}) == 1
@@ -119,24 +167,32 @@ def test_workers_2_equal_workers_1_and_use_2_processes(tmp_path):
         a, b = one.arrays[rec["index"]], two.arrays[rec["index"]]
         for name in ("r_d", "r_a", "p_c", "error", "action"):
             np.testing.assert_array_equal(a[name], b[name])
-    assert [stable(a) for a in one.aggregate] != [] and one.aggregate[0]["max_error_m"] == two.aggregate[0]["max_error_m"]
+    assert [stable(a) for a in one.aggregate] != [] and one.aggregate[0]["max_error_m"] == two.aggregate[0][
+        "max_error_m"
+    ]
 
 
 def test_user_policy_through_module_attr_matches_zero(tmp_path):
     out = tmp_path / "user"
-    rc = main(_run_args(out, "--policy", "test_eval_helpers:HoldStill", "--policy", "zero", "--episodes", "1",
-                        "--no-plots"))
+    rc = main(
+        _run_args(out, "--policy", "test_eval_helpers:HoldStill", "--policy", "zero", "--episodes", "1", "--no-plots")
+    )
     assert rc == 0
     recs = json.loads((out / "results.json").read_text())["episodes"]
     assert [r["policy"] for r in recs] == ["test_eval_helpers:HoldStill", "zero"]
     assert recs[0]["status"] == "ok"
-    assert stable(recs[0]) | {"policy": "", "index": 0, "arrays_key": None} == \
-        stable(recs[1]) | {"policy": "", "index": 0, "arrays_key": None}
+    assert stable(recs[0]) | {"policy": "", "index": 0, "arrays_key": None} == stable(recs[1]) | {
+        "policy": "",
+        "index": 0,
+        "arrays_key": None,
+    }
 
 
 def test_user_policy_objects_through_run(tmp_path):
     mine = HoldStill()
-    result = run(_config(tmp_path, policies=("zero",), episodes=2), policies={"mine": mine, "batched": ProportionalBatched()})
+    result = run(
+        _config(tmp_path, policies=("zero",), episodes=2), policies={"mine": mine, "batched": ProportionalBatched()}
+    )
     names = [r["policy"] for r in result.episodes]
     assert names == ["zero", "zero", "mine", "mine", "batched", "batched"]
     assert all(r["status"] == "ok" for r in result.episodes)
@@ -149,7 +205,9 @@ def test_user_policy_objects_through_run(tmp_path):
 
 @pytest.mark.parametrize("workers", [1, 2])
 def test_a_crashing_policy_is_recorded_and_the_others_finish(tmp_path, workers):
-    result = run(_config(tmp_path, policies=("zero",), episodes=2, workers=workers), policies={"crash": CrashOnOddSeed()})
+    result = run(
+        _config(tmp_path, policies=("zero",), episodes=2, workers=workers), policies={"crash": CrashOnOddSeed()}
+    )
     crash = [r for r in result.episodes if r["policy"] == "crash"]
     assert [r["status"] for r in crash] == ["ok", "failed"]  # seeds S (even) and S + 1 (odd)
     failed = crash[1]
@@ -163,6 +221,7 @@ def test_a_crashing_policy_is_recorded_and_the_others_finish(tmp_path, workers):
 
 # --- errors before any rollout ------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize(
     "extra, needles",
     [
@@ -170,7 +229,10 @@ def test_a_crashing_policy_is_recorded_and_the_others_finish(tmp_path, workers):
         (["--policy", "nbc"], ["unknown policy", "nnbc", "jmpi", "sb3:PATH"]),
         (["--policy", "sb3:/no/such/dir/model.zip"], ["not found", "/no/such/dir/model.zip"]),
         (["--policy", "zero", "--env-kwargs", '{"dynamics": "physics"}'], ["--dynamics"]),
-        (["--policy", "zero", "--env-kwargs", '{"path": {"type": "spiral"}}'], ["unknown path type 'spiral'", "circle"]),
+        (
+            ["--policy", "zero", "--env-kwargs", '{"path": {"type": "spiral"}}'],
+            ["unknown path type 'spiral'", "circle"],
+        ),
         (["--policy", "zero", "--episodes", "0"], ["episodes must be an integer >= 1"]),
     ],
 )
@@ -233,13 +295,15 @@ def test_atomic_write_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypa
 def test_to_jsonable_turns_nan_and_numpy_into_plain_json():
     from eval.report import to_jsonable
 
-    data = to_jsonable({"x": np.float32(1.5), "n": np.int64(3), "bad": float("nan"), "v": np.arange(2),
-                        "t": (True, np.bool_(False))})
+    data = to_jsonable(
+        {"x": np.float32(1.5), "n": np.int64(3), "bad": float("nan"), "v": np.arange(2), "t": (True, np.bool_(False))}
+    )
     assert data == {"x": 1.5, "n": 3, "bad": None, "v": [0, 1], "t": [True, False]}
     json.dumps(data, allow_nan=False)
 
 
 # --- plots and video ---------------------------------------------------------------------------------------
+
 
 def test_plot_functions_take_records_and_return_figures(tmp_path):
     from eval import plots
@@ -264,11 +328,19 @@ def test_video_of_episode_0(tmp_path):
 def test_both_dynamics_modes_are_separate_conditions_on_the_same_robots(tmp_path):
     result = run(_config(tmp_path, policies=("zero", "nnbc"), episodes=1, dynamics=("kinematic", "physics")))
     assert [(r["dynamics"], r["policy"]) for r in result.episodes] == [
-        ("kinematic", "zero"), ("kinematic", "nnbc"), ("physics", "zero"), ("physics", "nnbc")]
+        ("kinematic", "zero"),
+        ("kinematic", "nnbc"),
+        ("physics", "zero"),
+        ("physics", "nnbc"),
+    ]
     assert all(r["status"] == "ok" for r in result.episodes)
     assert len({r["true_params_hash"] for r in result.episodes}) == 1  # seed S draws the same robot in both modes
     assert [(a["dynamics"], a["policy"]) for a in result.aggregate] == [
-        ("kinematic", "zero"), ("kinematic", "nnbc"), ("physics", "zero"), ("physics", "nnbc")]
+        ("kinematic", "zero"),
+        ("kinematic", "nnbc"),
+        ("physics", "zero"),
+        ("physics", "nnbc"),
+    ]
 
 
 def test_duplicate_policies_and_unpicklable_objects_with_workers_are_refused(tmp_path):
@@ -289,7 +361,12 @@ def test_a_worker_process_that_dies_marks_its_unfinished_episodes_failed(tmp_pat
     result = run(_config(tmp_path, policies=("zero",), episodes=2, workers=2), policies={"exit": ExitOnOddSeed()})
     status = {(r["policy"], r["seed"]): r["status"] for r in result.episodes}
     # worker 1 ran zero/seed S+1, then died in exit/seed S+1; worker 0 ran the rest
-    assert status == {("zero", SEED): "ok", ("zero", SEED + 1): "ok", ("exit", SEED): "ok", ("exit", SEED + 1): "failed"}
+    assert status == {
+        ("zero", SEED): "ok",
+        ("zero", SEED + 1): "ok",
+        ("exit", SEED): "ok",
+        ("exit", SEED + 1): "failed",
+    }
     died = next(r for r in result.episodes if r["status"] == "failed")
     assert "died with exit code 3" in died["error"]
 
@@ -309,8 +386,9 @@ def test_every_registered_task_runs_and_shares_its_path_across_policies(tmp_path
 
 
 def test_every_record_has_every_field_even_when_its_worker_died(tmp_path):
-    from eval.rollout import RECORD_KEYS
     from test_eval_helpers import ExitOnOddSeed
+
+    from eval.rollout import RECORD_KEYS
 
     result = run(_config(tmp_path, policies=(), episodes=2, workers=2), policies={"exit": ExitOnOddSeed()})
     ok, died = result.episodes

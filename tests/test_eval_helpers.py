@@ -24,8 +24,16 @@ def short_config(tmp_path, name="out", **kw):
     """An EvalConfig of 2 short kinematic episodes into tmp_path/name; keyword arguments override."""
     from eval import EvalConfig
 
-    base = dict(envs=(ENV,), episodes=2, seed=10_000, out=str(tmp_path / name), dynamics=("kinematic",),
-                env_kwargs=SHORT, progress=False, plots=False)
+    base = dict(
+        envs=(ENV,),
+        episodes=2,
+        seed=10_000,
+        out=str(tmp_path / name),
+        dynamics=("kinematic",),
+        env_kwargs=SHORT,
+        progress=False,
+        plots=False,
+    )
     base.update(kw)
     return EvalConfig(**base)
 

@@ -17,11 +17,29 @@ PAPER_SEEDS = 1
 
 def test_paper_writes_figures_and_sets_claims_beside_measurements(tmp_path):
     out = tmp_path / "paper"
-    rc = main(["paper", "--out", str(out), "--seeds", str(PAPER_SEEDS), "--dynamics", "kinematic", "--workers", "1",
-               "--quiet"])
+    rc = main(
+        [
+            "paper",
+            "--out",
+            str(out),
+            "--seeds",
+            str(PAPER_SEEDS),
+            "--dynamics",
+            "kinematic",
+            "--workers",
+            "1",
+            "--quiet",
+        ]
+    )
     assert rc == 0
-    for name in ("paper.md", "results.json", "summary.md", "fig2a_kinematic.png", "fig2b_kinematic.png",
-                 "fig3_kinematic.png"):
+    for name in (
+        "paper.md",
+        "results.json",
+        "summary.md",
+        "fig2a_kinematic.png",
+        "fig2b_kinematic.png",
+        "fig3_kinematic.png",
+    ):
         assert (out / name).is_file(), name
     res = json.loads((out / "results.json").read_text())
     policies = [a["policy"] for a in res["aggregate"]]
@@ -34,8 +52,12 @@ def test_paper_writes_figures_and_sets_claims_beside_measurements(tmp_path):
     assert "0.8 x 0.8 x 0.2 m" in md
     nnbc = next(r for r in res["episodes"] if r["policy"] == "nnbc")
     assert f"{nnbc['max_error_m'] * 1e3:.1f} mm" in md  # the measured number, not a constant
-    for claim in ("NNBC max error <= 6 mm (kinematic)", "JMPI fails (kinematic)", "NNBC better than JMPI (kinematic)",
-                  "## Where we differ, and why"):
+    for claim in (
+        "NNBC max error <= 6 mm (kinematic)",
+        "JMPI fails (kinematic)",
+        "NNBC better than JMPI (kinematic)",
+        "## Where we differ, and why",
+    ):
         assert claim in md
 
 
@@ -54,8 +76,24 @@ def test_paper_rejects_bad_seeds(tmp_path, capsys):
 
 def test_speed_writes_speed_json(tmp_path):
     out = tmp_path / "speed"
-    rc = main(["speed", "--steps", "40", "--repeats", "1", "--episodes", "2", "--policy", "zero", "--policy",
-               "no-such-policy", "--out", str(out), "--quiet"])
+    rc = main(
+        [
+            "speed",
+            "--steps",
+            "40",
+            "--repeats",
+            "1",
+            "--episodes",
+            "2",
+            "--policy",
+            "zero",
+            "--policy",
+            "no-such-policy",
+            "--out",
+            str(out),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     res = json.loads((out / "speed.json").read_text())
     blocks = {(b["dynamics"], b["n_substeps"]) for b in res["env"]}
@@ -88,12 +126,29 @@ def _fake_result(errors: dict[str, list[float]], dyn: str = "kinematic"):
     recs = []
     for policy, errs in errors.items():
         for k, e in enumerate(errs):
-            recs.append({"env": paper.PAPER_ENV, "policy": policy, "dynamics": dyn, "model_error": 0.05,
-                         "obs_noise": 0.0, "episode": k, "seed": 10_000 + k, "status": "ok", "max_error_m": e,
-                         "success": e <= 0.006, "tipped_over": False, "index": len(recs),
-                         "path": {"type": "circle", "radius": 0.4, "tilt": math.pi / 6}})
-    results = {"config": {"dynamics": [dyn], "episodes": len(next(iter(errors.values()))), "seed": 10_000,
-                          "workers": 1}, "git": "x", "episodes": recs, "aggregate": aggregate(recs)}
+            recs.append(
+                {
+                    "env": paper.PAPER_ENV,
+                    "policy": policy,
+                    "dynamics": dyn,
+                    "model_error": 0.05,
+                    "obs_noise": 0.0,
+                    "episode": k,
+                    "seed": 10_000 + k,
+                    "status": "ok",
+                    "max_error_m": e,
+                    "success": e <= 0.006,
+                    "tipped_over": False,
+                    "index": len(recs),
+                    "path": {"type": "circle", "radius": 0.4, "tilt": math.pi / 6},
+                }
+            )
+    results = {
+        "config": {"dynamics": [dyn], "episodes": len(next(iter(errors.values()))), "seed": 10_000, "workers": 1},
+        "git": "x",
+        "episodes": recs,
+        "aggregate": aggregate(recs),
+    }
     s = np.linspace(0, 2 * math.pi, 200)
     r_d = np.c_[0.4 * np.cos(s) - 0.4, 0.4 * math.cos(math.pi / 6) * np.sin(s), 0.2 * np.sin(s)]
     return RunResult(out=None, results=results, arrays={0: {"r_d": r_d}})
@@ -102,13 +157,26 @@ def _fake_result(errors: dict[str, list[float]], dyn: str = "kinematic"):
 @pytest.mark.parametrize(
     "nnbc, jmpi, expect",
     [
-        ([0.002, 0.004, 0.005], [0.05, 0.08, 0.04], ["<= 6 mm in 3/3 seeds | holds", "> 6 mm in 3/3 seeds",
-                                                     "NNBC 4.0 mm vs JMPI 50.0 mm | holds",
-                                                     "within 6 mm in every seed (median 4.0 mm), as the paper says"]),
-        ([0.02, 0.03, 0.09], [0.05, 0.004, 0.003], ["<= 6 mm in 0/3 seeds | does not hold",
-                                                    "> 6 mm in 1/3 seeds, 0.13 x NNBC's median | does not hold",
-                                                    "NNBC 30.0 mm vs JMPI 4.0 mm | does not hold",
-                                                    "within 6 mm in 2/3 seeds"]),
+        (
+            [0.002, 0.004, 0.005],
+            [0.05, 0.08, 0.04],
+            [
+                "<= 6 mm in 3/3 seeds | holds",
+                "> 6 mm in 3/3 seeds",
+                "NNBC 4.0 mm vs JMPI 50.0 mm | holds",
+                "within 6 mm in every seed (median 4.0 mm), as the paper says",
+            ],
+        ),
+        (
+            [0.02, 0.03, 0.09],
+            [0.05, 0.004, 0.003],
+            [
+                "<= 6 mm in 0/3 seeds | does not hold",
+                "> 6 mm in 1/3 seeds, 0.13 x NNBC's median | does not hold",
+                "NNBC 30.0 mm vs JMPI 4.0 mm | does not hold",
+                "within 6 mm in 2/3 seeds",
+            ],
+        ),
     ],
 )
 def test_paper_claims_follow_the_measurements(nnbc, jmpi, expect):

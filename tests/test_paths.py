@@ -48,8 +48,11 @@ def test_circle_is_the_papers_formula():
     l, T = 0.4, 20.0
     for t in np.linspace(0, T, 41):
         ph = 2 * math.pi * math.sin(0.5 * math.pi * t / T) ** 2
-        expected = START + [l * math.cos(ph) - l, l * math.cos(math.pi / 6) * math.sin(ph),
-                            l * math.sin(math.pi / 6) * math.sin(ph)]
+        expected = START + [
+            l * math.cos(ph) - l,
+            l * math.cos(math.pi / 6) * math.sin(ph),
+            l * math.sin(math.pi / 6) * math.sin(ph),
+        ]
         np.testing.assert_allclose(path.position(t), expected, atol=1e-12)
     pts = np.array([path.position(t) for t in np.linspace(0, T, 2001)])
     extent = pts.max(0) - pts.min(0)

@@ -18,13 +18,11 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import SHORT_CIRCLE
 
-import mobman_env
 import policies
 from policies.base import EnvFacts
 from policies.nnbc import NNBC, NNBCConfig, damped_pinv, damped_pinv_apply, sigma_min_3
-
-from conftest import SHORT_CIRCLE
 
 REPORTED_SEEDS = range(10_000, 10_005)
 REPORTED_SEEDS_10 = range(10_000, 10_010)
@@ -99,10 +97,14 @@ def test_nnbc_discrete_znn_residual_decays_like_eq_13():
 
     def obs_at(k, ee_vel):
         t = 0.01 * k
-        return {"ee_pos": np.zeros(3), "ee_vel": ee_vel, "arm_base_vel": np.zeros(2),
-                "target_pos": 0.05 * np.array([math.sin(t), math.cos(t) - 1, math.sin(2 * t)]),
-                "target_vel": np.array([0.3, -0.2, 0.1])
-                + 0.05 * np.array([math.cos(t), -math.sin(t), 2 * math.cos(2 * t)])}
+        return {
+            "ee_pos": np.zeros(3),
+            "ee_vel": ee_vel,
+            "arm_base_vel": np.zeros(2),
+            "target_pos": 0.05 * np.array([math.sin(t), math.cos(t) - 1, math.sin(2 * t)]),
+            "target_vel": np.array([0.3, -0.2, 0.1])
+            + 0.05 * np.array([math.cos(t), -math.sin(t), 2 * math.cos(2 * t)]),
+        }
 
     first = obs_at(0, np.array([0.1, -0.05, 0.02]))  # a disturbance at t = 0: eps_0 = y_0 != 0
     pol.reset(first)
@@ -411,7 +413,7 @@ def test_the_guard_catches_model_based_controllers(spec):
 def test_known_policies_are_listed_and_built(kin_env):
     env = kin_env(path=SHORT_CIRCLE)
     for name in CONTROLLERS:
-        assert name in policies.KNOWN_POLICIES and policies.KNOWN_POLICIES[name]
+        assert policies.KNOWN_POLICIES.get(name)
         assert isinstance(policies.make(name, env), policies.Policy)
     pol = policies.make("nnbc:gamma=20,mu=5,j0=probe,probe_amp=0.01", env)
     assert (pol.config.gamma, pol.config.mu, pol.config.probe_amp) == (20.0, 5.0, 0.01)
@@ -419,18 +421,21 @@ def test_known_policies_are_listed_and_built(kin_env):
     assert policies.make("oracle:gamma=0", env).config.gamma == 0.0
 
 
-@pytest.mark.parametrize("spec, fragment", [
-    ("nbc", "unknown policy 'nbc'.*did you mean 'nnbc'.*known: nnbc, nnbc-full"),
-    ("nnbc:gama=3", r"unknown option\(s\) \['gama'\].*accepts: gamma, mu"),
-    ("zero:x=1", "no options"),
-    ("nnbc:gamma=abc", "must be a float"),
-    ("nnbc:gamma", "key=value"),
-    ("nnbc:gamma=1,gamma=2", "given twice"),
-    ("nnbc:j0=foo", "j0 must be one of probe, nominal"),
-    ("nnbc:mu=-1", "mu must be > 0"),
-    ("jmpi:full=1", "must be a bool"),
-    ("no_such_module_xyz:Policy", "neither a known policy nor an importable module"),
-])
+@pytest.mark.parametrize(
+    "spec, fragment",
+    [
+        ("nbc", "unknown policy 'nbc'.*did you mean 'nnbc'.*known: nnbc, nnbc-full"),
+        ("nnbc:gama=3", r"unknown option\(s\) \['gama'\].*accepts: gamma, mu"),
+        ("zero:x=1", "no options"),
+        ("nnbc:gamma=abc", "must be a float"),
+        ("nnbc:gamma", "key=value"),
+        ("nnbc:gamma=1,gamma=2", "given twice"),
+        ("nnbc:j0=foo", "j0 must be one of probe, nominal"),
+        ("nnbc:mu=-1", "mu must be > 0"),
+        ("jmpi:full=1", "must be a bool"),
+        ("no_such_module_xyz:Policy", "neither a known policy nor an importable module"),
+    ],
+)
 def test_bad_specs_fail_naming_what_is_accepted(kin_env, spec, fragment):
     env = kin_env(path=SHORT_CIRCLE)
     with pytest.raises(ValueError, match=fragment):
@@ -448,7 +453,7 @@ def test_sb3_paths_and_alias_fail_clearly(kin_env, monkeypatch, tmp_path):
         policies.make("sb3:sac-circle", env)
 
 
-USER_MODULE = '''
+USER_MODULE = """
 import numpy as np
 
 class EnvPolicy:
@@ -476,7 +481,7 @@ class NotAPolicy:
 
 def needs_two(a, b):
     return None
-'''
+"""
 
 
 def test_user_policies_through_module_attr(kin_env, tmp_path, monkeypatch):

@@ -11,10 +11,9 @@ import json
 import gymnasium as gym
 import numpy as np
 import pytest
+from conftest import SHORT_CIRCLE
 
 import policies
-
-from conftest import SHORT_CIRCLE
 
 pytest.importorskip("stable_baselines3")
 
@@ -48,19 +47,37 @@ def run_dir(tmp_path_factory):
 
     torch.set_num_threads(1)
     out = tmp_path_factory.mktemp("run")
-    venv = VecNormalize(DummyVecEnv([_make_env]), norm_obs=True, norm_reward=False, clip_obs=5.0,
-                        norm_obs_keys=["pos_error", "ee_vel", "joint_pos"])  # target_vel left raw on purpose
+    venv = VecNormalize(
+        DummyVecEnv([_make_env]),
+        norm_obs=True,
+        norm_reward=False,
+        clip_obs=5.0,
+        norm_obs_keys=["pos_error", "ee_vel", "joint_pos"],
+    )  # target_vel left raw on purpose
     venv.seed(0)
-    model = SAC("MultiInputPolicy", venv, learning_starts=100, batch_size=32, buffer_size=1000,
-                policy_kwargs={"net_arch": [16, 16]}, seed=0, device="cpu")
+    model = SAC(
+        "MultiInputPolicy",
+        venv,
+        learning_starts=100,
+        batch_size=32,
+        buffer_size=1000,
+        policy_kwargs={"net_arch": [16, 16]},
+        seed=0,
+        device="cpu",
+    )
     from stable_baselines3.common.logger import configure
 
     model.set_logger(configure(str(out), []))  # not SB3's default /tmp/SB3-<date> folder
     model.learn(200)
     model.save(out / "model.zip")
     venv.save(str(out / "vecnormalize.pkl"))
-    config = {"algo": "sac", "env_id": "WheeledPuma-Circle-v0", "env_kwargs": {"dynamics": "kinematic"},
-              "obs_keys": OBS_KEYS, "wrappers": ["pos_error"]}
+    config = {
+        "algo": "sac",
+        "env_id": "WheeledPuma-Circle-v0",
+        "env_kwargs": {"dynamics": "kinematic"},
+        "obs_keys": OBS_KEYS,
+        "wrappers": ["pos_error"],
+    }
     (out / "config.json").write_text(json.dumps(config))
     venv.close()
     return out
@@ -112,7 +129,7 @@ def test_sb3_policy_runs_in_evaluate_policy_and_takes_longer_batches(run_dir):
     from stable_baselines3.common.monitor import Monitor
     from stable_baselines3.common.vec_env import DummyVecEnv
 
-    factory = lambda: Monitor(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))  # noqa: E731
+    factory = lambda: Monitor(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
     venv = DummyVecEnv([factory, factory])
     try:
         policy = policies.make(f"sb3:{run_dir}", venv)  # the run folder works as well as its model.zip

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
-from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
 
 #: reported seeds of this module (DESIGN "Seeds")
 SEED = 10_000
@@ -30,8 +30,15 @@ def ray_cluster():
 
     from eval.ray_backend import local_runtime_env
 
-    ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, logging_level=logging.ERROR,
-             object_store_memory=100 * 2**20, runtime_env=local_runtime_env())  # tests/ importable in workers
+    ray.init(
+        address="local",
+        num_cpus=2,
+        include_dashboard=False,
+        log_to_driver=False,
+        logging_level=logging.ERROR,
+        object_store_memory=100 * 2**20,
+        runtime_env=local_runtime_env(),
+    )  # tests/ importable in workers
     yield ray
     ray.shutdown()
 
@@ -95,14 +102,40 @@ class HoldsALock(HoldStill):
 
 # --- same results as the local backend --------------------------------------------------------------------
 
+
 def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
     """Spec policies, a user object and an in-episode crash: the records and arrays equal the local ones."""
     local = run(_config(tmp_path, "local", save_arrays="all"), policies={"crash": CrashOnOddSeed()})
     out = tmp_path / "ray"
-    rc = main(["run", "--env", ENV, "--dynamics", "kinematic", "--env-kwargs", json.dumps(SHORT), "--seed", str(SEED),
-               "--episodes", "2", "--policy", "zero", "--policy", "nnbc",
-               "--policy", "test_eval_helpers:CrashOnOddSeed",
-               "--out", str(out), "--quiet", "--no-plots", "--save-arrays", "all", "--backend", "ray"])
+    rc = main(
+        [
+            "run",
+            "--env",
+            ENV,
+            "--dynamics",
+            "kinematic",
+            "--env-kwargs",
+            json.dumps(SHORT),
+            "--seed",
+            str(SEED),
+            "--episodes",
+            "2",
+            "--policy",
+            "zero",
+            "--policy",
+            "nnbc",
+            "--policy",
+            "test_eval_helpers:CrashOnOddSeed",
+            "--out",
+            str(out),
+            "--quiet",
+            "--no-plots",
+            "--save-arrays",
+            "all",
+            "--backend",
+            "ray",
+        ]
+    )
     assert rc == 0
     res = json.loads((out / "results.json").read_text())
     assert res["config"]["backend"] == "ray"
@@ -123,22 +156,31 @@ def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
     z = np.load(out / "episodes.npz")
     for rec in local.episodes:
         for name in ("r_d", "r_a", "p_c", "error", "action"):
-            np.testing.assert_array_equal(np.asarray(local.arrays[rec["index"]][name], np.float32),
-                                          z[f"{rec['arrays_key']}__{name}"])
+            np.testing.assert_array_equal(
+                np.asarray(local.arrays[rec["index"]][name], np.float32), z[f"{rec['arrays_key']}__{name}"]
+            )
 
 
 # --- failed tasks -------------------------------------------------------------------------------------------
+
 
 def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluster):
     markers, log = tmp_path / "markers", tmp_path / "log"
     markers.mkdir()
     log.mkdir()
-    result = run(_config(tmp_path, policies=("zero",), backend="ray"),
-                 policies={"once": ExitOnce(str(markers)), "always": ExitAlways(str(log))})
+    result = run(
+        _config(tmp_path, policies=("zero",), backend="ray"),
+        policies={"once": ExitOnce(str(markers)), "always": ExitAlways(str(log))},
+    )
     status = {(r["policy"], r["seed"]): r["status"] for r in result.episodes}
-    assert status == {("zero", SEED): "ok", ("zero", SEED + 1): "ok", ("once", SEED): "ok",
-                      ("once", SEED + 1): "ok",  # its worker died once; the retry ran it to the end
-                      ("always", SEED): "ok", ("always", SEED + 1): "failed"}
+    assert status == {
+        ("zero", SEED): "ok",
+        ("zero", SEED + 1): "ok",
+        ("once", SEED): "ok",
+        ("once", SEED + 1): "ok",  # its worker died once; the retry ran it to the end
+        ("always", SEED): "ok",
+        ("always", SEED + 1): "failed",
+    }
     assert (markers / f"exited-{SEED + 1}").is_file()
     assert len((log / f"attempts-{SEED + 1}").read_text().split()) == 2  # the first attempt and one retry
     dead = next(r for r in result.episodes if r["status"] == "failed")
@@ -153,8 +195,9 @@ def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluste
 
 
 def test_a_task_that_raises_outside_the_episode_is_retried_once_then_recorded_failed(tmp_path, ray_cluster):
-    result = run(_config(tmp_path, policies=(), episodes=1, backend="ray"),
-                 policies={"bad": UnpicklesBadly(str(tmp_path))})
+    result = run(
+        _config(tmp_path, policies=(), episodes=1, backend="ray"), policies={"bad": UnpicklesBadly(str(tmp_path))}
+    )
     (rec,) = result.episodes
     assert rec["status"] == "failed" and rec["pid"] is None
     assert "retry failed too" in rec["error"] and "deliberate: this policy's module is missing" in rec["error"]
@@ -163,6 +206,7 @@ def test_a_task_that_raises_outside_the_episode_is_retried_once_then_recorded_fa
 
 
 # --- errors before any rollout --------------------------------------------------------------------------------
+
 
 def test_an_unpicklable_policy_object_is_refused_naming_it(tmp_path):
     spy = HoldStill()
@@ -176,8 +220,22 @@ def test_an_unpicklable_policy_object_is_refused_naming_it(tmp_path):
 def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatch, capsys):
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` now raises ImportError
     out = tmp_path / "noray"
-    rc = main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--out", str(out), "--quiet",
-               "--backend", "ray"])
+    rc = main(
+        [
+            "run",
+            "--env",
+            ENV,
+            "--dynamics",
+            "kinematic",
+            "--policy",
+            "zero",
+            "--out",
+            str(out),
+            "--quiet",
+            "--backend",
+            "ray",
+        ]
+    )
     assert rc == 2
     assert 'pip install "mobman[ray]"' in capsys.readouterr().err
     assert not out.exists()
@@ -187,34 +245,70 @@ def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatc
     assert spy.n_reset == 0 and spy.n_predict == 0
     sweep_yaml = tmp_path / "sweep.yaml"
     sweep_yaml.write_text("policies: [zero]\ndynamics: kinematic\n")
-    assert main(["sweep", "--config", str(sweep_yaml), "--out", str(tmp_path / "sweep"), "--quiet",
-                 "--backend", "ray"]) == 2
+    assert (
+        main(["sweep", "--config", str(sweep_yaml), "--out", str(tmp_path / "sweep"), "--quiet", "--backend", "ray"])
+        == 2
+    )
     assert 'pip install "mobman[ray]"' in capsys.readouterr().err
     assert not (tmp_path / "sweep").exists()
-    assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--episodes", "1", "--env-kwargs",
-                 json.dumps(SHORT), "--out", str(tmp_path / "local"), "--quiet", "--no-plots"]) == 0  # no Ray needed
+    assert (
+        main(
+            [
+                "run",
+                "--env",
+                ENV,
+                "--dynamics",
+                "kinematic",
+                "--policy",
+                "zero",
+                "--episodes",
+                "1",
+                "--env-kwargs",
+                json.dumps(SHORT),
+                "--out",
+                str(tmp_path / "local"),
+                "--quiet",
+                "--no-plots",
+            ]
+        )
+        == 0
+    )  # no Ray needed
 
 
-@pytest.mark.parametrize("extra, needle", [
-    (["--address", "auto"], "--address 'auto' needs --backend ray"),
-    (["--backend", "ray", "--address", "auto", "--workers", "2"], "drop --workers"),
-])
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--address", "auto"], "--address 'auto' needs --backend ray"),
+        (["--backend", "ray", "--address", "auto", "--workers", "2"], "drop --workers"),
+    ],
+)
 def test_backend_arguments_that_do_not_fit_together(tmp_path, capsys, extra, needle):
     out = tmp_path / "bad"
-    assert main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--out", str(out), "--quiet",
-                 *extra]) == 2
+    assert (
+        main(["run", "--env", ENV, "--dynamics", "kinematic", "--policy", "zero", "--out", str(out), "--quiet", *extra])
+        == 2
+    )
     assert needle in capsys.readouterr().err
     assert not out.exists()
 
 
 # --- sweeps -------------------------------------------------------------------------------------------------
 
+
 def test_a_sweep_started_locally_and_finished_on_ray_equals_a_local_one(tmp_path, ray_cluster):
     from eval.sweep import run_sweep
     from eval.sweep_config import SweepConfig
 
-    sweep = SweepConfig.from_dict({"envs": [ENV], "policies": ["zero", "nnbc"], "seeds": [SEED, SEED + 1],
-                                   "dynamics": ["kinematic"], "model_error": [0.0, 0.1], "env_kwargs": SHORT})
+    sweep = SweepConfig.from_dict(
+        {
+            "envs": [ENV],
+            "policies": ["zero", "nnbc"],
+            "seeds": [SEED, SEED + 1],
+            "dynamics": ["kinematic"],
+            "model_error": [0.0, 0.1],
+            "env_kwargs": SHORT,
+        }
+    )
     whole = run_sweep(sweep, tmp_path / "local", progress=False, plots=False)
     run_sweep(sweep, tmp_path / "mixed", max_episodes=3, progress=False, plots=False)
     resumed = run_sweep(sweep, tmp_path / "mixed", backend="ray", progress=False, plots=False)

@@ -8,11 +8,10 @@ import resource
 import numpy as np
 import pybullet
 import pytest
+from conftest import SHORT_CIRCLE
 
 from mobman_env import WheeledPumaEnv
 from mobman_env import kinematics as K
-
-from conftest import SHORT_CIRCLE
 
 
 def _rss_mb() -> float:

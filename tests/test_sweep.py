@@ -18,19 +18,26 @@ from pathlib import Path
 import pytest
 import yaml
 from matplotlib.figure import Figure
+from test_eval_helpers import ENV, SHORT, VOLATILE, CrashOnOddSeed, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
 from eval.rollout import RECORD_KEYS
 from eval.sweep import JOURNAL, Journal, run_sweep
 from eval.sweep_config import KEYS, SweepConfig, example_path, load_sweep
-from test_eval_helpers import ENV, SHORT, VOLATILE, CrashOnOddSeed, stable
 
 #: reported seeds of this module (DESIGN "Seeds")
 SEEDS = [10_000, 10_001]
 #: a small grid: 2 policies x 2 model errors x 2 noise levels x 2 seeds = 16 episodes
-GRID = {"envs": [ENV], "policies": ["zero", "jmpi"], "seeds": SEEDS, "dynamics": ["kinematic"],
-        "model_error": [0.0, 0.1], "obs_noise": [0.0, 0.002], "env_kwargs": SHORT}
+GRID = {
+    "envs": [ENV],
+    "policies": ["zero", "jmpi"],
+    "seeds": SEEDS,
+    "dynamics": ["kinematic"],
+    "model_error": [0.0, 0.1],
+    "obs_noise": [0.0, 0.002],
+    "env_kwargs": SHORT,
+}
 
 
 def _sweep(**kw) -> SweepConfig:
@@ -42,8 +49,11 @@ def _table(out: Path) -> tuple[list[dict], list[dict], list[dict]]:
     res = json.loads((out / "results.json").read_text())
     rows = list(csv.DictReader((out / "results.csv").open()))
     agg = [{k: v for k, v in a.items() if not k.startswith("predict_us")} for a in res["aggregate"]]
-    return ([stable(r) for r in res["episodes"]], [{k: v for k, v in r.items() if k not in VOLATILE} for r in rows],
-            agg)
+    return (
+        [stable(r) for r in res["episodes"]],
+        [{k: v for k, v in r.items() if k not in VOLATILE} for r in rows],
+        agg,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -56,6 +66,7 @@ def uninterrupted(tmp_path_factory) -> Path:
 
 
 # --- the YAML file -------------------------------------------------------------------------------------------
+
 
 def test_the_example_sweep_is_valid_and_printed_by_example(capsys):
     sweep = load_sweep(example_path())
@@ -72,27 +83,29 @@ def test_seed_forms_scalars_and_defaults(tmp_path):
     assert sweep.seeds == (5, 6, 7) and sweep.dynamics == ("kinematic",) and sweep.model_error == (0.1,)
     assert sweep.policies == SweepConfig().policies and sweep.obs_noise == (0.0,)
     assert SweepConfig.from_dict({"seeds": [3, 1, 2]}).seeds == (3, 1, 2)
-    assert set(KEYS) == {"envs", "policies", "seeds", "dynamics", "model_error", "obs_noise", "env_kwargs",
-                         "tolerance"}
+    assert set(KEYS) == {"envs", "policies", "seeds", "dynamics", "model_error", "obs_noise", "env_kwargs", "tolerance"}
 
 
-@pytest.mark.parametrize("text, needles", [
-    ("polices: [nnbc]", ["unknown key(s) 'polices' (did you mean 'policies'?)", "accepted: envs, policies, seeds"]),
-    ("- nnbc", ["top level must be a mapping"]),
-    ("seeds: 10000", ["seeds must be a list of integers", "{start: 10000, count: 8}"]),
-    ("seeds: {start: 10000, n: 3}", ["exactly 'start' and 'count'", "'n'"]),
-    ("seeds: {start: 10000, count: 0}", ["seeds.count must be an integer >= 1, got 0"]),
-    ("seeds: [1, 1]", ["seeds lists 1 more than once"]),
-    ("seeds: [1, -2]", ["seeds[1] must be an integer >= 0, got -2"]),
-    ("model_error: [0.0, -0.1]", ["model_error[1] must be a finite number >= 0, got -0.1"]),
-    ("obs_noise: [0.0, abc]", ["obs_noise[1] must be a finite number >= 0, got 'abc'"]),
-    ("dynamics: [kinematics]", ["unknown mode 'kinematics'", "physics, kinematic"]),
-    ("policies: []", ["policies is empty"]),
-    ("env_kwargs: {model_error: 0.1}", ["env_kwargs sets ['model_error']", "sweep keys"]),
-    ("env_kwargs: [1, 2]", ["env_kwargs must be a mapping"]),
-    ("tolerance: 0", ["tolerance must be a number > 0"]),
-    ("envs: [WheeledPuma-Circle-v0\n", ["not valid YAML"]),
-])
+@pytest.mark.parametrize(
+    "text, needles",
+    [
+        ("polices: [nnbc]", ["unknown key(s) 'polices' (did you mean 'policies'?)", "accepted: envs, policies, seeds"]),
+        ("- nnbc", ["top level must be a mapping"]),
+        ("seeds: 10000", ["seeds must be a list of integers", "{start: 10000, count: 8}"]),
+        ("seeds: {start: 10000, n: 3}", ["exactly 'start' and 'count'", "'n'"]),
+        ("seeds: {start: 10000, count: 0}", ["seeds.count must be an integer >= 1, got 0"]),
+        ("seeds: [1, 1]", ["seeds lists 1 more than once"]),
+        ("seeds: [1, -2]", ["seeds[1] must be an integer >= 0, got -2"]),
+        ("model_error: [0.0, -0.1]", ["model_error[1] must be a finite number >= 0, got -0.1"]),
+        ("obs_noise: [0.0, abc]", ["obs_noise[1] must be a finite number >= 0, got 'abc'"]),
+        ("dynamics: [kinematics]", ["unknown mode 'kinematics'", "physics, kinematic"]),
+        ("policies: []", ["policies is empty"]),
+        ("env_kwargs: {model_error: 0.1}", ["env_kwargs sets ['model_error']", "sweep keys"]),
+        ("env_kwargs: [1, 2]", ["env_kwargs must be a mapping"]),
+        ("tolerance: 0", ["tolerance must be a number > 0"]),
+        ("envs: [WheeledPuma-Circle-v0\n", ["not valid YAML"]),
+    ],
+)
 def test_bad_sweep_files_fail_naming_the_problem(tmp_path, capsys, text, needles):
     path = tmp_path / "bad.yaml"
     path.write_text(text)
@@ -119,17 +132,21 @@ def test_unknown_policy_or_env_or_no_config_stops_before_any_episode(tmp_path, c
 
 # --- the table -------------------------------------------------------------------------------------------------
 
+
 def test_sweep_writes_one_tidy_table_in_grid_order_and_plots(uninterrupted):
     out = uninterrupted
     for name in ("results.json", "results.csv", "aggregate.csv", "summary.md", "config.json", JOURNAL):
         assert (out / name).is_file(), name
     assert sorted(p.name for p in (out / "plots").iterdir()) == [
-        f"{ENV}_kinematic_vs_model_error.png", f"{ENV}_kinematic_vs_obs_noise.png"]
+        f"{ENV}_kinematic_vs_model_error.png",
+        f"{ENV}_kinematic_vs_obs_noise.png",
+    ]
     res = json.loads((out / "results.json").read_text())
     assert res["schema"] == 1 and res["config"]["command"] == "sweep" and res["config"]["n_episodes"] == 16
     eps = res["episodes"]
     assert [(r["model_error"], r["obs_noise"], r["policy"], r["seed"]) for r in eps] == [
-        (me, on, p, s) for me in (0.0, 0.1) for on in (0.0, 0.002) for p in ("zero", "jmpi") for s in SEEDS]
+        (me, on, p, s) for me in (0.0, 0.1) for on in (0.0, 0.002) for p in ("zero", "jmpi") for s in SEEDS
+    ]
     assert [r["index"] for r in eps] == list(range(16))
     for r in eps:
         assert set(RECORD_KEYS) <= set(r) and r["status"] == "ok"
@@ -146,14 +163,27 @@ def test_sweep_writes_one_tidy_table_in_grid_order_and_plots(uninterrupted):
 
 
 def test_a_sweep_episode_equals_the_run_episode_of_the_same_settings(uninterrupted, tmp_path):
-    res = run(EvalConfig(envs=(ENV,), policies=("jmpi",), episodes=2, seed=SEEDS[0], dynamics=("kinematic",),
-                         model_error=0.1, obs_noise=0.002, env_kwargs=SHORT, out=str(tmp_path / "run"),
-                         progress=False, plots=False))
+    res = run(
+        EvalConfig(
+            envs=(ENV,),
+            policies=("jmpi",),
+            episodes=2,
+            seed=SEEDS[0],
+            dynamics=("kinematic",),
+            model_error=0.1,
+            obs_noise=0.002,
+            env_kwargs=SHORT,
+            out=str(tmp_path / "run"),
+            progress=False,
+            plots=False,
+        )
+    )
     sweep = json.loads((uninterrupted / "results.json").read_text())["episodes"]
     mine = [r for r in sweep if r["policy"] == "jmpi" and r["model_error"] == 0.1 and r["obs_noise"] == 0.002]
     drop = VOLATILE | {"index", "arrays_key"}
-    assert [{k: v for k, v in r.items() if k not in drop} for r in mine] == \
-        [{k: v for k, v in r.items() if k not in drop} for r in json.loads(json.dumps(res.episodes))]
+    assert [{k: v for k, v in r.items() if k not in drop} for r in mine] == [
+        {k: v for k, v in r.items() if k not in drop} for r in json.loads(json.dumps(res.episodes))
+    ]
 
 
 def test_sweep_plot_takes_aggregate_rows_and_returns_a_figure(uninterrupted):
@@ -164,10 +194,12 @@ def test_sweep_plot_takes_aggregate_rows_and_returns_a_figure(uninterrupted):
     assert isinstance(fig, Figure) and len(fig.axes) == 4  # success and error rows x 2 noise levels
     assert len(fig.axes[0].lines) == 2 and len(fig.axes[2].lines) == 3  # two policies (+ the tolerance)
     assert [name for name, _ in sweep_figures([a for a in agg if a["obs_noise"] == 0.0])] == [
-        f"{ENV}_kinematic_vs_model_error"]  # a variable with one value gets no plot
+        f"{ENV}_kinematic_vs_model_error"
+    ]  # a variable with one value gets no plot
 
 
 # --- resuming ------------------------------------------------------------------------------------------------
+
 
 def test_an_interrupted_sweep_resumed_gives_the_same_table(uninterrupted, tmp_path):
     out = tmp_path / "parts"
@@ -211,8 +243,12 @@ def test_a_killed_sweep_process_resumes_to_the_same_table(uninterrupted, tmp_pat
     assert main(["sweep", "--config", str(cfg), "--out", str(whole), "--quiet", "--no-plots"]) == 0
     out = tmp_path / "killed"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])}
-    proc = subprocess.Popen([sys.executable, "-m", "eval", "sweep", "--config", str(cfg), "--out", str(out),
-                             "--quiet", "--no-plots"], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "eval", "sweep", "--config", str(cfg), "--out", str(out), "--quiet", "--no-plots"],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     journal = out / JOURNAL
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline and proc.poll() is None:
@@ -232,7 +268,11 @@ def test_failed_episodes_are_kept_and_rerun_only_on_request(tmp_path):
     sweep = _sweep(policies=["zero"], model_error=[0.05], obs_noise=[0.0])
     first = run_sweep(sweep, out, progress=False, policies={"crash": CrashOnOddSeed()})
     assert [(r["policy"], r["status"]) for r in first.episodes] == [
-        ("zero", "ok"), ("zero", "ok"), ("crash", "ok"), ("crash", "failed")]
+        ("zero", "ok"),
+        ("zero", "ok"),
+        ("crash", "ok"),
+        ("crash", "failed"),
+    ]
     assert "deliberate crash" in first.episodes[-1]["error"]
     assert "Failed episodes (1)" in (out / "summary.md").read_text()
     assert run_sweep(sweep, out, progress=False, policies={"crash": CrashOnOddSeed()}).n_run == 0
@@ -251,8 +291,11 @@ def test_a_grown_grid_runs_only_the_new_episodes(uninterrupted, tmp_path):
 
 def test_resuming_with_other_env_kwargs_or_into_a_foreign_directory_is_refused(uninterrupted, tmp_path):
     with pytest.raises(EvalError, match="holds a sweep with other settings .*env_kwargs"):
-        run_sweep(_sweep(env_kwargs={"path": {"type": "circle", "radius": 0.1, "duration": 2.0}}), uninterrupted,
-                  progress=False)
+        run_sweep(
+            _sweep(env_kwargs={"path": {"type": "circle", "radius": 0.1, "duration": 2.0}}),
+            uninterrupted,
+            progress=False,
+        )
     foreign = tmp_path / "foreign"
     foreign.mkdir()
     (foreign / "notes.txt").write_text("mine")

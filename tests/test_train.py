@@ -16,20 +16,36 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from train.algos import ALGOS  # noqa: E402
-from train.cli import main  # noqa: E402
-from train.config import LEARNING_ENV_KWARGS, TrainConfig  # noqa: E402
+from train.algos import ALGOS
+from train.cli import main
+from train.config import LEARNING_ENV_KWARGS, TrainConfig
 
 #: a 1 s version of the paper's circle (100 steps per episode)
 SHORT_PATH = {"type": "circle", "radius": 0.1, "tilt": 0.5236, "yaw": 3.1416, "duration": 1.0}
 #: small, fast hyperparameters per algorithm (the defaults are for real runs)
 TINY = {
-    "sac": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 32, "train_freq": 4, "gradient_steps": 2,
-            "policy_kwargs": {"net_arch": [32, 32]}},
-    "td3": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 32, "train_freq": 4, "gradient_steps": 2,
-            "policy_kwargs": {"net_arch": [32, 32]}},
-    "ppo": {"n_steps": 128, "batch_size": 64, "n_epochs": 2,
-            "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}}},
+    "sac": {
+        "buffer_size": 2000,
+        "learning_starts": 100,
+        "batch_size": 32,
+        "train_freq": 4,
+        "gradient_steps": 2,
+        "policy_kwargs": {"net_arch": [32, 32]},
+    },
+    "td3": {
+        "buffer_size": 2000,
+        "learning_starts": 100,
+        "batch_size": 32,
+        "train_freq": 4,
+        "gradient_steps": 2,
+        "policy_kwargs": {"net_arch": [32, 32]},
+    },
+    "ppo": {
+        "n_steps": 128,
+        "batch_size": 64,
+        "n_epochs": 2,
+        "policy_kwargs": {"net_arch": {"pi": [32, 32], "vf": [32, 32]}},
+    },
 }
 #: the final evaluation's seeds in these tests (reported range, as in real runs)
 FINAL_SEED = 10_000
@@ -37,9 +53,18 @@ FINAL_SEED = 10_000
 
 def tiny_config(algo: str, out: Path, **changes) -> TrainConfig:
     fields = dict(
-        algo=algo, timesteps=300, seed=3, out=str(out), hyperparams=TINY[algo],
-        env_kwargs={**LEARNING_ENV_KWARGS, "path": SHORT_PATH}, eval_freq=150, eval_episodes=1,
-        final_eval_episodes=1, final_eval_seed=FINAL_SEED, checkpoint_freq=0, progress_bar=False,
+        algo=algo,
+        timesteps=300,
+        seed=3,
+        out=str(out),
+        hyperparams=TINY[algo],
+        env_kwargs={**LEARNING_ENV_KWARGS, "path": SHORT_PATH},
+        eval_freq=150,
+        eval_episodes=1,
+        final_eval_episodes=1,
+        final_eval_seed=FINAL_SEED,
+        checkpoint_freq=0,
+        progress_bar=False,
     )
     fields.update(changes)
     return TrainConfig(**fields)
@@ -47,10 +72,20 @@ def tiny_config(algo: str, out: Path, **changes) -> TrainConfig:
 
 # --- config -------------------------------------------------------------------------------------------------
 def test_config_json_round_trip():
-    cfg = TrainConfig(algo="ppo", timesteps=1234, n_envs=2, seed=7, out="x", dynamics="physics",
-                      env_kwargs={"model_error": 0.0, "error_bound": 0.2}, hyperparams={"n_steps": 64,
-                      "policy_kwargs": {"net_arch": [8]}}, wrappers=("pos_error",), obs_keys=("pos_error", "time"),
-                      normalize_reward=False, tensorboard=True)
+    cfg = TrainConfig(
+        algo="ppo",
+        timesteps=1234,
+        n_envs=2,
+        seed=7,
+        out="x",
+        dynamics="physics",
+        env_kwargs={"model_error": 0.0, "error_bound": 0.2},
+        hyperparams={"n_steps": 64, "policy_kwargs": {"net_arch": [8]}},
+        wrappers=("pos_error",),
+        obs_keys=("pos_error", "time"),
+        normalize_reward=False,
+        tensorboard=True,
+    )
     back = TrainConfig.from_json(cfg.to_json())
     assert back == cfg
     assert isinstance(back.obs_keys, tuple) and isinstance(back.wrappers, tuple)
@@ -157,8 +192,17 @@ def test_smoke_train_save_reload_evaluate(tmp_path, algo):
     out = tmp_path / algo
     summary = run(tiny_config(algo, out))
     assert summary["status"] == "done" and summary["timesteps"] >= 300
-    for name in ("model.zip", "vecnormalize.pkl", "config.json", "learning_curve.csv", "learning_curve.png",
-                 "final_eval.json", "summary.json", "monitor.csv", "checkpoints/latest.json"):
+    for name in (
+        "model.zip",
+        "vecnormalize.pkl",
+        "config.json",
+        "learning_curve.csv",
+        "learning_curve.png",
+        "final_eval.json",
+        "summary.json",
+        "monitor.csv",
+        "checkpoints/latest.json",
+    ):
         assert (out / name).is_file(), name
     cfg = json.loads((out / "config.json").read_text())
     for key in ("algo", "env_id", "env_kwargs", "obs_keys", "wrappers"):
@@ -250,9 +294,28 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
     out = tmp_path / "run"
     hp = tmp_path / "hp.json"
     hp.write_text(json.dumps(TINY["td3"]))
-    cmd = [sys.executable, "-m", "train", "--algo", "td3", "--timesteps", "100000", "--n-envs", "2",
-           "--eval-freq", "0", "--final-eval-episodes", "0", "--out", str(out), "--no-progress",
-           "--hyperparams", str(hp), "--env-kwargs", json.dumps({"path": SHORT_PATH})]
+    cmd = [
+        sys.executable,
+        "-m",
+        "train",
+        "--algo",
+        "td3",
+        "--timesteps",
+        "100000",
+        "--n-envs",
+        "2",
+        "--eval-freq",
+        "0",
+        "--final-eval-episodes",
+        "0",
+        "--out",
+        str(out),
+        "--no-progress",
+        "--hyperparams",
+        str(hp),
+        "--env-kwargs",
+        json.dumps({"path": SHORT_PATH}),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.time() + 120
@@ -276,7 +339,9 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
 
 
 def test_importing_train_loads_neither_torch_nor_sb3():
-    code = "import sys, train, train.cli, train.config; print('torch' in sys.modules, 'stable_baselines3' in sys.modules)"
+    code = (
+        "import sys, train, train.cli, train.config; print('torch' in sys.modules, 'stable_baselines3' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["False", "False"]
 
@@ -291,9 +356,25 @@ def test_failed_final_evaluation_keeps_the_model_and_exits_1(tmp_path, monkeypat
     out = tmp_path / "run"
     hp = tmp_path / "hp.json"
     hp.write_text(json.dumps(TINY["ppo"]))
-    code = main(["--algo", "ppo", "--timesteps", "128", "--eval-freq", "0", "--final-eval-episodes", "1",
-                 "--out", str(out), "--no-progress", "--hyperparams", str(hp),
-                 "--env-kwargs", json.dumps({"path": SHORT_PATH})])
+    code = main(
+        [
+            "--algo",
+            "ppo",
+            "--timesteps",
+            "128",
+            "--eval-freq",
+            "0",
+            "--final-eval-episodes",
+            "1",
+            "--out",
+            str(out),
+            "--no-progress",
+            "--hyperparams",
+            str(hp),
+            "--env-kwargs",
+            json.dumps({"path": SHORT_PATH}),
+        ]
+    )
     assert code == 1
     assert "final evaluation failed" in capsys.readouterr().err
     summary = json.loads((out / "summary.json").read_text())

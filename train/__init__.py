@@ -39,7 +39,7 @@ SB3; `run` does.
 
 from train.config import TrainConfig
 
-__all__ = ["TrainConfig", "run", "resume"]
+__all__ = ["TrainConfig", "resume", "run"]
 
 
 def run(config: TrainConfig) -> dict:

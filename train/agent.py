@@ -8,7 +8,8 @@ evaluation while training, where the live model and normaliser are evaluated wit
 
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -38,4 +39,3 @@ class Agent:
         if batched and action.ndim == 1:
             action = action[None]
         return action, state
-

@@ -97,8 +97,11 @@ ALGOS: dict[str, AlgoSpec] = {
             "clip_range": 0.2,
             "ent_coef": 0.0,
             "max_grad_norm": 0.5,
-            "policy_kwargs": {"net_arch": {"pi": [256, 256], "vf": [256, 256]}, "log_std_init": -2.0,
-                              "activation_fn": "tanh"},
+            "policy_kwargs": {
+                "net_arch": {"pi": [256, 256], "vf": [256, 256]},
+                "log_std_init": -2.0,
+                "activation_fn": "tanh",
+            },
         },
     ),
 }
@@ -149,8 +152,10 @@ def resolve(name: str, overrides: dict | None = None) -> dict:
     if noise is not None:
         if spec.off_policy is False:
             raise ValueError(f"action_noise is for off-policy algorithms (sac, td3), not {name!r}; remove it")
-        if not isinstance(noise, dict) or noise.get("type") not in NOISE_TYPES or not isinstance(
-            noise.get("sigma"), (int, float)
+        if (
+            not isinstance(noise, dict)
+            or noise.get("type") not in NOISE_TYPES
+            or not isinstance(noise.get("sigma"), (int, float))
         ):
             raise ValueError(
                 f"action_noise must be {{'type': one of {list(NOISE_TYPES)}, 'sigma': float}}, got {noise!r}"
@@ -163,9 +168,7 @@ def check_keys(name: str, hp: dict) -> None:
     accepted = accepted_keys(name)
     unknown = sorted(set(hp) - set(accepted))
     if unknown:
-        raise ValueError(
-            f"unknown hyperparameter(s) {unknown} for {name}; accepted: {', '.join(accepted)}"
-        )
+        raise ValueError(f"unknown hyperparameter(s) {unknown} for {name}; accepted: {', '.join(accepted)}")
 
 
 def build_kwargs(name: str, hp: dict, n_actions: int) -> dict[str, Any]:
@@ -194,7 +197,7 @@ def build_kwargs(name: str, hp: dict, n_actions: int) -> dict[str, Any]:
 
 
 def _schedule(text: str, key: str):
-    """"lin_3e-4" -> a callable of SB3's progress_remaining (1 -> 0): linear decay to 0."""
+    """ "lin_3e-4" -> a callable of SB3's progress_remaining (1 -> 0): linear decay to 0."""
     if not text.startswith("lin_"):
         raise ValueError(f"{key} {text!r}: expected a number or 'lin_<number>' (linear decay), e.g. 'lin_3e-4'")
     try:

@@ -7,15 +7,23 @@ import json
 import logging
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
 
 log = logging.getLogger("train")
 
-CURVE_FIELDS = ("timesteps", "wall_s", "median_rms_error_m", "max_rms_error_m", "median_max_error_m",
-                "max_max_error_m", "success_rate")
+CURVE_FIELDS = (
+    "timesteps",
+    "wall_s",
+    "median_rms_error_m",
+    "max_rms_error_m",
+    "median_max_error_m",
+    "max_max_error_m",
+    "success_rate",
+)
 
 
 def atomic_write(path: Path, data: bytes | str) -> None:
@@ -51,9 +59,17 @@ class PeriodicEval(BaseCallback):
     The first evaluation runs at the start of training (step 0, or the resumed step), so the curve starts from
     the untrained agent."""
 
-    def __init__(self, freq: int, evaluate: Callable[[Any], dict], curve_csv: Path, curve_png: Path,
-                 reference: dict | None, t0: float, wall_offset: float = 0.0,
-                 on_result: Callable[[Any, dict], None] | None = None):
+    def __init__(
+        self,
+        freq: int,
+        evaluate: Callable[[Any], dict],
+        curve_csv: Path,
+        curve_png: Path,
+        reference: dict | None,
+        t0: float,
+        wall_offset: float = 0.0,
+        on_result: Callable[[Any, dict], None] | None = None,
+    ):
         super().__init__()
         self.on_result = on_result
         self.freq = freq
@@ -77,12 +93,17 @@ class PeriodicEval(BaseCallback):
     def _run(self) -> None:
         self._last = self.model.num_timesteps
         summary = self.evaluate(self.model)
-        row = {"timesteps": self.model.num_timesteps, "wall_s": round(self.wall_offset + time.time() - self.t0, 1),
-               **{k: summary[k] for k in CURVE_FIELDS[2:]}}
+        row = {
+            "timesteps": self.model.num_timesteps,
+            "wall_s": round(self.wall_offset + time.time() - self.t0, 1),
+            **{k: summary[k] for k in CURVE_FIELDS[2:]},
+        }
         append_curve_row(self.curve_csv, row)
         log.info(
             "eval @ %d steps: median RMS %.1f mm, median max %.1f mm, success %.0f%%",
-            row["timesteps"], 1e3 * row["median_rms_error_m"], 1e3 * row["median_max_error_m"],
+            row["timesteps"],
+            1e3 * row["median_rms_error_m"],
+            1e3 * row["median_max_error_m"],
             100 * row["success_rate"],
         )
         if self.logger is not None:
@@ -129,12 +150,17 @@ def curve_figure(rows: list[dict], reference: dict | None = None, title: str = "
     ax = fig.add_subplot(1, 1, 1)
     x = [r["timesteps"] for r in rows]
     ax.plot(x, [1e3 * r["median_rms_error_m"] for r in rows], "o-", label="median RMS error")
-    ax.fill_between(x, [1e3 * r["median_rms_error_m"] for r in rows], [1e3 * r["max_rms_error_m"] for r in rows],
-                    alpha=0.2, label="median..worst RMS")
+    ax.fill_between(
+        x,
+        [1e3 * r["median_rms_error_m"] for r in rows],
+        [1e3 * r["max_rms_error_m"] for r in rows],
+        alpha=0.2,
+        label="median..worst RMS",
+    )
     ax.plot(x, [1e3 * r["median_max_error_m"] for r in rows], "s--", label="median max error")
     if reference:
         ax.axhline(1e3 * reference["median_rms_error_m"], color="k", ls=":", label="zero policy RMS")
-        ax.axhline(1e3 * reference["median_rms_error_m"] / 4, color="r", ls=":", label="zero / 4 (\"learns\")")
+        ax.axhline(1e3 * reference["median_rms_error_m"] / 4, color="r", ls=":", label='zero / 4 ("learns")')
     ax.set_yscale("log")
     ax.set_xlabel("env steps")
     ax.set_ylabel("tracking error (mm)")

@@ -27,7 +27,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="mobman-train",
         description="Train a Stable-Baselines3 agent on a mobman env; the run folder holds model.zip, "
-                    "vecnormalize.pkl and config.json, which `mobman-eval run --policy sb3:DIR/model.zip` loads.",
+        "vecnormalize.pkl and config.json, which `mobman-eval run --policy sb3:DIR/model.zip` loads.",
     )
     p.add_argument("--algo", choices=algos.algo_names(), help=f"algorithm (default {d.algo})")
     p.add_argument("--env", dest="env_id", metavar="ID", help=f"env id (default {d.env_id})")
@@ -37,19 +37,37 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", metavar="DIR", help="run folder (default runs/train-<algo>-<task>-<timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out")
     p.add_argument("--dynamics", choices=("kinematic", "physics"), help=f"env dynamics (default {d.dynamics})")
-    p.add_argument("--env-kwargs", metavar="JSON",
-                   help=f"extra env arguments as a JSON object, merged over the learning defaults "
-                        f"{json.dumps(LEARNING_ENV_KWARGS)} (use null to unset one, e.g. {{\"error_bound\": null}})")
+    p.add_argument(
+        "--env-kwargs",
+        metavar="JSON",
+        help=f"extra env arguments as a JSON object, merged over the learning defaults "
+        f'{json.dumps(LEARNING_ENV_KWARGS)} (use null to unset one, e.g. {{"error_bound": null}})',
+    )
     p.add_argument("--alive-bonus", type=float, metavar="R", help=f"training reward per step (default {d.alive_bonus})")
-    p.add_argument("--hyperparams", metavar="FILE",
-                   help="YAML or JSON file of hyperparameters overriding the algorithm's defaults: a flat mapping, "
-                        "or zoo-style a mapping per algorithm name")
-    p.add_argument("--eval-freq", type=int, metavar="N",
-                   help=f"evaluate on development seeds every N steps, 0: never (default {d.eval_freq})")
-    p.add_argument("--eval-episodes", type=int, metavar="N", help=f"episodes per evaluation (default {d.eval_episodes})")
-    p.add_argument("--final-eval-episodes", type=int, metavar="N",
-                   help=f"episodes of the final evaluation on reported seeds, 0: skip (default {d.final_eval_episodes})")
-    p.add_argument("--checkpoint-freq", type=int, metavar="N", help=f"checkpoint every N steps (default {d.checkpoint_freq})")
+    p.add_argument(
+        "--hyperparams",
+        metavar="FILE",
+        help="YAML or JSON file of hyperparameters overriding the algorithm's defaults: a flat mapping, "
+        "or zoo-style a mapping per algorithm name",
+    )
+    p.add_argument(
+        "--eval-freq",
+        type=int,
+        metavar="N",
+        help=f"evaluate on development seeds every N steps, 0: never (default {d.eval_freq})",
+    )
+    p.add_argument(
+        "--eval-episodes", type=int, metavar="N", help=f"episodes per evaluation (default {d.eval_episodes})"
+    )
+    p.add_argument(
+        "--final-eval-episodes",
+        type=int,
+        metavar="N",
+        help=f"episodes of the final evaluation on reported seeds, 0: skip (default {d.final_eval_episodes})",
+    )
+    p.add_argument(
+        "--checkpoint-freq", type=int, metavar="N", help=f"checkpoint every N steps (default {d.checkpoint_freq})"
+    )
     p.add_argument("--torch-threads", type=int, metavar="T", help=f"torch threads (default {d.torch_threads})")
     p.add_argument("--device", help=f"torch device (default {d.device})")
     p.add_argument("--tensorboard", action="store_true", help="write TensorBoard logs to DIR/tensorboard")
@@ -72,22 +90,38 @@ def load_hyperparams(path: str, algo: str) -> dict:
             import yaml
 
             data = yaml.safe_load(text)
-    except Exception as exc:  # noqa: BLE001 - any parse error is a bad argument
+    except Exception as exc:
         raise ValueError(f"--hyperparams {path}: cannot parse ({exc})") from None
     if not isinstance(data, dict):
         raise ValueError(f"--hyperparams {path}: expected a mapping of hyperparameters, got {type(data).__name__}")
     if set(data) & set(algos.ALGOS):
         if algo not in data:
-            raise ValueError(f"--hyperparams {path} has entries for {sorted(set(data) & set(algos.ALGOS))} but not "
-                             f"for --algo {algo}")
+            raise ValueError(
+                f"--hyperparams {path} has entries for {sorted(set(data) & set(algos.ALGOS))} but not for --algo {algo}"
+            )
         data = data[algo]
     return dict(data or {})
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
     fields = {}
-    for name in ("algo", "env_id", "timesteps", "n_envs", "seed", "out", "dynamics", "alive_bonus", "eval_freq",
-                 "eval_episodes", "final_eval_episodes", "checkpoint_freq", "torch_threads", "device", "verbose"):
+    for name in (
+        "algo",
+        "env_id",
+        "timesteps",
+        "n_envs",
+        "seed",
+        "out",
+        "dynamics",
+        "alive_bonus",
+        "eval_freq",
+        "eval_episodes",
+        "final_eval_episodes",
+        "checkpoint_freq",
+        "torch_threads",
+        "device",
+        "verbose",
+    ):
         value = getattr(args, name)
         if value is not None:
             fields[name] = value
@@ -98,8 +132,9 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
         try:
             extra = json.loads(args.env_kwargs)
         except json.JSONDecodeError as exc:
-            raise ValueError(f"--env-kwargs is not valid JSON ({exc}): {args.env_kwargs!r}; "
-                             f"e.g. '{{\"model_error\": 0.0}}'") from None
+            raise ValueError(
+                f"--env-kwargs is not valid JSON ({exc}): {args.env_kwargs!r}; e.g. '{{\"model_error\": 0.0}}'"
+            ) from None
         if not isinstance(extra, dict):
             raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
         merged = {**json.loads(json.dumps(LEARNING_ENV_KWARGS)), **extra}
@@ -116,11 +151,14 @@ def main(argv: list[str] | None = None) -> int:
 
     try:
         if args.resume:
-            given = [a for a, v in vars(args).items()
-                     if a not in RESUME_OPTIONS + ("resume",) and v not in (None, False)]
+            given = [
+                a for a, v in vars(args).items() if a not in RESUME_OPTIONS + ("resume",) and v not in (None, False)
+            ]
             if given:
-                raise ValueError(f"--resume takes its settings from the run's config.json; only --timesteps and "
-                                 f"--no-progress may be given with it, not {', '.join('--' + g.replace('_', '-') for g in given)}")
+                raise ValueError(
+                    f"--resume takes its settings from the run's config.json; only --timesteps and "
+                    f"--no-progress may be given with it, not {', '.join('--' + g.replace('_', '-') for g in given)}"
+                )
             summary = resume(args.resume, timesteps=args.timesteps, progress_bar=False if args.no_progress else None)
         else:
             summary = run(config_from_args(args))
@@ -132,8 +170,11 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     print(json.dumps({k: v for k, v in summary.items() if k != "final_eval_error"}, indent=2))
     if "final_eval_error" in summary:
-        print("mobman-train: training finished and the model is saved, but the final evaluation failed (see "
-              f"{summary['run_dir']}/train.log)", file=sys.stderr)
+        print(
+            "mobman-train: training finished and the model is saved, but the final evaluation failed (see "
+            f"{summary['run_dir']}/train.log)",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

@@ -195,7 +195,7 @@ def _check_int(value: Any, name: str, minimum: int, hint: str) -> None:
 def _check_env_id(env_id: str) -> None:
     import gymnasium as gym
 
-    import mobman_env  # noqa: F401  (registers the ids)
+    import mobman_env
 
     if env_id not in gym.registry:
         raise ValueError(f"unknown env id {env_id!r}; known: {', '.join(mobman_env.ENV_IDS)}")

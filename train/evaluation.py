@@ -37,16 +37,18 @@ def summarize(records: list[dict]) -> dict:
     }
 
 
-def evaluate(env_id: str, env_kwargs: dict, policy: Any, first_seed: int, episodes: int, tolerance: float,
-             name: str = "agent") -> dict:
+def evaluate(
+    env_id: str, env_kwargs: dict, policy: Any, first_seed: int, episodes: int, tolerance: float, name: str = "agent"
+) -> dict:
     """Roll `policy` out on seeds first_seed .. first_seed + episodes - 1 (in this process); the summary plus
     the per-episode records under "episodes"."""
     from eval.rollout import make_env, rollout
 
     env = make_env(env_id, env_kwargs=env_kwargs)
     try:
-        records = [rollout(env, policy, first_seed + k, tolerance=tolerance, meta={"policy": name})[0]
-                   for k in range(episodes)]
+        records = [
+            rollout(env, policy, first_seed + k, tolerance=tolerance, meta={"policy": name})[0] for k in range(episodes)
+        ]
     finally:
         env.close()
     return {**summarize(records), "episodes": [_slim(r) for r in records]}
@@ -57,8 +59,9 @@ def _slim(rec: dict) -> dict:
     return {k: rec.get(k) for k in keys}
 
 
-def final_evaluation(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int,
-                     tolerance: float) -> dict:
+def final_evaluation(
+    env_id: str, eval_env_kwargs: dict, run_dir: Path, first_seed: int, episodes: int, tolerance: float
+) -> dict:
     """`eval.run` on the saved agent (`agent`), the best one on the development seeds if saved (`best`) and
     `zero` (files in run_dir/final_eval); a summary per policy."""
     from eval import run as eval_run
@@ -67,20 +70,24 @@ def final_evaluation(env_id: str, eval_env_kwargs: dict, run_dir: Path, first_se
     agents = {"agent": run_dir / "model.zip"}
     if (run_dir / "best" / "model.zip").is_file():
         agents["best"] = run_dir / "best" / "model.zip"
-    cfg = eval_config(env_id, eval_env_kwargs, list(agents.values()), run_dir / "final_eval", first_seed, episodes,
-                      tolerance)
+    cfg = eval_config(
+        env_id, eval_env_kwargs, list(agents.values()), run_dir / "final_eval", first_seed, episodes, tolerance
+    )
     result = eval_run(cfg)
     by_policy: dict[str, list[dict]] = {}
     for rec in result.episodes:
         by_policy.setdefault(rec["policy"], []).append(rec)
     names = dict(zip(cfg.policies, [*agents, "zero"]))
-    out = {names[spec]: {**summarize(recs), "spec": spec, "episodes": [_slim(r) for r in recs]}
-           for spec, recs in by_policy.items()}
+    out = {
+        names[spec]: {**summarize(recs), "spec": spec, "episodes": [_slim(r) for r in recs]}
+        for spec, recs in by_policy.items()
+    }
     return {**out, "eval_out": str(cfg.out), "eval_config": cfg.to_dict(), "eval_command": eval_command(cfg)}
 
 
-def eval_config(env_id: str, eval_env_kwargs: dict, models: list[Path], out: Path, first_seed: int, episodes: int,
-                tolerance: float):
+def eval_config(
+    env_id: str, eval_env_kwargs: dict, models: list[Path], out: Path, first_seed: int, episodes: int, tolerance: float
+):
     """The EvalConfig of `mobman-eval run` for these saved agents plus `zero`."""
     from eval import EvalConfig
 
@@ -88,9 +95,21 @@ def eval_config(env_id: str, eval_env_kwargs: dict, models: list[Path], out: Pat
     dynamics = kw.pop("dynamics", "physics")
     model_error = kw.pop("model_error", None)
     obs_noise = kw.pop("obs_noise", None)
-    return EvalConfig(envs=(env_id,), policies=(*(f"sb3:{m}" for m in models), "zero"), episodes=episodes,
-                      seed=first_seed, out=str(out), overwrite=True, dynamics=(dynamics,), model_error=model_error,
-                      obs_noise=obs_noise, env_kwargs=kw, tolerance=tolerance, save_arrays="first", progress=False)
+    return EvalConfig(
+        envs=(env_id,),
+        policies=(*(f"sb3:{m}" for m in models), "zero"),
+        episodes=episodes,
+        seed=first_seed,
+        out=str(out),
+        overwrite=True,
+        dynamics=(dynamics,),
+        model_error=model_error,
+        obs_noise=obs_noise,
+        env_kwargs=kw,
+        tolerance=tolerance,
+        save_arrays="first",
+        progress=False,
+    )
 
 
 def eval_command(cfg) -> str:

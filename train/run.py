@@ -33,12 +33,19 @@ from typing import Any
 import gymnasium as gym
 
 from train import algos
-from train.callbacks import (CheckpointSaver, PeriodicEval, read_curve, truncate_curve, write_curve_png,
-                             write_json)
+from train.callbacks import CheckpointSaver, PeriodicEval, read_curve, truncate_curve, write_curve_png, write_json
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
-from train.runfolder import (latest_checkpoint, load_run_config, prepare_out, run_config_dict, save_checkpoint,
-                             save_final, save_if_best, setup_logging)
+from train.runfolder import (
+    latest_checkpoint,
+    load_run_config,
+    prepare_out,
+    run_config_dict,
+    save_checkpoint,
+    save_final,
+    save_if_best,
+    setup_logging,
+)
 from train.wrappers import AgentObservation, AliveBonus
 
 log = logging.getLogger("train")
@@ -48,15 +55,18 @@ class TrainingInterrupted(Exception):
     """Training stopped by Ctrl-C after saving a checkpoint; `.run_dir`, `.timesteps`."""
 
     def __init__(self, run_dir: Path, timesteps: int):
-        super().__init__(f"interrupted at {timesteps} steps; checkpoint saved in {run_dir}; continue with "
-                         f"`mobman-train --resume {run_dir}`")
+        super().__init__(
+            f"interrupted at {timesteps} steps; checkpoint saved in {run_dir}; continue with "
+            f"`mobman-train --resume {run_dir}`"
+        )
         self.run_dir = run_dir
         self.timesteps = timesteps
 
 
 # --- envs -------------------------------------------------------------------------------------------------
-def _make_env(env_id: str, env_kwargs: dict, wrappers: tuple, obs_keys: tuple, alive_bonus: float,
-              in_subprocess: bool) -> gym.Env:
+def _make_env(
+    env_id: str, env_kwargs: dict, wrappers: tuple, obs_keys: tuple, alive_bonus: float, in_subprocess: bool
+) -> gym.Env:
     if in_subprocess:  # Ctrl-C goes to the whole process group: only the parent handles it
         signal.signal(signal.SIGINT, signal.SIG_IGN)
     env = gym.make(f"mobman_env:{env_id}", **env_kwargs)
@@ -71,8 +81,12 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     sub = config.n_envs > 1
-    fns = [functools.partial(_make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys,
-                             config.alive_bonus, sub) for _ in range(config.n_envs)]
+    fns = [
+        functools.partial(
+            _make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys, config.alive_bonus, sub
+        )
+        for _ in range(config.n_envs)
+    ]
     venv = SubprocVecEnv(fns) if sub else DummyVecEnv(fns)
     venv.seed(config.seed + seed_offset)
     return venv
@@ -98,8 +112,15 @@ def _periodic_evaluator(config: TrainConfig):
 
     def _evaluate(model: Any) -> dict:
         agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys)
-        return evaluate(config.env_id, config.eval_env_kwargs, agent, config.eval_seed, config.eval_episodes,
-                        config.tolerance, name=config.algo)
+        return evaluate(
+            config.env_id,
+            config.eval_env_kwargs,
+            agent,
+            config.eval_seed,
+            config.eval_episodes,
+            config.tolerance,
+            name=config.algo,
+        )
 
     return _evaluate
 
@@ -109,10 +130,17 @@ def final_evaluation(config: TrainConfig, out: Path) -> dict:
     benchmark's env settings on the reported seeds; write `final_eval.json` (the report is in `final_eval/`)."""
     from train.evaluation import final_evaluation as _final
 
-    result = _final(config.env_id, config.eval_env_kwargs, out, config.final_eval_seed,
-                    config.final_eval_episodes, config.tolerance)
-    result = {"env_id": config.env_id, "env_kwargs": config.eval_env_kwargs, "first_seed": config.final_eval_seed,
-              "episodes": config.final_eval_episodes, "tolerance_m": config.tolerance, **result}
+    result = _final(
+        config.env_id, config.eval_env_kwargs, out, config.final_eval_seed, config.final_eval_episodes, config.tolerance
+    )
+    result = {
+        "env_id": config.env_id,
+        "env_kwargs": config.eval_env_kwargs,
+        "first_seed": config.final_eval_seed,
+        "episodes": config.final_eval_episodes,
+        "tolerance_m": config.tolerance,
+        **result,
+    }
     write_json(out / "final_eval.json", result)
     return result
 
@@ -122,8 +150,13 @@ def _build_model(config: TrainConfig, venv: Any, out: Path) -> Any:
     spec = algos.get(config.algo)
     kwargs = algos.build_kwargs(config.algo, config.resolved_hyperparams, venv.action_space.shape[0])
     model = spec.load_class()(
-        "MultiInputPolicy", venv, seed=config.seed, device=config.device, verbose=config.verbose,
-        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None, **kwargs,
+        "MultiInputPolicy",
+        venv,
+        seed=config.seed,
+        device=config.device,
+        verbose=config.verbose,
+        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+        **kwargs,
     )
     if spec.off_policy and config.actor_out_scale != 1.0:
         scale_actor_output(model, config.actor_out_scale)
@@ -150,8 +183,12 @@ def _wrap_normalize(config: TrainConfig, venv: Any) -> Any:
 
     if not (config.normalize_obs or config.do_normalize_reward):
         return venv
-    return VecNormalize(venv, norm_obs=config.normalize_obs, norm_reward=config.do_normalize_reward,
-                        gamma=float(config.resolved_hyperparams.get("gamma", 0.99)))
+    return VecNormalize(
+        venv,
+        norm_obs=config.normalize_obs,
+        norm_reward=config.do_normalize_reward,
+        gamma=float(config.resolved_hyperparams.get("gamma", 0.99)),
+    )
 
 
 def _prepare(config: TrainConfig) -> None:
@@ -161,8 +198,10 @@ def _prepare(config: TrainConfig) -> None:
         import importlib.util
 
         if importlib.util.find_spec("tensorboard") is None:
-            raise ValueError("--tensorboard needs the tensorboard package, which is not installed: "
-                             "pip install tensorboard (or mobman[rl]), or drop --tensorboard")
+            raise ValueError(
+                "--tensorboard needs the tensorboard package, which is not installed: "
+                "pip install tensorboard (or mobman[rl]), or drop --tensorboard"
+            )
     probe_envs(config)
 
 
@@ -178,8 +217,16 @@ def run(config: TrainConfig) -> dict:
     torch.set_num_threads(config.torch_threads)
     venv = _wrap_normalize(config, VecMonitor(make_vec_env(config), str(out / "monitor.csv")))
     model = _build_model(config, venv, out)
-    log.info("training %s on %s (%s) for %d steps, %d env(s), seed %d -> %s", config.algo, config.env_id,
-             config.dynamics, config.timesteps, config.n_envs, config.seed, out)
+    log.info(
+        "training %s on %s (%s) for %d steps, %d env(s), seed %d -> %s",
+        config.algo,
+        config.env_id,
+        config.dynamics,
+        config.timesteps,
+        config.n_envs,
+        config.seed,
+        out,
+    )
     return _train(config, model, out, wall_offset=0.0)
 
 
@@ -200,8 +247,10 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
     if ckpt is None:
         raise ValueError(f"{out} has no checkpoint (checkpoints/latest.json) to resume from; start a new run")
     if ckpt["steps"] >= config.timesteps:
-        raise ValueError(f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
-                         f"--timesteps to train further")
+        raise ValueError(
+            f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
+            f"--timesteps to train further"
+        )
     _prepare(config)
     setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
@@ -212,7 +261,9 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
         venv.training = True
     spec = algos.get(config.algo)
     model = spec.load_class().load(
-        out / "checkpoints" / ckpt["model"], env=venv, device=config.device,
+        out / "checkpoints" / ckpt["model"],
+        env=venv,
+        device=config.device,
         tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
     )
     if ckpt["replay_buffer"]:
@@ -232,16 +283,32 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     from train.evaluation import evaluate
 
     off_policy = algos.get(config.algo).off_policy
-    reference = evaluate(config.env_id, config.eval_env_kwargs, ZeroPolicy(), config.eval_seed,
-                         max(config.eval_episodes, 1), config.tolerance, name="zero")
+    reference = evaluate(
+        config.env_id,
+        config.eval_env_kwargs,
+        ZeroPolicy(),
+        config.eval_seed,
+        max(config.eval_episodes, 1),
+        config.tolerance,
+        name="zero",
+    )
     t0 = time.time()
     start_steps = int(model.num_timesteps)
-    callbacks = CallbackList([
-        CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
-        PeriodicEval(config.eval_freq, _periodic_evaluator(config), out / "learning_curve.csv",
-                     out / "learning_curve.png", reference, t0, wall_offset,
-                     on_result=lambda m, row: save_if_best(m, row, config, out)),
-    ])
+    callbacks = CallbackList(
+        [
+            CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
+            PeriodicEval(
+                config.eval_freq,
+                _periodic_evaluator(config),
+                out / "learning_curve.csv",
+                out / "learning_curve.png",
+                reference,
+                t0,
+                wall_offset,
+                on_result=lambda m, row: save_if_best(m, row, config, out),
+            ),
+        ]
+    )
     if not config.tensorboard:
         # SB3 would otherwise create an empty /tmp/SB3-<date> folder for its logger on every learn()
         from stable_baselines3.common.logger import configure
@@ -249,8 +316,13 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
         model.set_logger(configure(str(out), ["stdout", "csv"] if config.verbose else ["csv"]))
     status = "done"
     try:
-        model.learn(total_timesteps=config.timesteps - model.num_timesteps, callback=callbacks,
-                    progress_bar=config.progress_bar, reset_num_timesteps=False, tb_log_name=config.algo)
+        model.learn(
+            total_timesteps=config.timesteps - model.num_timesteps,
+            callback=callbacks,
+            progress_bar=config.progress_bar,
+            reset_num_timesteps=False,
+            tb_log_name=config.algo,
+        )
     except KeyboardInterrupt:
         status = "interrupted"
         log.info("Ctrl-C at %d steps: saving", model.num_timesteps)
@@ -264,9 +336,13 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
         signal.signal(signal.SIGINT, previous)
         close_vec_env(model.get_env(), interrupted=(status == "interrupted"))
     wall = wall_offset + time.time() - t0
-    summary: dict[str, Any] = {"status": status, "timesteps": int(model.num_timesteps), "wall_s": round(wall, 1),
-                               "run_dir": str(out),
-                               "steps_per_s_this_session": round((model.num_timesteps - start_steps) / max(time.time() - t0, 1e-9), 1)}
+    summary: dict[str, Any] = {
+        "status": status,
+        "timesteps": int(model.num_timesteps),
+        "wall_s": round(wall, 1),
+        "run_dir": str(out),
+        "steps_per_s_this_session": round((model.num_timesteps - start_steps) / max(time.time() - t0, 1e-9), 1),
+    }
     if status == "done":
         if config.eval_freq:
             _final_curve_point(config, out, model, reference, t0, wall_offset)
@@ -279,24 +355,47 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
 
                 from train.evaluation import eval_command, eval_config
 
-                cmd = eval_command(eval_config(config.env_id, config.eval_env_kwargs, [out / "model.zip"],
-                                               out / "final_eval", config.final_eval_seed,
-                                               config.final_eval_episodes, config.tolerance))
+                cmd = eval_command(
+                    eval_config(
+                        config.env_id,
+                        config.eval_env_kwargs,
+                        [out / "model.zip"],
+                        out / "final_eval",
+                        config.final_eval_seed,
+                        config.final_eval_episodes,
+                        config.tolerance,
+                    )
+                )
                 summary["final_eval_error"] = traceback.format_exc()
-                log.error("final evaluation failed (the model is saved); rerun it with:\n  %s\n%s", cmd,
-                          summary["final_eval_error"])
+                log.error(
+                    "final evaluation failed (the model is saved); rerun it with:\n  %s\n%s",
+                    cmd,
+                    summary["final_eval_error"],
+                )
         if fe is not None:
-            summary["final_eval"] = {**{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
-                                     "first_seed": fe["first_seed"], "episodes": fe["episodes"],
-                                     "eval_command": fe["eval_command"]}
-            log.info("final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, "
-                     "success %.0f%%", fe["first_seed"], fe["first_seed"] + fe["episodes"] - 1, config.dynamics,
-                     1e3 * fe["agent"]["median_rms_error_m"], 1e3 * fe["zero"]["median_rms_error_m"],
-                     1e3 * fe["agent"]["median_max_error_m"], 100 * fe["agent"]["success_rate"])
+            summary["final_eval"] = {
+                **{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
+                "first_seed": fe["first_seed"],
+                "episodes": fe["episodes"],
+                "eval_command": fe["eval_command"],
+            }
+            log.info(
+                "final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, success %.0f%%",
+                fe["first_seed"],
+                fe["first_seed"] + fe["episodes"] - 1,
+                config.dynamics,
+                1e3 * fe["agent"]["median_rms_error_m"],
+                1e3 * fe["zero"]["median_rms_error_m"],
+                1e3 * fe["agent"]["median_max_error_m"],
+                100 * fe["agent"]["success_rate"],
+            )
             if "best" in fe:
-                log.info("final eval of best/ (dev-seed selection): median RMS %.1f mm, median max %.1f mm, "
-                         "success %.0f%%", 1e3 * fe["best"]["median_rms_error_m"],
-                         1e3 * fe["best"]["median_max_error_m"], 100 * fe["best"]["success_rate"])
+                log.info(
+                    "final eval of best/ (dev-seed selection): median RMS %.1f mm, median max %.1f mm, success %.0f%%",
+                    1e3 * fe["best"]["median_rms_error_m"],
+                    1e3 * fe["best"]["median_max_error_m"],
+                    100 * fe["best"]["success_rate"],
+                )
     write_json(out / "summary.json", summary)
     if status == "interrupted":
         raise TrainingInterrupted(out, int(model.num_timesteps))
@@ -328,9 +427,14 @@ def _final_curve_point(config, out, model, reference, t0, wall_offset) -> None:
     if rows and int(rows[-1]["timesteps"]) == model.num_timesteps:
         return
     s = _periodic_evaluator(config)(model)
-    row = {"timesteps": model.num_timesteps, "wall_s": round(wall_offset + time.time() - t0, 1),
-           **{k: s[k] for k in ("median_rms_error_m", "max_rms_error_m", "median_max_error_m", "max_max_error_m",
-                                "success_rate")}}
+    row = {
+        "timesteps": model.num_timesteps,
+        "wall_s": round(wall_offset + time.time() - t0, 1),
+        **{
+            k: s[k]
+            for k in ("median_rms_error_m", "max_rms_error_m", "median_max_error_m", "max_max_error_m", "success_rate")
+        },
+    }
     append_curve_row(out / "learning_curve.csv", row)
     save_if_best(model, row, config, out)
     write_curve_png(out / "learning_curve.csv", out / "learning_curve.png", reference)
@@ -338,4 +442,3 @@ def _final_curve_point(config, out, model, reference, t0, wall_offset) -> None:
 
 def _drop_episodes(summary: dict) -> dict:
     return {k: v for k, v in summary.items() if k != "episodes"}
-

@@ -30,8 +30,10 @@ def prepare_out(config: TrainConfig) -> Path:
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out} exists and is not a folder; choose another --out")
     if out.is_dir() and any(out.iterdir()) and not config.overwrite:
-        raise ValueError(f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
-                         f"continue it with --resume {out}")
+        raise ValueError(
+            f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
+            f"continue it with --resume {out}"
+        )
     out.mkdir(parents=True, exist_ok=True)
     return out
 
@@ -41,15 +43,25 @@ def versions() -> dict:
     import stable_baselines3
     import torch
 
-    return {"python": sys.version.split()[0], "stable_baselines3": stable_baselines3.__version__,
-            "torch": torch.__version__, "gymnasium": gym.__version__, "numpy": numpy.__version__}
+    return {
+        "python": sys.version.split()[0],
+        "stable_baselines3": stable_baselines3.__version__,
+        "torch": torch.__version__,
+        "gymnasium": gym.__version__,
+        "numpy": numpy.__version__,
+    }
 
 
 def run_config_dict(config: TrainConfig) -> dict:
     """What `config.json` holds."""
-    return {"schema": CONFIG_SCHEMA, **config.to_dict(), "hyperparams_resolved": config.resolved_hyperparams,
-            "env_make_kwargs": config.train_env_kwargs, "eval_env_kwargs": config.eval_env_kwargs,
-            "versions": versions()}
+    return {
+        "schema": CONFIG_SCHEMA,
+        **config.to_dict(),
+        "hyperparams_resolved": config.resolved_hyperparams,
+        "env_make_kwargs": config.train_env_kwargs,
+        "eval_env_kwargs": config.eval_env_kwargs,
+        "versions": versions(),
+    }
 
 
 def load_run_config(run_dir: Path | str) -> TrainConfig:
@@ -115,8 +127,15 @@ def save_if_best(model: Any, row: dict, config: TrainConfig, out: Path) -> bool:
     best_dir.mkdir(exist_ok=True)
     save_final(model, best_dir)
     write_json(best_dir / "config.json", run_config_dict(config))
-    write_json(info_path, {"timesteps": int(row["timesteps"]), "selected_by": f"lowest {BEST_KEY} on development "
-                           f"seeds {config.eval_seed}..{config.eval_seed + config.eval_episodes - 1}", **row})
+    write_json(
+        info_path,
+        {
+            "timesteps": int(row["timesteps"]),
+            "selected_by": f"lowest {BEST_KEY} on development "
+            f"seeds {config.eval_seed}..{config.eval_seed + config.eval_episodes - 1}",
+            **row,
+        },
+    )
     return True
 
 
