@@ -13,6 +13,26 @@ Conventions (SI units throughout; the Markdown and console reports convert to mm
   separately (the command the env applied, after its own clipping).
 * Success: the episode ran to its end (`status == "ok"`, not tipped over) and its max error is <= the tolerance
   (default 6 mm, the paper's figure). A failed episode is never a success.
+* Steady-state errors (`steady_max_error_m`, `steady_rms_error_m`): max and RMS of e_k over the samples with
+  t_k >= the settle time (default `DEFAULT_SETTLE_TIME` = 0.5 s), so a start-up transient (NNBC's probe, a
+  controller converging from its initial estimate) is visible beside the whole-episode figures and separable
+  from them. None when the episode ended before the settle time.
+
+Statistics over episodes (results.json schema 2; all pure functions with fixed seeds):
+
+* IQM, the interquartile mean: `scipy.stats.trim_mean(x, 0.25)`, i.e. sort the n values, cut
+  floor(0.25 n) from each end and average the rest (for n = 20: the middle 10 values; n = 5: the middle 3).
+  This is rliable's `aggregate_iqm` (Agarwal et al., "Deep RL at the edge of the statistical precipice",
+  NeurIPS 2021), which calls that same scipy function; it is not the fractionally weighted variant.
+* Its 95% confidence interval: a stratified percentile bootstrap (`BOOTSTRAP_RESAMPLES` = 2000 resamples from
+  `np.random.default_rng(BOOTSTRAP_SEED)`): each resample draws, within every stratum (a task or condition
+  pooled into one figure; one stratum for a single condition), as many values with replacement as the
+  stratum has, pools them and takes the IQM; the interval is the 2.5th and 97.5th percentile of the
+  resampled IQMs (rliable's `StratifiedBootstrap`, percentile method). Same values, same interval.
+* Success rate intervals: the Wilson score interval at 95% (z = 1.959964), which, unlike the normal
+  approximation, stays inside [0, 1] and is not empty at 0/n or n/n.
+* `success_curve`: the success rate at every tolerance of `SUCCESS_CURVE_TOLERANCES` (31 points, 10 per decade,
+  0.1 mm to 100 mm; recorded in results.json), so controllers that all pass the 6 mm line are still ranked.
 """
 
 from __future__ import annotations
@@ -26,6 +46,19 @@ import numpy as np
 #: The paper's bound on NNBC's max tracking error (section IV), m.
 DEFAULT_TOLERANCE = 0.006
 
+#: Settle time of the steady-state errors, s: samples with t >= this count (the default of the config field).
+DEFAULT_SETTLE_TIME = 0.5
+
+#: Tolerances of `success_curve`, m: 10 per decade from 0.1 mm to 100 mm (31 points, log-spaced).
+SUCCESS_CURVE_TOLERANCES: tuple[float, ...] = tuple(float(v) for v in np.logspace(-4.0, -1.0, 31))
+
+#: Resamples and generator seed of the bootstrap confidence intervals (fixed: same values, same interval).
+BOOTSTRAP_RESAMPLES = 2000
+BOOTSTRAP_SEED = 20211206  # the day rliable's paper was presented at NeurIPS 2021; any fixed value would do
+
+#: z of a two-sided 95% normal interval, for the Wilson score interval.
+Z95 = 1.959963984540054
+
 #: Episode fields that identify an experimental condition; `aggregate` groups by them.
 GROUP_KEYS = ("env", "policy", "dynamics", "model_error", "obs_noise")
 
@@ -35,12 +68,18 @@ SUMMARY_METRICS = (
     "max_error_m",
     "rms_error_m",
     "final_error_m",
+    "steady_max_error_m",
+    "steady_rms_error_m",
     "effort",
     "peak_joint_speed",
     "peak_wheel_speed",
     "predict_us_median",
     "predict_us_p99",
 )
+
+
+#: Summary metrics that `aggregate` also gives an IQM with its bootstrap CI (`iqm`, `iqm_ci95`).
+IQM_METRICS = ("max_error_m", "steady_max_error_m", "steady_rms_error_m")
 
 
 def error_norm(r_d: np.ndarray, r_a: np.ndarray) -> np.ndarray:
@@ -61,6 +100,17 @@ def rms_error(err: np.ndarray) -> float:
 def final_error(err: np.ndarray) -> float:
     err = np.asarray(err, float)
     return float(err[-1]) if err.size else math.nan
+
+
+def steady_errors(err: np.ndarray, dt: float, settle_time: float = DEFAULT_SETTLE_TIME) -> tuple[float, float]:
+    """(max, RMS) of the error samples e_k with t_k = k dt >= `settle_time` (m); NaN if there are none.
+
+    A sample counts when k dt >= settle_time - 1e-9 s, so a settle time that is a whole number of control
+    steps includes its own sample despite rounding (0.5 s at 100 Hz: samples 50, 51, ...)."""
+    err = np.asarray(err, float)
+    first = max(0, math.ceil(settle_time / dt - 1e-9 / dt)) if dt > 0 else 0
+    tail = err[first:]
+    return max_error(tail), rms_error(tail)
 
 
 def axis_max_error(r_d: np.ndarray, r_a: np.ndarray) -> list[float]:
@@ -115,18 +165,23 @@ def episode_metrics(
     tolerance: float = DEFAULT_TOLERANCE,
     tipped_over: bool = False,
     err: np.ndarray | None = None,
+    settle_time: float = DEFAULT_SETTLE_TIME,
 ) -> dict[str, Any]:
     """All per-episode tracking metrics of one completed rollout, as a dict of plain floats.
 
     `err` is the error norm per sample if it was recorded (the env's exact `info["tracking_error"]`);
-    otherwise it is computed from `r_d` and `r_a`."""
+    otherwise it is computed from `r_d` and `r_a`. The steady-state errors use the samples at t >= `settle_time`
+    (s; sample k is at t = k dt)."""
     err = error_norm(r_d, r_a) if err is None else np.asarray(err, float)
     joint_peak, wheel_peak = peak_speeds(actions, action_scale)
     m = max_error(err)
+    steady_max, steady_rms = steady_errors(err, dt, settle_time)
     return {
         "max_error_m": m,
         "rms_error_m": rms_error(err),
         "final_error_m": final_error(err),
+        "steady_max_error_m": steady_max,
+        "steady_rms_error_m": steady_rms,
         "axis_max_error_m": axis_max_error(r_d, r_a),
         "effort": effort(actions, dt),
         "peak_joint_speed": joint_peak,
@@ -135,9 +190,87 @@ def episode_metrics(
     }
 
 
+def _finite(values: Iterable[float | None]) -> np.ndarray:
+    return np.array([x for x in values if x is not None and math.isfinite(x)], float)
+
+
+def iqm(values: Iterable[float | None]) -> float | None:
+    """Interquartile mean of the finite values: `scipy.stats.trim_mean(x, 0.25)` (rliable's IQM; see the module
+    docstring); None when there are none."""
+    v = np.sort(_finite(values))
+    if v.size == 0:
+        return None
+    cut = int(0.25 * v.size)
+    return float(np.mean(v[cut : v.size - cut]))
+
+
+def _iqm_rows(samples: np.ndarray) -> np.ndarray:
+    """IQM of every row of a (B, n) array (the same trimming as `iqm`)."""
+    n = samples.shape[1]
+    cut = int(0.25 * n)
+    return np.sort(samples, axis=1)[:, cut : n - cut].mean(axis=1)
+
+
+def iqm_ci95(
+    strata: Sequence[Iterable[float | None]],
+    *,
+    resamples: int = BOOTSTRAP_RESAMPLES,
+    seed: int = BOOTSTRAP_SEED,
+) -> list[float] | None:
+    """95% stratified percentile-bootstrap interval [low, high] of the IQM of the pooled strata.
+
+    `strata` is a list of value lists (one per task or condition pooled; a single list for one condition).
+    Each of `resamples` resamples draws len(s) values with replacement within every stratum s (non-finite
+    values dropped first), pools them and takes their IQM; the interval is the 2.5th and 97.5th percentile
+    of those IQMs. A fixed `seed` makes it a pure function. None when no stratum has a value."""
+    groups = [g for g in (_finite(s) for s in strata) if g.size]
+    if not groups:
+        return None
+    rng = np.random.default_rng(seed)
+    parts = [g[rng.integers(0, g.size, size=(resamples, g.size))] for g in groups]
+    stats = _iqm_rows(np.concatenate(parts, axis=1))
+    low, high = np.percentile(stats, [2.5, 97.5])
+    return [float(low), float(high)]
+
+
+def wilson_interval(successes: int, n: int, z: float = Z95) -> list[float] | None:
+    """Wilson score interval [low, high] of a success rate (95% for the default z); None when n == 0."""
+    if n <= 0:
+        return None
+    p = successes / n
+    denom = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / denom
+    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / denom
+    # exact at the ends: 0/n has low 0 and n/n has high 1 (the formula gives them up to rounding)
+    low = 0.0 if successes == 0 else max(0.0, centre - half)
+    high = 1.0 if successes == n else min(1.0, centre + half)
+    return [low, high]
+
+
+def success_curve(records: Sequence[dict], tolerances: Sequence[float] = SUCCESS_CURVE_TOLERANCES) -> list[float]:
+    """Success rate of `records` at every tolerance (m), by `is_success`'s rule on each record's max error,
+    status and tipping; failed episodes count as failures. [] when there are no records."""
+    if not records:
+        return []
+    errs = np.array(
+        [
+            r["max_error_m"]
+            if r.get("status") == "ok"
+            and not r.get("tipped_over")
+            and r.get("max_error_m") is not None
+            and math.isfinite(r["max_error_m"])
+            else math.inf
+            for r in records
+        ],
+        float,
+    )
+    tol = np.asarray(tolerances, float)
+    return [float(v) for v in (errs[None, :] <= tol[:, None]).mean(axis=1)]
+
+
 def describe(values: Iterable[float | None]) -> dict[str, float | None]:
     """median / mean / std (population) / min / max of the finite values; None when there are none."""
-    v = np.array([x for x in values if x is not None and math.isfinite(x)], float)
+    v = _finite(values)
     if v.size == 0:
         return {"median": None, "mean": None, "std": None, "min": None, "max": None}
     return {
@@ -150,11 +283,19 @@ def describe(values: Iterable[float | None]) -> dict[str, float | None]:
 
 
 def aggregate(
-    records: Sequence[dict], group_keys: Sequence[str] = GROUP_KEYS, metrics: Sequence[str] = SUMMARY_METRICS
+    records: Sequence[dict],
+    group_keys: Sequence[str] = GROUP_KEYS,
+    metrics: Sequence[str] = SUMMARY_METRICS,
+    *,
+    strata_key: str | None = None,
 ) -> list[dict]:
     """One row per condition (the distinct values of `group_keys`, in first-seen order): n, n_failed,
-    success_rate (successes / n, failed episodes counting as failures) and `describe()` of each metric over the
-    episodes with status "ok"."""
+    success_rate (successes / n, failed episodes counting as failures) with its Wilson 95% interval
+    `success_rate_ci95`, `success_curve` (at `SUCCESS_CURVE_TOLERANCES`), and `describe()` of each metric over
+    the episodes with status "ok"; the metrics of `IQM_METRICS` also get `iqm` and `iqm_ci95`.
+
+    `strata_key` (e.g. "env" when rows pool several tasks) names the record field whose values are the strata
+    of the bootstrap; None: one stratum per row."""
     groups: dict[tuple, list[dict]] = {}
     for rec in records:
         groups.setdefault(tuple(rec.get(k) for k in group_keys), []).append(rec)
@@ -165,8 +306,17 @@ def aggregate(
         row["n"] = len(recs)
         row["n_failed"] = len(recs) - len(ok)
         row["n_tipped_over"] = sum(bool(r.get("tipped_over")) for r in ok)
-        row["success_rate"] = sum(bool(r.get("success")) for r in recs) / len(recs)
+        n_success = sum(bool(r.get("success")) for r in recs)
+        row["success_rate"] = n_success / len(recs)
+        row["success_rate_ci95"] = wilson_interval(n_success, len(recs))
+        row["success_curve"] = success_curve(recs)
         for name in metrics:
             row[name] = describe(r.get(name) for r in ok)
+            if name in IQM_METRICS:
+                strata: dict[Any, list] = {}
+                for r in ok:
+                    strata.setdefault(r.get(strata_key) if strata_key else None, []).append(r.get(name))
+                row[name]["iqm"] = iqm(r.get(name) for r in ok)
+                row[name]["iqm_ci95"] = iqm_ci95(list(strata.values()))
         rows.append(row)
     return rows
