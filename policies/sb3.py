@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-#: Aliases of models shipped as package data: name -> path inside the installed `train` package.
+#: Aliases of models shipped as package data: name -> path inside this package (policies/models/).
 ALIASES = {"sac-circle": "models/sac-circle/model.zip"}
 
 ALGOS = ("ppo", "sac", "td3", "a2c", "ddpg")
@@ -68,20 +68,13 @@ def resolve_model_path(text: str) -> Path:
     """`sac-circle` -> the packaged model; a folder -> its `model.zip`; else the path itself (must exist)."""
     text = text.strip()
     if text in ALIASES:
-        import importlib.resources
-
-        try:
-            root = importlib.resources.files("train")
-        except ModuleNotFoundError:
-            raise FileNotFoundError(
-                f"sb3:{text} is the model shipped with the `train` package, which is not "
-                f"installed; install mobman with `pip install -e .`"
-            ) from None
-        path = Path(str(root.joinpath(ALIASES[text])))
+        # found through this package's own folder, never by importing a package by name: a user's `train.py`
+        # or `policies.py` beside their script cannot hide the shipped models
+        path = Path(__file__).resolve().parent / ALIASES[text]
         if not path.is_file():
             raise FileNotFoundError(
-                f"sb3:{text}: the packaged model {path} is missing (it ships with the train "
-                f"package's baseline); train one with mobman-train and use sb3:DIR/model.zip"
+                f"sb3:{text}: the packaged model {path} is missing (it ships with mobman's policies "
+                f"package); reinstall mobman, or train one with mobman-train and use sb3:DIR/model.zip"
             )
         return path
     if not text:
