@@ -8,8 +8,9 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from eval.errors import EvalError
-from eval.metrics import DEFAULT_TOLERANCE
+from eval.metrics import DEFAULT_SETTLE_TIME, DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
+from mobman_env.validation import number
 
 DYNAMICS_CHOICES = ("physics", "kinematic")
 SAVE_ARRAYS_CHOICES = ("all", "first", "none")
@@ -55,6 +56,9 @@ class EvalConfig:
     """Further env constructor arguments, e.g. {"path": {...}, "n_substeps": 4}."""
     tolerance: float = DEFAULT_TOLERANCE
     """Success threshold on the max tracking error, m (the paper's 6 mm)."""
+    settle_time: float = DEFAULT_SETTLE_TIME
+    """Start of the window of the steady-state errors `steady_max_error_m` / `steady_rms_error_m`, s (the
+    samples with t >= settle_time count; the whole-episode errors are reported beside them)."""
     video: bool = False
     """Also write a video of episode 0 of each policy (first env and dynamics mode)."""
     plots: bool = True
@@ -100,6 +104,7 @@ class EvalConfig:
             raise EvalError(f"dynamics modes repeated: {list(self.dynamics)}")
         if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance) and self.tolerance > 0):
             raise EvalError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
+        number("settle_time", self.settle_time, low=0.0, hint="s, e.g. 0.5 (0: the whole episode)", error=EvalError)
         if self.save_arrays not in SAVE_ARRAYS_CHOICES:
             raise EvalError(f"save_arrays must be one of {', '.join(SAVE_ARRAYS_CHOICES)}, got {self.save_arrays!r}")
         if not isinstance(self.env_kwargs, dict):

@@ -58,6 +58,8 @@ RECORD_KEYS = (
     "max_error_m",
     "rms_error_m",
     "final_error_m",
+    "steady_max_error_m",
+    "steady_rms_error_m",
     "axis_max_error_m",
     "effort",
     "peak_joint_speed",
@@ -104,6 +106,8 @@ def _metrics_none() -> dict[str, Any]:
         "max_error_m": None,
         "rms_error_m": None,
         "final_error_m": None,
+        "steady_max_error_m": None,
+        "steady_rms_error_m": None,
         "axis_max_error_m": None,
         "effort": None,
         "peak_joint_speed": None,
@@ -118,6 +122,7 @@ def rollout(
     seed: int,
     *,
     tolerance: float = M.DEFAULT_TOLERANCE,
+    settle_time: float = M.DEFAULT_SETTLE_TIME,
     meta: dict | None = None,
     on_step: Callable[[int], None] | None = None,
 ) -> tuple[dict, dict | None]:
@@ -126,7 +131,7 @@ def rollout(
     Returns (record, arrays): the episode record of the `results.json` schema (without the fields only the
     caller knows, which it passes in `meta`: env, policy, episode) and the per-step arrays (None if the episode
     failed before its first step). `on_step(k)` is called after the reset (k = 0) and after each step k (used
-    to grab video frames)."""
+    to grab video frames). `settle_time` (s) starts the window of the steady-state errors."""
     base = env.unwrapped
     rec: dict[str, Any] = dict(meta or {})
     rec.update(
@@ -232,6 +237,7 @@ def rollout(
                 tolerance,
                 tipped_over=rec["tipped_over"],
                 err=arrays["error"],
+                settle_time=settle_time,
             )
         )
         rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])

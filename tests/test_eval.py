@@ -36,6 +36,8 @@ EPISODE_KEYS = {
     "max_error_m",
     "rms_error_m",
     "final_error_m",
+    "steady_max_error_m",
+    "steady_rms_error_m",
     "axis_max_error_m",
     "effort",
     "peak_joint_speed",
@@ -58,6 +60,8 @@ AGGREGATE_KEYS = {
     "n",
     "n_failed",
     "success_rate",
+    "success_rate_ci95",
+    "success_curve",
     "max_error_m",
     "rms_error_m",
     "final_error_m",
@@ -90,7 +94,7 @@ def _run_args(out, *extra):
 # --- the CLI end to end -----------------------------------------------------------------------------------
 
 
-def test_main_run_writes_every_output_with_schema_1(tmp_path):
+def test_main_run_writes_every_output_with_schema_2(tmp_path):
     out = tmp_path / "run"
     rc = main(_run_args(out, "--policy", "zero", "--policy", "random", "--episodes", "2"))
     assert rc == 0
@@ -101,8 +105,12 @@ def test_main_run_writes_every_output_with_schema_1(tmp_path):
     assert not [p for p in out.rglob("*.tmp")]  # no temporary file left behind
 
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 1
-    assert {"config", "versions", "git", "episodes", "aggregate"} <= set(res)
+    assert res["schema"] == 2
+    assert {"config", "versions", "git", "provenance", "statistics", "episodes", "aggregate"} <= set(res)
+    prov = res["provenance"]
+    assert prov["cpu"] and prov["numpy"] == np.__version__ and "OPENBLAS_CORETYPE" in prov["env"]
+    assert prov["blas"] and {"internal_api", "version", "architecture", "num_threads"} <= set(prov["blas"][0])
+    assert res["statistics"]["settle_time_s"] == 0.5 and len(res["statistics"]["success_curve_tolerances_m"]) == 31
     assert res["versions"]["gymnasium"] and res["versions"]["pybullet"] and isinstance(res["git"], str)
     assert len(res["episodes"]) == 4
     for rec in res["episodes"]:
@@ -116,7 +124,9 @@ def test_main_run_writes_every_output_with_schema_1(tmp_path):
     assert [(a["policy"], a["n"]) for a in res["aggregate"]] == [("zero", 2), ("random", 2)]
     for agg in res["aggregate"]:
         assert set(agg) >= AGGREGATE_KEYS
-        assert set(agg["max_error_m"]) >= {"median", "mean", "std"}
+        assert set(agg["max_error_m"]) >= {"median", "mean", "std", "iqm", "iqm_ci95"}
+        assert len(agg["success_rate_ci95"]) == 2 and len(agg["success_curve"]) == 31
+        assert agg["steady_max_error_m"]["iqm"] is not None and agg["steady_rms_error_m"]["iqm_ci95"] is not None
 
     # the zero policy leaves the end-effector where it starts: its error is |r_d(t) - r_d(0)|, the whole path
     zero = res["episodes"][0]

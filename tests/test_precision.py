@@ -3,7 +3,7 @@ the measurement (eval.bench.chaos) that the table records."""
 
 import pytest
 
-from eval import precision as P
+from eval.output import precision as P
 from eval.bench import chaos
 
 

@@ -84,7 +84,17 @@ def test_seed_forms_scalars_and_defaults(tmp_path):
     assert sweep.seeds == (5, 6, 7) and sweep.dynamics == ("kinematic",) and sweep.model_error == (0.1,)
     assert sweep.policies == SweepConfig().policies and sweep.obs_noise == (0.0,)
     assert SweepConfig.from_dict({"seeds": [3, 1, 2]}).seeds == (3, 1, 2)
-    assert set(KEYS) == {"envs", "policies", "seeds", "dynamics", "model_error", "obs_noise", "env_kwargs", "tolerance"}
+    assert set(KEYS) == {
+        "envs",
+        "policies",
+        "seeds",
+        "dynamics",
+        "model_error",
+        "obs_noise",
+        "env_kwargs",
+        "tolerance",
+        "settle_time",
+    }
 
 
 @pytest.mark.parametrize(
@@ -143,7 +153,7 @@ def test_sweep_writes_one_tidy_table_in_grid_order_and_plots(uninterrupted):
         f"{ENV}_kinematic_vs_obs_noise.png",
     ]
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 1 and res["config"]["command"] == "sweep" and res["config"]["n_episodes"] == 16
+    assert res["schema"] == 2 and res["config"]["command"] == "sweep" and res["config"]["n_episodes"] == 16
     eps = res["episodes"]
     assert [(r["model_error"], r["obs_noise"], r["policy"], r["seed"]) for r in eps] == [
         (me, on, p, s) for me in (0.0, 0.1) for on in (0.0, 0.002) for p in ("zero", "jmpi") for s in SEEDS

@@ -4,7 +4,7 @@
 the angle of joint 1 moved by `perturbation` rad (env argument `arm_joint_pos`; the path starts at the
 end-effector, so it moves with it by the same ~1e-12 m) and returns the relative changes of the per-episode
 max tracking error. A regular controller changes its result by about the perturbation times a modest factor
-(1e-12 .. 1e-7 relative); a chaotic one by tens of percent or more. `eval.precision.SIGNIFICANT_DIGITS` holds
+(1e-12 .. 1e-7 relative); a chaotic one by tens of percent or more. `eval.output.precision.SIGNIFICANT_DIGITS` holds
 the figures measured with this function.
 
 ```python

@@ -97,7 +97,9 @@ CONDITIONS: dict[str, Condition] = {
             obs_noise=0.001,
             env_kwargs={"obs_noise_vel": 0.01},
         ),
-        Condition("drift", "wear drift: lengths change by 0.5% per second (10% over 20 s)", env_kwargs={"wear_rate": 0.005}),
+        Condition(
+            "drift", "wear drift: lengths change by 0.5% per second (10% over 20 s)", env_kwargs={"wear_rate": 0.005}
+        ),
         Condition("physics", "PyBullet contact dynamics, 5% wear", dynamics="physics"),
         Condition("wear0", "the catalogue robot itself (no wear)", model_error=0.0),
         Condition("wear10", "10% wear", model_error=0.1),
@@ -225,9 +227,7 @@ class BenchConfig:
             for name in DEFAULT_CONDITIONS:
                 miss = missing_arguments(CONDITIONS[name], ids[0])
                 if miss:
-                    notes.append(
-                        f"condition {name!r} left out: this mobman_env has no env argument {', '.join(miss)}"
-                    )
+                    notes.append(f"condition {name!r} left out: this mobman_env has no env argument {', '.join(miss)}")
                 else:
                     conditions.append(name)
         else:
@@ -244,7 +244,10 @@ class BenchConfig:
             raise EvalError("no condition left to run; name some with --conditions")
         clash = sorted(
             set(self.env_kwargs)
-            & ({"dynamics", "model_error", "obs_noise", "render_mode"} | {k for c in conditions for k in CONDITIONS[c].env_kwargs})
+            & (
+                {"dynamics", "model_error", "obs_noise", "render_mode"}
+                | {k for c in conditions for k in CONDITIONS[c].env_kwargs}
+            )
         )
         if clash:
             raise EvalError(f"env_kwargs sets {clash}, which the bench conditions set; remove them")

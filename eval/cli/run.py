@@ -69,6 +69,13 @@ def add_parser(sub) -> None:
         default=default(EvalConfig, "tolerance"),
         help="success threshold on the max tracking error, m",
     )
+    p.add_argument(
+        "--settle-time",
+        type=float,
+        default=default(EvalConfig, "settle_time"),
+        metavar="S",
+        help="steady-state errors (steady_max_error_m, steady_rms_error_m) use the samples at t >= S, s",
+    )
     p.add_argument("--video", action="store_true", help="also write an MP4 (or GIF) of episode 0 per policy")
     p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     p.add_argument(
@@ -97,6 +104,7 @@ def main(args) -> int:
         obs_noise=args.obs_noise,
         env_kwargs=args.env_kwargs,
         tolerance=args.tolerance,
+        settle_time=args.settle_time,
         video=args.video,
         plots=not args.no_plots,
         save_arrays=args.save_arrays,

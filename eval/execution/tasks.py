@@ -87,7 +87,9 @@ class Executor:
                 "pid": os.getpid(),
             }
             return rec, None
-        return rollout(env, pol, task.seed, tolerance=self.config.tolerance, meta=meta)
+        return rollout(
+            env, pol, task.seed, tolerance=self.config.tolerance, settle_time=self.config.settle_time, meta=meta
+        )
 
     def close(self) -> None:
         for env in self._envs.values():

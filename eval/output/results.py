@@ -4,7 +4,7 @@ Files of one run directory:
 
 | file | content |
 |---|---|
-| results.json | schema 1: config, versions, git, episodes (one record each), aggregate (one row per condition); SI |
+| results.json | schema 2: config, versions, git, provenance, statistics, episodes (one record each), aggregate (one row per condition); SI |
 | results.csv | one row per episode, one column per variable (SI units; axis errors split into x/y/z columns) |
 | summary.md | a table per env and dynamics mode, errors in mm |
 | config.json | the resolved config (what the run was asked to do) |
@@ -14,28 +14,45 @@ Files of one run directory:
 Every file is written to a temporary name in the same directory and renamed (`os.replace`), so a crash never
 leaves a half-written file and never destroys the previous version of a file before the new one is complete.
 
-## results.json, schema 1 (SI units: m, s, rad/s; NaN/inf are written as null)
+## results.json, schema 2 (SI units: m, s, rad/s; NaN/inf are written as null)
 
 ```
-{"schema": 1,
+{"schema": 2,
  "config": {...},            # the resolved EvalConfig (as config.json), plus "policy_objects" {name: class}
  "versions": {"python", "mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "stable-baselines3", "torch"},
  "git": "<sha>[-dirty]" | "unknown",
+ "provenance": {"cpu", "machine", "cpu_count", "platform", "python", "numpy", "numpy_build", "blas": [{
+    "user_api", "internal_api", "version", "architecture", "threading_layer", "num_threads", ...}],
+    "env": {"OPENBLAS_CORETYPE", ...}, "versions", "git"},   # eval.output.provenance.provenance()
+ "statistics": {"iqm", "ci", "bootstrap_resamples", "bootstrap_seed", "success_interval",
+    "success_curve_tolerances_m": [31 tolerances, 1e-4 .. 0.1 m], "settle_time_s"},  # how aggregates are made
  "wall_s": float,            # time spent running the episodes
  "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
    {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
     "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
     "status": "ok" | "failed", "error": traceback | null,
     "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
+    "steady_max_error_m", "steady_rms_error_m",  # over t >= settle_time_s; null if failed or shorter
     "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
     "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success",
     "predict_us_median", "predict_us_p99" (whole predict call, microseconds), "wall_s", "pid",
     "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
  "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
    {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
-    "max_error_m" | "rms_error_m" | "final_error_m" | "effort" | "peak_joint_speed" | "peak_wheel_speed" |
-    "predict_us_median" | "predict_us_p99": {"median", "mean", "std", "min", "max"}}]}   # over status-ok episodes
+    "success_rate_ci95": [low, high],           # Wilson 95%; failed episodes count as failures
+    "success_curve": [rate at each of statistics.success_curve_tolerances_m],
+    "max_error_m" | "rms_error_m" | "final_error_m" | "steady_max_error_m" | "steady_rms_error_m" | "effort" |
+    "peak_joint_speed" | "peak_wheel_speed" | "predict_us_median" | "predict_us_p99":
+        {"median", "mean", "std", "min", "max"},  # over status-ok episodes
+    # max_error_m, steady_max_error_m, steady_rms_error_m also: "iqm", "iqm_ci95": [low, high]
+   }]}
 ```
+The statistics are defined in `eval.metrics` (IQM = scipy's trim_mean(x, 0.25), rliable's definition; 95%
+percentile bootstrap with a fixed seed; Wilson intervals).
+
+**Schema 1** (mobman 0.1) lacks `provenance`, `statistics`, the steady-state errors, the IQMs and intervals;
+`load_results` reads both and fills what schema 1 lacks with None (`"schema"` keeps the file's number), so code
+that reads results handles one shape.
 Comparisons across workers or machines skip `wall_s`, `pid` and `predict_us_*`.
 """
 
@@ -48,25 +65,95 @@ from pathlib import Path
 
 import numpy as np
 
+from eval import metrics as M
+from eval.errors import EvalError
 from eval.output.files import atomic_save_figure, atomic_savez, atomic_write_json, atomic_write_text, slug, to_jsonable
-from eval.output.provenance import git_rev, versions
+from eval.output.provenance import git_rev, provenance, versions
 from eval.output.tables import summary_markdown
 
-SCHEMA = 1
+SCHEMA = 2
+
+#: The schema numbers `load_results` reads.
+READABLE_SCHEMAS = (1, 2)
+
+
+def statistics_block(settle_time: float | None = M.DEFAULT_SETTLE_TIME) -> dict:
+    """How the aggregate statistics were made (results.json "statistics"): definitions, bootstrap settings,
+    the success-curve tolerances and the settle time."""
+    return {
+        "iqm": "interquartile mean: scipy.stats.trim_mean(x, 0.25) (rliable's IQM)",
+        "ci": "95% stratified percentile bootstrap of the IQM",
+        "bootstrap_resamples": M.BOOTSTRAP_RESAMPLES,
+        "bootstrap_seed": M.BOOTSTRAP_SEED,
+        "success_interval": "Wilson score interval, 95%",
+        "success_curve_tolerances_m": list(M.SUCCESS_CURVE_TOLERANCES),
+        "settle_time_s": settle_time,
+    }
 
 
 def build_results(config: dict, records: list[dict], aggregate: list[dict], wall_s: float | None = None) -> dict:
+    """The results.json dict (schema 2) of `records` and their `aggregate`; the settle time is the config's."""
     return to_jsonable(
         {
             "schema": SCHEMA,
             "config": config,
             "versions": versions(),
             "git": git_rev(),
+            "provenance": provenance(),
+            "statistics": statistics_block(config.get("settle_time", M.DEFAULT_SETTLE_TIME)),
             "wall_s": wall_s,
             "episodes": records,
             "aggregate": aggregate,
         }
     )
+
+
+def upgrade_results(data: dict, source: str = "results") -> dict:
+    """A results dict of any readable schema in schema 2's shape: what schema 1 lacks is None (episodes:
+    steady-state errors; aggregate rows: intervals, success curve, IQMs; top level: provenance, statistics).
+    `"schema"` keeps the number the data had. EvalError for anything else."""
+    if not isinstance(data, dict) or "schema" not in data:
+        raise EvalError(f"{source} is not a mobman results file (no 'schema' key)")
+    schema = data["schema"]
+    if schema not in READABLE_SCHEMAS:
+        raise EvalError(
+            f"{source} has results schema {schema!r}; this mobman reads schemas "
+            f"{', '.join(map(str, READABLE_SCHEMAS))} (a newer mobman wrote it: upgrade mobman)"
+        )
+    if schema == SCHEMA:
+        return data
+    out = dict(data)
+    out.setdefault("provenance", None)
+    out.setdefault("statistics", None)
+    out["episodes"] = [
+        {**r, **{k: r.get(k) for k in ("steady_max_error_m", "steady_rms_error_m")}} for r in data.get("episodes", [])
+    ]
+    rows = []
+    for a in data.get("aggregate", []):
+        row = dict(a)
+        row.setdefault("success_rate_ci95", None)
+        row.setdefault("success_curve", None)
+        for name in M.SUMMARY_METRICS:
+            stats = dict(row.get(name) or dict.fromkeys(("median", "mean", "std", "min", "max")))
+            if name in M.IQM_METRICS:
+                stats.setdefault("iqm", None)
+                stats.setdefault("iqm_ci95", None)
+            row[name] = stats
+        rows.append(row)
+    out["aggregate"] = rows
+    return out
+
+
+def load_results(path: str | Path) -> dict:
+    """Read a results.json of schema 1 or 2 (`upgrade_results` gives both one shape)."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise EvalError(f"results file {str(path)!r} not found") from None
+    except (OSError, ValueError) as exc:
+        raise EvalError(f"cannot read results file {str(path)!r}: {exc}") from None
+    return upgrade_results(data, str(path))
 
 
 def arrays_key(index: int) -> str:
@@ -91,6 +178,8 @@ CSV_COLUMNS = (
     "max_error_m",
     "rms_error_m",
     "final_error_m",
+    "steady_max_error_m",
+    "steady_rms_error_m",
     "axis_max_error_x_m",
     "axis_max_error_y_m",
     "axis_max_error_z_m",

@@ -1,12 +1,42 @@
-"""Tables: aggregate rows -> Markdown (summary.md) and the console table (rich); errors in mm."""
+"""Tables: aggregate rows -> Markdown (summary.md) and the console table (rich); errors in mm.
+
+Errors of a policy are printed with the precision its results have (`eval.output.precision`): chaotic ones
+with one significant digit and a "~", with a footnote. Success rates carry their Wilson 95% interval and max
+errors their IQM with its bootstrap interval (schema 2; "-" where a schema-1 row lacks them).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+from eval.output.precision import CHAOTIC_NOTE, format_mm, is_chaotic
+
 
 def _mm(x: float | None, digits: int = 2) -> str:
     return "-" if x is None else f"{x * 1e3:.{digits}f}"
+
+
+def success_text(a: dict) -> str:
+    """ "80% [49-94]": the success rate with its 95% interval (in %), or just the rate for schema-1 rows."""
+    rate = f"{a['success_rate'] * 100:.0f}%"
+    ci = a.get("success_rate_ci95")
+    return rate if not ci else f"{rate} [{ci[0] * 100:.0f}-{ci[1] * 100:.0f}]"
+
+
+def iqm_text(a: dict, metric: str = "max_error_m", decimals: int = 2) -> str:
+    """ "0.40 [0.39-0.45]": the IQM of `metric` in mm with its 95% interval, at the policy's precision."""
+    stats = a.get(metric) or {}
+    pol = str(a["policy"])
+    value = format_mm(stats.get("iqm"), pol, decimals)
+    ci = stats.get("iqm_ci95")
+    if value == "-" or not ci:
+        return value
+    return f"{value} [{format_mm(ci[0], pol, decimals).lstrip('~')}-{format_mm(ci[1], pol, decimals).lstrip('~')}]"
+
+
+def chaotic_note(rows: list[dict]) -> list[str]:
+    """The footnote lines when any row is a chaotic policy ([] otherwise)."""
+    return [CHAOTIC_NOTE + ".", ""] if any(is_chaotic(str(a["policy"])) for a in rows) else []
 
 
 def _num(x: float | None, fmt: str = "{:.2f}") -> str:
@@ -18,9 +48,11 @@ SUMMARY_HEADER = (
     "n",
     "failed",
     "tipped over",
-    "success",
+    "success [95% CI]",
+    "max err IQM [95% CI] (mm)",
     "max err median (mm)",
     "max err mean ± std (mm)",
+    "steady max IQM (mm)",
     "rms median (mm)",
     "final median (mm)",
     "effort median (s)",
@@ -32,16 +64,19 @@ SUMMARY_HEADER = (
 
 def summary_row(a: dict) -> list[str]:
     me = a["max_error_m"]
+    pol = str(a["policy"])
     return [
-        str(a["policy"]),
+        pol,
         str(a["n"]),
         str(a["n_failed"]),
         str(a.get("n_tipped_over", 0)),
-        f"{a['success_rate'] * 100:.0f}%",
-        _mm(me["median"]),
-        "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
-        _mm(a["rms_error_m"]["median"]),
-        _mm(a["final_error_m"]["median"]),
+        success_text(a),
+        iqm_text(a),
+        format_mm(me["median"], pol),
+        "-" if me["mean"] is None else f"{format_mm(me['mean'], pol)} ± {format_mm(me['std'], pol).lstrip('~')}",
+        format_mm((a.get("steady_max_error_m") or {}).get("iqm"), pol),
+        format_mm(a["rms_error_m"]["median"], pol),
+        format_mm(a["final_error_m"]["median"], pol),
         _num(a["effort"]["median"]),
         _num(a["peak_joint_speed"]["median"]),
         _num(a["peak_wheel_speed"]["median"]),
@@ -80,6 +115,7 @@ def summary_markdown(results: dict) -> str:
             markdown_table(SUMMARY_HEADER, [summary_row(a) for a in rows]),
             "",
         ]
+    lines += chaotic_note(results["aggregate"])
     lines += failed_episode_lines(
         results["episodes"],
         lambda r: f"{r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}",
@@ -106,6 +142,7 @@ CONSOLE_HEADER = (
     "n",
     "failed\n/tipped",
     "succ",
+    "max\nIQM",
     "max\nmed",
     "max\nmean",
     "rms\nmed",
@@ -116,15 +153,17 @@ CONSOLE_HEADER = (
 
 def console_row(a: dict) -> list[str]:
     me = a["max_error_m"]
+    pol = str(a["policy"])
     return [
-        str(a["policy"]),
+        pol,
         str(a["n"]),
         f"{a['n_failed']}/{a.get('n_tipped_over', 0)}",
         f"{a['success_rate'] * 100:.0f}%",
-        _mm(me["median"], 1),
-        _mm(me["mean"], 1),
-        _mm(a["rms_error_m"]["median"], 1),
-        _mm(a["final_error_m"]["median"], 1),
+        format_mm(me.get("iqm"), pol, 1),
+        format_mm(me["median"], pol, 1),
+        format_mm(me["mean"], pol, 1),
+        format_mm(a["rms_error_m"]["median"], pol, 1),
+        format_mm(a["final_error_m"]["median"], pol, 1),
         _num(a["predict_us_median"]["median"], "{:.0f}"),
     ]
 
@@ -140,8 +179,9 @@ def print_table(results: dict, out: Path | None = None) -> None:
         table = Table(
             title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)",
             box=box.SIMPLE_HEAD,
-            caption="errors in mm: max over each episode, then median/mean over episodes; pred: median "
-            "predict call; summary.md has all columns",
+            caption="errors in mm: max over each episode, then IQM/median/mean over episodes; pred: median "
+            "predict call; summary.md has all columns and intervals"
+            + ("; ~: chaotic, one significant digit" if any(is_chaotic(str(a["policy"])) for a in rows) else ""),
             padding=(0, 1),
         )
         for h in CONSOLE_HEADER:

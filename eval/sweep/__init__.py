@@ -26,7 +26,7 @@ aside). `--max-episodes N` runs at most N new episodes (a job that must fit a ti
 produced no result at all (their worker process died, their Ray task failed twice) are in the table as failed
 but not in the journal, so the next run tries them again; episodes that crashed inside the rollout are results
 (status failed, traceback) and are skipped unless `--retry-failed`. The grid may grow between runs (more seeds,
-policies, noise levels); `env_kwargs` and `tolerance` may not change (start a new --out).
+policies, noise levels); `env_kwargs`, `tolerance` and `settle_time` may not change (start a new --out).
 
 Modules: `config` (the YAML file -> `SweepConfig`), `journal` (the append-only episode journal), `run`
 (`run_sweep`), `report` (aggregate.csv, summary.md, the console summary), `plots`.

@@ -9,6 +9,7 @@ model_error: [0.0, 0.02, 0.05, 0.1]    # relative std of the true robot's length
 obs_noise: [0.0, 0.0005, 0.002]        # position sensor noise std, m
 env_kwargs: {}                         # further env arguments, the same for every episode
 tolerance: 0.006                       # success threshold on the max tracking error, m
+settle_time: 0.5                       # steady-state errors use t >= settle_time, s
 ```
 
 Every combination (env, dynamics, model_error, obs_noise, policy, seed) is one episode; all keys are optional
@@ -27,7 +28,7 @@ from typing import Any
 
 from eval.config import DYNAMICS_CHOICES
 from eval.errors import EvalError
-from eval.metrics import DEFAULT_TOLERANCE
+from eval.metrics import DEFAULT_SETTLE_TIME, DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
 
 
@@ -51,6 +52,8 @@ class SweepConfig:
     """Further env constructor arguments, the same for every episode (e.g. {"path": {...}})."""
     tolerance: float = DEFAULT_TOLERANCE
     """Success threshold on the max tracking error, m (the paper's 6 mm)."""
+    settle_time: float = DEFAULT_SETTLE_TIME
+    """Start of the steady-state error window, s (`steady_max_error_m`, `steady_rms_error_m`)."""
 
     @property
     def n_episodes(self) -> int:
@@ -105,6 +108,11 @@ class SweepConfig:
             if not _is_number(tol) or not tol > 0:
                 raise EvalError(f"{source}: tolerance must be a number > 0 (m), e.g. 0.006; got {tol!r}")
             kw["tolerance"] = float(tol)
+        if "settle_time" in data:
+            st = data["settle_time"]
+            if not _is_number(st) or st < 0:
+                raise EvalError(f"{source}: settle_time must be a number >= 0 (s), e.g. 0.5; got {st!r}")
+            kw["settle_time"] = float(st)
         return cls(**kw)
 
 

@@ -9,8 +9,9 @@ from typing import Any
 
 from eval import metrics as M
 from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text
+from eval.output.precision import format_mm
 from eval.output.results import csv_text
-from eval.output.tables import _mm, failed_episode_lines, markdown_table
+from eval.output.tables import chaotic_note, failed_episode_lines, iqm_text, markdown_table, success_text
 
 AGGREGATE_COLUMNS = (
     "env",
@@ -26,17 +27,29 @@ AGGREGATE_COLUMNS = (
 
 
 def aggregate_csv_text(aggregate: list[dict]) -> str:
-    """One tidy row per condition; each summarised metric m gives columns m_median, m_mean, m_std, m_min, m_max."""
+    """One tidy row per condition: success_rate with success_ci95_low / _high; each summarised metric m gives
+    columns m_median, m_mean, m_std, m_min, m_max, and those of `IQM_METRICS` also m_iqm, m_iqm_ci95_low, _high.
+    (The success curve is in results.json.)"""
     stats = ("median", "mean", "std", "min", "max")
-    columns = list(AGGREGATE_COLUMNS) + [f"{m}_{s}" for m in M.SUMMARY_METRICS for s in stats]
+    columns = list(AGGREGATE_COLUMNS) + ["success_ci95_low", "success_ci95_high"]
+    for m in M.SUMMARY_METRICS:
+        columns += [f"{m}_{s}" for s in stats]
+        if m in M.IQM_METRICS:
+            columns += [f"{m}_iqm", f"{m}_iqm_ci95_low", f"{m}_iqm_ci95_high"]
     buf = io.StringIO()
     w = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
     w.writeheader()
     for a in aggregate:
         row = {k: a.get(k) for k in AGGREGATE_COLUMNS}
+        ci = a.get("success_rate_ci95") or [None, None]
+        row["success_ci95_low"], row["success_ci95_high"] = ci
         for m in M.SUMMARY_METRICS:
+            st = a.get(m) or {}
             for s in stats:
-                row[f"{m}_{s}"] = (a.get(m) or {}).get(s)
+                row[f"{m}_{s}"] = st.get(s)
+            if m in M.IQM_METRICS:
+                mci = st.get("iqm_ci95") or [None, None]
+                row[f"{m}_iqm"], row[f"{m}_iqm_ci95_low"], row[f"{m}_iqm_ci95_high"] = st.get("iqm"), *mci
         w.writerow({k: ("" if v is None else v) for k, v in row.items()})
     return buf.getvalue()
 
@@ -47,7 +60,8 @@ SUMMARY_HEADER = (
     "obs_noise (mm)",
     "n",
     "failed",
-    "success",
+    "success [95% CI]",
+    "max err IQM [95% CI] (mm)",
     "max err median (mm)",
     "max err mean ± std (mm)",
     "rms median (mm)",
@@ -56,16 +70,18 @@ SUMMARY_HEADER = (
 
 def _summary_row(a: dict) -> list[str]:
     me = a["max_error_m"]
+    pol = str(a["policy"])
     return [
-        str(a["policy"]),
+        pol,
         f"{a['model_error']:g}",
         f"{a['obs_noise'] * 1e3:g}",
         str(a["n"]),
         str(a["n_failed"]),
-        f"{a['success_rate'] * 100:.0f}%",
-        _mm(me["median"]),
-        "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
-        _mm(a["rms_error_m"]["median"]),
+        success_text(a),
+        iqm_text(a),
+        format_mm(me["median"], pol),
+        "-" if me["mean"] is None else f"{format_mm(me['mean'], pol)} ± {format_mm(me['std'], pol).lstrip('~')}",
+        format_mm(a["rms_error_m"]["median"], pol),
     ]
 
 
@@ -86,6 +102,7 @@ def summary_markdown(results: dict) -> str:
     for (env, dyn), rows in groups.items():
         rows = sorted(rows, key=lambda a: (str(a["policy"]), a["model_error"], a["obs_noise"]))
         lines += [f"## {env} — {dyn}", "", markdown_table(SUMMARY_HEADER, [_summary_row(a) for a in rows]), ""]
+    lines += chaotic_note(results["aggregate"])
     lines += failed_episode_lines(
         eps,
         lambda r: (
@@ -148,6 +165,6 @@ def print_summary(result: Any) -> None:
                 str(a["n"]),
                 str(a["n_failed"]),
                 f"{a['success_rate'] * 100:.0f}%",
-                _mm(a["max_error_m"]["median"], 1),
+                format_mm(a["max_error_m"]["median"], str(a["policy"]), 1),
             )
         console.print(table)

@@ -23,8 +23,9 @@ from eval.sweep.config import SweepConfig
 from eval.sweep.journal import JOURNAL, Journal, episode_key
 from eval.sweep.report import write_tables
 
-#: settings that must not change when a sweep is resumed (they change every episode's result)
-FIXED_KEYS = ("env_kwargs", "tolerance")
+#: settings that must not change when a sweep is resumed (they change every episode's result), with the value a
+#: sweep written before the key existed had
+FIXED_KEYS = {"env_kwargs": {}, "tolerance": M.DEFAULT_TOLERANCE, "settle_time": M.DEFAULT_SETTLE_TIME}
 
 
 def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
@@ -95,6 +96,7 @@ def run_sweep(
         obs_noise=sweep.obs_noise[0],
         env_kwargs=sweep.env_kwargs,
         tolerance=sweep.tolerance,
+        settle_time=sweep.settle_time,
         plots=False,
         save_arrays="none",
         progress=False,
@@ -195,9 +197,9 @@ def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
             f"--out {str(out)!r} exists and does not hold a sweep (no sweep config.json); choose another --out"
         )
     new = sweep.to_dict()
-    changed = [k for k in FIXED_KEYS if old.get(k) != new[k]]
+    changed = [k for k, before in FIXED_KEYS.items() if old.get(k, before) != new[k]]
     if changed:
-        diff = "; ".join(f"{k}: {old.get(k)!r} there, {new[k]!r} now" for k in changed)
+        diff = "; ".join(f"{k}: {old.get(k, FIXED_KEYS[k])!r} there, {new[k]!r} now" for k in changed)
         raise EvalError(
             f"--out {str(out)!r} holds a sweep with other settings ({diff}); its episodes would not be "
             f"comparable: use another --out, or delete that directory to start over"

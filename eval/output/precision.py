@@ -48,13 +48,17 @@ SIGNIFICANT_DIGITS: dict[str, int] = {
     "random": 4,
 }
 
+#: Digits at and above which a policy counts as regular: printed with the normal fixed precision (the
+#: measurement caps digits here; 1e-4 relative is below every other uncertainty of a 20-seed result).
+REGULAR_DIGITS = 4
+
 #: Policies whose results have one significant digit at most: printed with "~" and a footnote.
 CHAOTIC: frozenset[str] = frozenset(name for name, d in SIGNIFICANT_DIGITS.items() if d <= 1)
 
 #: The footnote tables add when they print a chaotic policy.
 CHAOTIC_NOTE = (
     "~ chaotic controller: a 1e-12 rad change of the initial arm pose moves its per-episode max error by up "
-    "to a factor of several (eval.precision), so its figures have one significant digit"
+    "to a factor of several (eval.output.precision), so its figures have one significant digit"
 )
 
 
@@ -74,7 +78,8 @@ def is_chaotic(spec: str) -> bool:
 
 
 def format_value(x: float | None, spec: str, decimals: int = 2, scale: float = 1.0) -> str:
-    """`x * scale` with `decimals` decimals, or fewer when the policy's results have fewer significant digits
+    """`x * scale` with `decimals` decimals, or fewer when the policy's results have fewer (< REGULAR_DIGITS)
+    significant digits
     (then rounded to them: 0.1614 m as mm with one digit -> "~200"); "-" for None or non-finite values.
     Chaotic policies get a leading "~"."""
     if x is None or not math.isfinite(x):
@@ -82,7 +87,7 @@ def format_value(x: float | None, spec: str, decimals: int = 2, scale: float = 1
     v = x * scale
     digits = significant_digits(spec)
     chaotic = is_chaotic(spec)
-    if digits is None or v == 0:
+    if digits is None or digits >= REGULAR_DIGITS or v == 0:
         return f"{v:.{decimals}f}"
     exponent = math.floor(math.log10(abs(v)))
     places = digits - 1 - exponent  # decimals that hold `digits` significant digits

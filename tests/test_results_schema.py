@@ -1,0 +1,87 @@
+"""results.json schema 2 and the reading of schema-1 files: `load_results`, the tables, and a sweep made by
+mobman 0.1 (tests/fixtures/schema1, written at commit 3d1df75) resumed by today's code."""
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from eval.errors import EvalError
+from eval.output.results import SCHEMA, load_results, upgrade_results
+from eval.output.tables import summary_markdown
+from eval.sweep.config import SweepConfig
+from eval.sweep.report import aggregate_csv_text
+from eval.sweep.run import run_sweep
+
+FIXTURES = Path(__file__).parent / "fixtures" / "schema1"
+
+
+def test_a_schema_1_run_loads_in_schema_2_shape():
+    res = load_results(FIXTURES / "run" / "results.json")
+    assert res["schema"] == 1 and SCHEMA == 2  # the file's own number is kept
+    assert res["provenance"] is None and res["statistics"] is None
+    assert all(r["steady_max_error_m"] is None for r in res["episodes"])
+    for row in res["aggregate"]:
+        assert row["success_rate_ci95"] is None and row["success_curve"] is None
+        assert row["max_error_m"]["iqm"] is None and row["max_error_m"]["median"] is not None
+        assert row["steady_max_error_m"] == dict.fromkeys(("median", "mean", "std", "min", "max", "iqm", "iqm_ci95"))
+    md = summary_markdown(res)  # today's tables render a schema-1 file
+    assert "| nnbc-plus |" in md and "| jmpi |" in md
+    assert aggregate_csv_text(res["aggregate"]).count("\n") == 3
+
+
+def test_unknown_schemas_and_files_are_refused(tmp_path):
+    with pytest.raises(EvalError, match="schema 3.*reads schemas 1, 2"):
+        upgrade_results({"schema": 3})
+    with pytest.raises(EvalError, match="not a mobman results file"):
+        upgrade_results({"episodes": []})
+    with pytest.raises(EvalError, match="not found"):
+        load_results(tmp_path / "missing.json")
+    (tmp_path / "bad.json").write_text("{")
+    with pytest.raises(EvalError, match="cannot read"):
+        load_results(tmp_path / "bad.json")
+
+
+def test_a_schema_1_sweep_resumes(tmp_path):
+    out = tmp_path / "sweep"
+    shutil.copytree(FIXTURES / "sweep", out)
+    old = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
+    assert len(old) == 4 and "steady_max_error_m" not in old[0]  # written before schema 2
+    cfg = json.loads((out / "config.json").read_text())
+    sweep = SweepConfig.from_dict(
+        {
+            **{k: cfg[k] for k in ("envs", "policies", "env_kwargs")},
+            "dynamics": ["kinematic"],
+            "seeds": [10000, 10001, 10002],
+        }
+    )
+    result = run_sweep(sweep, out, progress=False, plots=False)
+    assert (result.n_skipped, result.n_run, result.n_left) == (4, 2, 0)  # only the new seed ran
+    res = json.loads((out / "results.json").read_text())
+    assert res["schema"] == 2 and len(res["episodes"]) == 6
+    by_key = {(r["policy"], r["seed"]): r for r in res["episodes"]}
+    for r in old:  # the old episodes are kept as they were
+        assert by_key[(r["policy"], r["seed"])]["max_error_m"] == r["max_error_m"]
+    assert by_key[("jmpi", 10002)]["steady_max_error_m"] is not None
+    for row in res["aggregate"]:
+        assert row["n"] == 3 and row["max_error_m"]["iqm"] is not None
+        assert row["steady_max_error_m"]["median"] is not None  # over the one episode that has it
+
+
+def test_settle_time_flag_reaches_the_records(tmp_path):
+    from eval.cli import main
+
+    short = '{"path": {"type": "circle", "radius": 0.1, "tilt": 0.5236, "yaw": 3.1416, "duration": 1.0}}'
+    args = ["run", "--env", "WheeledPuma-Circle-v0", "--policy", "zero", "--episodes", "1", "--dynamics"]
+    args += ["kinematic", "--env-kwargs", short, "--quiet", "--no-plots"]
+    for settle in ("0", "0.9"):
+        assert main([*args, "--settle-time", settle, "--out", str(tmp_path / settle)]) == 0
+    full, late = (json.loads((tmp_path / s / "results.json").read_text()) for s in ("0", "0.9"))
+    assert full["statistics"]["settle_time_s"] == 0.0 and late["statistics"]["settle_time_s"] == 0.9
+    a, b = full["episodes"][0], late["episodes"][0]
+    # zero stays at the start: its error grows along the circle; from t = 0 the steady max is the whole max
+    assert a["steady_max_error_m"] == a["max_error_m"]
+    assert b["steady_max_error_m"] < a["max_error_m"]  # past 0.9 s the circle is coming back (rest-to-rest)
+    assert main([*args, "--settle-time", "-1", "--out", str(tmp_path / "bad")]) == 2  # refused, named
+    assert not (tmp_path / "bad").exists()
