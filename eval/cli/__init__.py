@@ -1,15 +1,16 @@
-"""`mobman-eval`: benchmark policies side by side (`run`), sweep a grid (`sweep`), reproduce the paper (`paper`),
-measure speed (`speed`).
+"""`mobman-eval`: benchmark policies side by side (`run`), sweep a grid (`sweep`), run the benchmark protocol
+(`bench`), reproduce the paper (`paper`), measure speed (`speed`).
 
 ```
 mobman-eval run --env WheeledPuma-Circle-v0 --policy nnbc --policy jmpi --episodes 20 --dynamics kinematic
 mobman-eval run ... --backend ray --address auto    # the same episodes as Ray tasks on a cluster
 mobman-eval sweep --config sweep.yaml --workers 2   # a resumable grid (`--example` prints one)
+mobman-eval bench --workers 2    # the benchmark protocol v1: one scorecard (resumable)
 mobman-eval paper                # the paper's section IV, both dynamics modes, 20 reported seeds
 mobman-eval speed                # env steps/s, predict microseconds, episodes/s
 ```
 
-One module per subcommand (`run`, `sweep`, `paper`, `speed`) builds its parser and parses into the
+One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`) builds its parser and parses into the
 library's config; `main(argv=None)` parses into a frozen config and calls one function, so tests call it in-process. Bad input
 (unknown env id or policy, missing model file, existing non-empty --out, malformed --env-kwargs) stops before
 any rollout with exit code 2 and a message naming the bad value and what is accepted.
@@ -20,10 +21,10 @@ from __future__ import annotations
 import argparse
 import sys
 
-from eval.cli import paper, run, speed, sweep
+from eval.cli import bench, paper, run, speed, sweep
 from eval.errors import EvalError
 
-SUBCOMMANDS = {"run": run, "sweep": sweep, "paper": paper, "speed": speed}
+SUBCOMMANDS = {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed}
 
 
 def build_parser() -> argparse.ArgumentParser:
