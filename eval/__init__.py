@@ -7,7 +7,7 @@ result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinema
 result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
 ```
 
-Command line: `mobman-eval run|sweep|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual.
+Command line: `mobman-eval run|sweep|bench|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual.
 
 ## Layout and dependency rule
 
@@ -18,10 +18,11 @@ every module and fails on a cycle or an upward import):
 2. `rollout` (make_env, make_policy, the one rollout loop)
 3. `config` (EvalConfig)
 4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
-5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `tables` <-
-   `results`, `plots`, `video`: what is written)
+5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
+   `tables` <- `results`, `plots` <- `stat_plots`, `video`: what is written)
 6. `runner` (`run`), `sweep` (`config`, `journal`, `report`, `plots` <- `run`: resumable grids)
-7. `paper` (section IV of the paper), `speed` (the speed benchmark)
+7. `paper` (section IV of the paper), `speed` (the speed benchmark), `bench` (the benchmark protocol v1:
+   `config` <- `chaos`, `scorecard` <- `run`)
 8. `cli` (one module per subcommand; nothing imports it but `__main__`)
 
 Across packages: `mobman_env` <- `policies` <- `eval` <- `train`; eval never imports `train`.

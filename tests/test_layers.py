@@ -30,6 +30,7 @@ EVAL_LAYERS = {
     "eval.runner": 6,
     "eval.sweep": 6,
     "eval.paper": 7,
+    "eval.bench": 7,
     "eval.speed": 7,
     "eval.cli": 8,
     "eval.__main__": 9,
