@@ -1,10 +1,15 @@
 """`mobman-eval paper`: the paper's section IV in one command, and `paper.md` setting its claims beside ours.
 
 What runs: `WheeledPuma-Circle-v0` (theta(0) = [0, pi/4, 0, 2pi/3, -pi/4, 0] rad, wheels 0, heading pi, the
-circle of radius 0.4 m tilted pi/6 over 20 s), `nnbc` (gamma = mu = 10) against `jmpi`, with `oracle` (the
-known-model bound), `nnbc-full` and, when it is available in this install, `nnbc-plus` for context; in both
+circle of radius 0.4 m tilted pi/6 over 20 s), `nnbc` (gamma = mu = 10) against `jmpi`, with `oracle` (eq. (10)
+on the true robot, gamma = 10), `nnbc-full` and, when they are registered in this install, `nnbc-plus`, `clik`
+(eq. (10) on the nominal model: the closed-loop controller a practitioner would run beside JMPI) and
+`qp-oracle` (a joint-limit-aware QP on the true robot: the known-model ceiling), at their default gains; in both
 dynamics modes (kinematic = the paper's ideal model, physics = PyBullet contact dynamics); 20 reported seeds
-(10,000 ...) by default, each a different "worn" true robot (model_error 0.05).
+(10,000 ...) by default, each a different "worn" true robot (model_error 0.05). `nnbc` and `oracle` keep the
+paper's gamma = 10 whatever their defaults are: when a default differs, the spec says `gamma=10` explicitly.
+
+paper.md prints chaotic controllers' errors with the digits they have (`eval.output.precision`).
 
 Writes, beside the usual run files (results.json, summary.md, plots/ ...):
 * `fig2a_<dynamics>.png` (NNBC's path and platform trace), `fig2b_<dynamics>.png` (NNBC's error per axis),
@@ -23,6 +28,7 @@ import numpy as np
 from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.output.files import atomic_save_figure, atomic_write_text
+from eval.output.precision import CHAOTIC_NOTE, format_mm, format_value, is_chaotic
 from eval.output.tables import SUMMARY_HEADER, markdown_table, summary_row
 
 PAPER_ENV = "WheeledPuma-Circle-v0"
@@ -31,7 +37,10 @@ PAPER_GAMMA = 10.0  # the paper's gamma = mu = 10
 PAPER_MAX_ERROR = 0.006  # m: "the maximum tracking error is not more than 0.006 m"
 PAPER_PATH_SIZE = (0.8, 0.8, 0.2)  # m: "the scale of the desired path is 0.8 m x 0.8 m x 0.2 m"
 CORE_POLICIES = ("nnbc", "jmpi", "oracle", "nnbc-full")
-OPTIONAL_POLICIES = ("nnbc-plus",)
+#: run when registered (other branches add `clik` and `qp-oracle`), at their default gains
+OPTIONAL_POLICIES = ("nnbc-plus", "clik", "qp-oracle")
+#: policies that keep the paper's gains (gamma = mu = 10) whatever their defaults: {name: gain fields}
+PAPER_GAINS = {"nnbc": ("gamma", "mu"), "oracle": ("gamma",)}
 DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "physics": ("physics",)}
 
 
@@ -39,19 +48,23 @@ def choose_policies(dynamics: str) -> tuple[tuple[str, ...], list[str]]:
     """The specs to run and notes about what was left out or adjusted (checked on a real env)."""
     import policies
     from eval.rollout import make_env
+    from policies.registry import KNOWN_POLICIES
 
     notes = []
     specs = list(CORE_POLICIES)
     env = make_env(PAPER_ENV, dynamics)
     try:
-        nnbc = policies.make("nnbc", env)
-        cfg = getattr(nnbc, "config", None)
-        if cfg is not None and (
-            getattr(cfg, "gamma", PAPER_GAMMA) != PAPER_GAMMA or getattr(cfg, "mu", PAPER_GAMMA) != PAPER_GAMMA
-        ):
-            specs = [f"nnbc:gamma={PAPER_GAMMA:g},mu={PAPER_GAMMA:g}" if s == "nnbc" else s for s in specs]
-            notes.append("the nnbc default gains differ from the paper's; gamma = mu = 10 set explicitly")
+        for name, gains in PAPER_GAINS.items():
+            cfg = getattr(policies.make(name, env), "config", None)
+            differ = [g for g in gains if cfg is not None and getattr(cfg, g, PAPER_GAMMA) != PAPER_GAMMA]
+            if differ:
+                spec = name + ":" + ",".join(f"{g}={PAPER_GAMMA:g}" for g in gains if hasattr(cfg, g))
+                specs = [spec if s == name else s for s in specs]
+                notes.append(f"the {name} default gains differ from the paper's; {spec.split(':')[1]} set explicitly")
         for name in OPTIONAL_POLICIES:
+            if name not in KNOWN_POLICIES:
+                notes.append(f"`{name}` is not registered in this install and was not run")
+                continue
             try:
                 policies.make(name, env)
                 specs.append(name)
@@ -173,8 +186,11 @@ def _errs(result, policy: str, dyn: str) -> list[float]:
     ]
 
 
-def _mm(x) -> str:
-    return "-" if x is None else f"{x * 1e3:.1f} mm"
+def _mm(x, policy: str | None = None) -> str:
+    """x (m) in mm with one decimal, or with the digits `policy`'s results have (`eval.output.precision`)."""
+    if x is None:
+        return "-"
+    return (f"{x * 1e3:.1f}" if policy is None else format_mm(x, policy, 1)) + " mm"
 
 
 def _claim_nnbc(result, nnbc: str, dyn: str) -> tuple[str, str]:
@@ -184,7 +200,8 @@ def _claim_nnbc(result, nnbc: str, dyn: str) -> tuple[str, str]:
         return "no completed episode", "not measured"
     n_ok = sum(e <= PAPER_MAX_ERROR for e in errs)
     text = (
-        f"max error median {_mm(a['max_error_m']['median'])}, worst {_mm(max(errs))}; <= 6 mm in {n_ok}/{a['n']} seeds"
+        f"max error median {_mm(a['max_error_m']['median'], nnbc)}, worst {_mm(max(errs), nnbc)}; "
+        f"<= 6 mm in {n_ok}/{a['n']} seeds"
     )
     verdict = "holds" if n_ok == a["n"] else ("holds in most seeds" if n_ok >= 0.5 * a["n"] else "does not hold")
     return text, verdict
@@ -208,11 +225,17 @@ def _claim_jmpi(result, nnbc: str, dyn: str) -> tuple[str, str]:
     return text, verdict
 
 
+def spec_of(specs, name: str) -> str | None:
+    """The spec in `specs` that runs the registry policy `name` (`oracle:gamma=10` for "oracle"), or None."""
+    return next((s for s in specs if s.split(":")[0] == name), None)
+
+
 def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
     res = result.results
     cfg = res["config"]
     modes = cfg["dynamics"]
-    nnbc = next(s for s in specs if s.split(":")[0] == "nnbc")
+    nnbc = spec_of(specs, "nnbc")
+    oracle = spec_of(specs, "oracle") or "oracle"
     first = next((r for r in result.episodes if r["index"] in result.arrays), None)
     measured = path_extent(result.arrays[first["index"]]["r_d"]) if first else None
     spec = first["path"] if first else None
@@ -262,29 +285,32 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
                 [
                     f"NNBC better than JMPI ({dyn})",
                     '"efficacy and superiority of the proposed NNBC"',
-                    f"median max error NNBC {_mm(na)} vs JMPI {_mm(nb)}",
+                    f"median max error NNBC {_mm(na, nnbc)} vs JMPI {_mm(nb)}",
                     "holds" if na < nb else "does not hold",
                 ]
             )
     lines += [markdown_table(("claim", "paper", "measured", "verdict"), rows), ""]
 
     lines += ["## Where we differ, and why", ""]
-    lines += _differences(result, nnbc, modes, measured, formula)
+    lines += _differences(result, nnbc, modes, measured, formula, oracle)
+    lines += ["", "## Baselines the paper did not run, and what they mean for its claims", ""]
+    lines += _baselines(result, specs, nnbc, oracle, modes)
     lines += ["", "## All policies", ""]
     for dyn in modes:
         aggs = [a for a in result.aggregate if a["dynamics"] == dyn]
         lines += [f"### {dyn}", "", markdown_table(SUMMARY_HEADER, [summary_row(a) for a in aggs]), ""]
     lines += ["## Max error per seed (mm)", ""]
-    header = ["seed"] + [f"{p} ({d})" for d in modes for p in (nnbc, "jmpi", "oracle")]
+    shown = [p for p in (nnbc, "jmpi", spec_of(specs, "clik"), oracle, spec_of(specs, "qp-oracle")) if p]
+    header = ["seed"] + [f"{p} ({d})" for d in modes for p in shown]
     per_seed = []
     for k in range(n):
         row = [str(cfg["seed"] + k)]
         for d in modes:
-            for p in (nnbc, "jmpi", "oracle"):
+            for p in shown:
                 rec = next(
                     (r for r in result.episodes if r["policy"] == p and r["dynamics"] == d and r["episode"] == k), None
                 )
-                row.append("-" if rec is None or rec.get("max_error_m") is None else f"{rec['max_error_m'] * 1e3:.2f}")
+                row.append("-" if rec is None else format_mm(rec.get("max_error_m"), p))
         per_seed.append(row)
     lines += [markdown_table(header, per_seed), ""]
     lines += [f"## Figures (seed {cfg['seed']})", ""]
@@ -320,7 +346,7 @@ def _best_other(result, dyn: str, exclude: tuple) -> tuple[str, float] | None:
     return min(cands, key=lambda c: c[1]) if cands else None
 
 
-def _differences(result, nnbc, modes, measured, formula) -> list[str]:
+def _differences(result, nnbc, modes, measured, formula, oracle: str = "oracle") -> list[str]:
     out = []
     if measured is not None and formula is not None:
         out.append(
@@ -331,18 +357,18 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
             f"in y, 0.2 half of the z span)."
         )
     for dyn in modes:
-        a, o = _agg(result, nnbc, dyn), _agg(result, "oracle", dyn)
+        a, o = _agg(result, nnbc, dyn), _agg(result, oracle, dyn)
         errs = _errs(result, nnbc, dyn)
         if a is None or not errs:
             continue
         n_ok = sum(e <= PAPER_MAX_ERROR for e in errs)
         med = a["max_error_m"]["median"]
         if n_ok == a["n"]:
-            out.append(f"* **NNBC, {dyn}:** within 6 mm in every seed (median {_mm(med)}), as the paper says.")
+            out.append(f"* **NNBC, {dyn}:** within 6 mm in every seed (median {_mm(med, nnbc)}), as the paper says.")
             continue
         line = (
-            f"* **NNBC, {dyn}:** above 6 mm in {a['n'] - n_ok}/{a['n']} seeds (median {_mm(med)}, worst "
-            f"{_mm(max(errs))})."
+            f"* **NNBC, {dyn}:** above 6 mm in {a['n'] - n_ok}/{a['n']} seeds (median {_mm(med, nnbc)}, worst "
+            f"{_mm(max(errs), nnbc)})."
         )
         if a.get("n_tipped_over"):
             line += (
@@ -355,7 +381,7 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
                 limited = [
                     r
                     for r in result.episodes
-                    if r["policy"] == "oracle"
+                    if r["policy"] == oracle
                     and r["dynamics"] == dyn
                     and r["status"] == "ok"
                     and r.get("joint_limit_hits", 0) > 0
@@ -367,12 +393,12 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
                     f"1 plus the platform's yaw must turn a full 360 deg; eq. (10)'s minimum-norm solution gives "
                     f"most of that turn to joint 1, which stops at the PUMA 560's +-160 deg late in the circle, "
                     f"and the law has no way to hand the turn to the platform. The rest "
-                    f"({_mm(max(med - om, 0.0))} of the median) is the cost of the online estimate."
+                    f"({_mm(max(med - om, 0.0), nnbc)} of the median) is the cost of the online estimate."
                 )
-                best = _best_other(result, dyn, exclude=(nnbc, "oracle", "jmpi"))
+                best = _best_other(result, dyn, exclude=(nnbc, oracle, "jmpi"))
                 if best is not None and best[1] < PAPER_MAX_ERROR:
                     line += (
-                        f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1])} "
+                        f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1], best[0])} "
                         f"without a model."
                     )
             else:
@@ -412,7 +438,7 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
         ):
             out.append(
                 f"* **NNBC vs JMPI, {dyn}:** here the paper's NNBC does worse than JMPI (median max error "
-                f"{_mm(a['max_error_m']['median'])} vs {_mm(b['max_error_m']['median'])}), so the paper's "
+                f"{_mm(a['max_error_m']['median'], nnbc)} vs {_mm(b['max_error_m']['median'])}), so the paper's "
                 f"superiority claim is not reproduced in this mode."
             )
     if "physics" in modes and "kinematic" in modes:
@@ -421,7 +447,76 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
             out.append(
                 f"* **Dynamics.** The paper's model is kinematic (commanded speeds are taken as realised "
                 f"exactly), like our kinematic mode. "
-                f"NNBC's median max error is {_mm(k['max_error_m']['median'])} in our kinematic mode and "
-                f"{_mm(p['max_error_m']['median'])} with PyBullet contact dynamics."
+                f"NNBC's median max error is {_mm(k['max_error_m']['median'], nnbc)} in our kinematic mode and "
+                f"{_mm(p['max_error_m']['median'], nnbc)} with PyBullet contact dynamics."
             )
+    return out
+
+
+def _success(result, policy: str, dyn: str) -> tuple[int, int] | None:
+    """(episodes within 6 mm, episodes) of `policy` in mode `dyn`, or None when it did not run."""
+    a = _agg(result, policy, dyn)
+    if a is None:
+        return None
+    return sum(e <= PAPER_MAX_ERROR for e in _errs(result, policy, dyn)), a["n"]
+
+
+def _baselines(result, specs, nnbc: str, oracle: str, modes) -> list[str]:
+    """What `clik` (the nominal model with feedback) and `qp-oracle` (the known-model ceiling with joint
+    limits) say about the paper's claims; says so when they were not run."""
+    clik, ceiling = spec_of(specs, "clik"), spec_of(specs, "qp-oracle")
+    out = []
+    if clik is None:
+        out.append(
+            "* **`clik` was not run** (not registered in this install). It is eq. (10) on the *nominal* model: "
+            'the closed-loop controller an engineer would run. Without it, "JMPI fails" only shows that open '
+            "loop fails, not that a model-free controller beats a model-based one."
+        )
+    for dyn in modes if clik else ():
+        c, j, m = _success(result, clik, dyn), _success(result, "jmpi", dyn), _success(result, nnbc, dyn)
+        if c is None or j is None or m is None:
+            continue
+        ca = _agg(result, clik, dyn)
+        med = format_mm(ca["max_error_m"]["median"], clik, 1) + " mm"
+        line = (
+            f"* **`{clik}` vs JMPI, {dyn}:** the same nominal model as JMPI with eq. (10)'s feedback term is within "
+            f"6 mm in {c[0]}/{c[1]} seeds (median {med}); JMPI in {j[0]}/{j[1]}, `{nnbc}` in {m[0]}/{m[1]}."
+        )
+        if c[0] > j[0]:
+            line += (
+                " So JMPI's failure is the failure of open loop, not of knowing only the nominal model: the "
+                'paper\'s comparison cannot separate "model-free" from "feedback".'
+            )
+        if c[0] >= m[0]:
+            line += (
+                " At this model error the practitioner's baseline does at least as well as the paper's NNBC, "
+                'so the paper\'s "superiority" claim holds against JMPI only.'
+            )
+        else:
+            line += f" Here `{nnbc}` beats it: learning J pays off at this model error."
+        out.append(line)
+    if ceiling is None:
+        out.append(
+            "* **`qp-oracle` was not run** (not registered in this install). It is the known-model ceiling: the "
+            "true robot's Jacobian in a QP that respects joint limits. Without it, `oracle` (eq. (10) on the "
+            "true robot, which runs into joint 1's stop) understates what a controller can reach on this task."
+        )
+    for dyn in modes if ceiling else ():
+        q, o = _success(result, ceiling, dyn), _success(result, oracle, dyn)
+        if q is None:
+            continue
+        qa = _agg(result, ceiling, dyn)
+        line = (
+            f"* **`{ceiling}`, {dyn}:** within 6 mm in {q[0]}/{q[1]} seeds, median max error "
+            f"{format_mm(qa['max_error_m']['median'], ceiling, 2)} mm: what knowing the robot allows on this task"
+        )
+        if o is not None:
+            line += f" (eq. (10) with the same knowledge, `{oracle}`: {o[0]}/{o[1]})"
+        m = _agg(result, nnbc, dyn)
+        if m is not None and m["max_error_m"]["median"] is not None and qa["max_error_m"]["median"]:
+            ratio = m["max_error_m"]["median"] / qa["max_error_m"]["median"]
+            line += f". `{nnbc}`'s median is {format_value(ratio, nnbc, 1)} times it"
+        out.append(line + ".")
+    if is_chaotic(nnbc):
+        out.append(f"* {CHAOTIC_NOTE}.")
     return out
