@@ -23,12 +23,14 @@ import sys
 
 from eval.cli import bench, paper, run, speed, sweep
 from eval.errors import EvalError
+from mobman_env import __version__
 
 SUBCOMMANDS = {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed}
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mobman-eval", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="{" + ",".join(SUBCOMMANDS) + "}")
     sub.required = True
     for module in SUBCOMMANDS.values():
