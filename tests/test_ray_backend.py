@@ -315,3 +315,22 @@ def test_a_sweep_started_locally_and_finished_on_ray_equals_a_local_one(tmp_path
     assert (resumed.n_run, resumed.n_skipped, resumed.n_left) == (5, 3, 0)
     assert [stable(r) for r in resumed.episodes] == [stable(r) for r in whole.episodes]
     assert os.getpid() not in {r["pid"] for r in resumed.episodes[3:]}
+
+
+def test_a_bench_on_ray_equals_a_local_one(tmp_path, ray_cluster):
+    from eval.bench.config import BenchConfig
+    from eval.bench.run import run_bench
+
+    cfg = BenchConfig(
+        tasks=("circle",), conditions=("default", "wear20"), policies=("zero", "jmpi"), seeds=2, env_kwargs=SHORT
+    )
+    local = run_bench(cfg, tmp_path / "local", progress=False, plots=False)
+    on_ray = run_bench(cfg, tmp_path / "ray", backend="ray", progress=False, plots=False)
+    assert on_ray.n_run == local.n_run == 8
+    for cond in ("default", "wear20"):
+        a, b = (json.loads((tmp_path / d / "conditions" / cond / "results.json").read_text()) for d in ("local", "ray"))
+        assert [stable(r) for r in b["episodes"]] == [stable(r) for r in a["episodes"]]
+        assert os.getpid() not in {r["pid"] for r in b["episodes"]}  # they ran in Ray workers
+    assert [r["max_error_m"] for r in on_ray.scorecard["pooled"]] == [
+        r["max_error_m"] for r in local.scorecard["pooled"]
+    ]
