@@ -255,3 +255,14 @@ def test_success_curve_and_wear_plots_take_rows():
     assert len(ax.get_lines()) == 2 and list(ax.get_lines()[0].get_xdata()) == [0.05, 0.2]
     with pytest.raises(ValueError, match="31 points for 5 tolerances"):
         plot_success_curves(rows, tolerances=[1e-3] * 5)
+
+
+def test_policy_lists_keep_specs_with_several_keys():
+    from eval.cli.bench import policy_list
+
+    assert policy_list("nnbc:gamma=20,mu=20,jmpi, oracle:gamma=10") == [
+        "nnbc:gamma=20,mu=20",
+        "jmpi",
+        "oracle:gamma=10",
+    ]
+    assert policy_list("zero,random") == ["zero", "random"]

@@ -34,6 +34,18 @@ def _list(text: str) -> list[str]:
     return [v.strip() for v in text.split(",") if v.strip()]
 
 
+def policy_list(text: str) -> list[str]:
+    """Comma-separated policy specs; a piece `key=value` without a name continues the spec before it, so
+    `nnbc:gamma=20,mu=20,jmpi` is two specs: `nnbc:gamma=20,mu=20` and `jmpi`."""
+    specs: list[str] = []
+    for piece in _list(text):
+        if specs and "=" in piece and ":" not in piece and ":" in specs[-1]:
+            specs[-1] += "," + piece
+        else:
+            specs.append(piece)
+    return specs
+
+
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "bench",
@@ -61,10 +73,11 @@ def add_parser(sub) -> None:
     )
     p.add_argument(
         "--policies",
-        type=_list,
+        type=policy_list,
         action="extend",
         metavar="A,B",
-        help="policy specs; default: every built-in controller of the registry (`--list` shows them)",
+        help="policy specs (nnbc:gamma=20,mu=20,jmpi is two); default: every built-in controller of the "
+        "registry (`--list` shows them)",
     )
     p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, metavar="N", help="seeds per cell")
     p.add_argument(
