@@ -25,7 +25,8 @@ A condition may need an env argument that this version of `mobman_env` does not 
 `obs_noise_joint_vel` come with the env hardening of release 0.2): the default set leaves such a condition out
 (the scorecard says so); naming it with `--conditions` is an error saying which argument is missing.
 
-This module imports only the standard library, `eval.errors` and, inside functions, `mobman_env` and `policies`.
+This module imports the standard library, `eval.errors`, `eval.metrics` and, inside functions, gymnasium,
+`mobman_env` and `policies`.
 """
 
 from __future__ import annotations

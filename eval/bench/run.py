@@ -25,7 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from eval.bench.config import CONDITIONS, BenchConfig
-from eval.bench.scorecard import build_scorecard, scorecard_figures, scorecard_markdown
+from eval.bench.scorecard import build_scorecard, scorecard_figures, scorecard_json_text, scorecard_markdown
 from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text, check_out
@@ -160,7 +160,7 @@ def run_bench(
 
 def write_scorecard(out: Path, sc: dict, plots: bool = True) -> list[Path]:
     """scorecard.json, scorecard.md and (with `plots`) the PNGs, each written atomically."""
-    atomic_write_json(out / "scorecard.json", sc)
+    atomic_write_text(out / "scorecard.json", scorecard_json_text(sc))
     atomic_write_text(out / "scorecard.md", scorecard_markdown(sc))
     written = [out / "scorecard.json", out / "scorecard.md"]
     if plots and sc["pooled"]:

@@ -85,6 +85,18 @@ def build_scorecard(
     )
 
 
+def scorecard_json_text(sc: dict) -> str:
+    """scorecard.json's text: the header indented, each row of `rows` and `pooled` on one line (a 20-seed
+    bench has a few hundred rows: one line each keeps the file small and its diffs readable)."""
+    data = to_jsonable(sc)
+    head = {k: v for k, v in data.items() if k not in ("rows", "pooled")}
+    text = json.dumps(head, indent=2, allow_nan=False)[:-2]  # without the closing "\n}"
+    for key in ("rows", "pooled"):
+        lines = ",\n".join("    " + json.dumps(r, allow_nan=False, separators=(",", ":")) for r in data[key])
+        text += f',\n  "{key}": [\n{lines}\n  ]'
+    return text + "\n}\n"
+
+
 def load_scorecard(path: str | Path) -> dict:
     """Read a scorecard.json; EvalError when it is missing or not a scorecard."""
     path = Path(path)

@@ -80,7 +80,8 @@ def plot_success_curves(
     for ax in axes[len(panels) :]:
         ax.set_visible(False)
     if panels:
-        axes[0].legend(fontsize=7, loc="upper left")
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside right center", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=11)
     return fig
@@ -115,7 +116,8 @@ def plot_error_vs_wear(rows: Sequence[dict], *, title: str = "", tolerance: floa
     for ax in axes[len(panels) :]:
         ax.set_visible(False)
     if panels:
-        axes[0].legend(fontsize=7, loc="upper left")
+        handles, labels = axes[0].get_legend_handles_labels()
+        fig.legend(handles, labels, loc="outside right center", fontsize=7)
     if title:
         fig.suptitle(title, fontsize=11)
     return fig
