@@ -3,8 +3,8 @@ the measurement (eval.bench.chaos) that the table records."""
 
 import pytest
 
-from eval.output import precision as P
 from eval.bench import chaos
+from eval.output import precision as P
 
 
 @pytest.mark.parametrize(
@@ -26,7 +26,7 @@ def test_format_mm(x, spec, expected):
 
 
 def test_chaotic_set_is_the_one_digit_policies():
-    assert P.CHAOTIC == {"nnbc", "nnbc-full"}
+    assert {"nnbc", "nnbc-full"} == P.CHAOTIC
     assert P.is_chaotic("nnbc:gamma=20") and not P.is_chaotic("nnbc-plus")
     assert P.significant_digits("sb3:runs/x/model.zip") is None
 
