@@ -1,7 +1,7 @@
 """MkDocs hooks of the documentation site (mkdocs.yml `hooks:`): one source for every text the site shows.
 
-* The repository's own manuals (`eval/README.md`, the shipped agent's README) become pages at their repository
-  paths, so the README text embedded in the site (pymdownx snippets) keeps its relative links working.
+* Repository manuals outside docs/ (the shipped agent's README) become pages at their repository paths, so the
+  README text embedded in the site (pymdownx snippets) keeps its relative links working.
 * The tutorial notebook becomes a Markdown page (its Markdown cells as they are, code cells as Python blocks,
   no outputs: the notebook is stored without outputs and run in CI by nbmake), beside the `.ipynb` download.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
@@ -24,7 +24,7 @@ from typing import Any
 from mkdocs.structure.files import File, Files
 
 #: Files outside docs/ published as pages at the same path (relative to the repository root).
-REPO_PAGES = ("eval/README.md", "policies/models/sac-circle/README.md")
+REPO_PAGES = ("policies/models/sac-circle/README.md",)
 #: Notebooks in docs/ rendered as Markdown pages next to them.
 NOTEBOOKS = ("tutorials/benchmark-your-controller.ipynb",)
 POLICY_TABLE = "<!-- mobman:policy-table -->"
