@@ -6,6 +6,8 @@
   no outputs: the notebook is stored without outputs and run in CI by nbmake), beside the `.ipynb` download.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
+* Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
+  tag, so the text disappears) and a list written without the blank line before it (rendered as one paragraph).
 * `<!-- mobman:policy-table -->` in a page becomes the table of every built-in policy name and spec form,
   read from `policies.KNOWN_POLICIES` and `policies.SPEC_FORMS` when the site is built.
 
@@ -30,6 +32,72 @@ NOTEBOOKS = ("tutorials/benchmark-your-controller.ipynb",)
 POLICY_TABLE = "<!-- mobman:policy-table -->"
 #: The packages whose every module the API reference must document.
 PACKAGES = ("mobman_env", "policies", "eval", "train")
+
+#: HTML elements pages and docstrings may contain (those of Python-Markdown, its extensions, mkdocstrings and
+#: autorefs); any other `<tag>` is text that Markdown took for HTML.
+KNOWN_TAGS = frozenset(
+    [
+        "a",
+        "abbr",
+        "autoref",
+        "b",
+        "blockquote",
+        "br",
+        "caption",
+        "code",
+        "col",
+        "colgroup",
+        "dd",
+        "del",
+        "details",
+        "div",
+        "dl",
+        "dt",
+        "em",
+        "figcaption",
+        "figure",
+        "h1",
+        "h2",
+        "h3",
+        "h4",
+        "h5",
+        "h6",
+        "hr",
+        "i",
+        "img",
+        "input",
+        "ins",
+        "kbd",
+        "label",
+        "li",
+        "mark",
+        "ol",
+        "p",
+        "path",
+        "pre",
+        "q",
+        "s",
+        "small",
+        "span",
+        "strong",
+        "sub",
+        "summary",
+        "sup",
+        "svg",
+        "table",
+        "tbody",
+        "td",
+        "th",
+        "thead",
+        "tr",
+        "u",
+        "ul",
+        "var",
+    ]
+)
+_TAG = re.compile(r"<([A-Za-z][\w-]*)")
+_PARAGRAPH = re.compile(r"<p>(.*?)</p>", flags=re.S)
+_LIST_LINE = re.compile(r"\n[ \t]*(?:[*+-]|\d+\.) \S")
 
 log = logging.getLogger("mkdocs.hooks.mobman")
 
@@ -96,3 +164,26 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str
     if POLICY_TABLE in markdown:
         markdown = markdown.replace(POLICY_TABLE, policy_table(_root(config)))
     return markdown
+
+
+def rendering_problems(html: str) -> list[str]:
+    """Unknown `<tags>` (text taken for HTML) and paragraphs holding list items (a list without a blank line
+    before it), each with a little context, in a page's rendered HTML."""
+    problems = [
+        f"<{tag}> in '...{' '.join(html[max(0, m.start() - 60) : m.end() + 20].split())}...'"
+        for m in _TAG.finditer(html)
+        if (tag := m.group(1)).lower() not in KNOWN_TAGS
+    ]
+    for m in _PARAGRAPH.finditer(html):
+        if _LIST_LINE.search(m.group(1)):
+            text = re.sub(r"<[^>]+>", "", m.group(1))[:100].replace("\n", " ")
+            problems.append(f"a list without a blank line before it: '{text}...'")
+    return problems
+
+
+def on_page_content(html: str, page: Any, config: Any, files: Files) -> str:
+    for problem in rendering_problems(html):
+        log.warning(
+            f"{page.file.src_uri}: {problem} (in a docstring? put <words> in backticks; leave a blank line before a list)"
+        )
+    return html
