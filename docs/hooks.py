@@ -3,7 +3,8 @@
 * Repository manuals outside docs/ (the shipped agent's README) become pages at their repository paths, so the
   README text embedded in the site (pymdownx snippets) keeps its relative links working.
 * The tutorial notebook becomes a Markdown page (its Markdown cells as they are, code cells as Python blocks,
-  no outputs: the notebook is stored without outputs and run in CI by nbmake), beside the `.ipynb` download.
+  no outputs: the notebook is stored without outputs, which is checked here, and run in CI by nbmake), beside
+  the `.ipynb` download.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
 * Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
@@ -145,6 +146,13 @@ def on_files(files: Files, config: Any) -> Files:
     for rel in REPO_PAGES:
         files.append(File.generated(config, rel, abs_src_path=str(root / rel)))
     for rel in NOTEBOOKS:
+        path = Path(config.docs_dir).resolve() / rel
+        nb = json.loads(path.read_text(encoding="utf-8"))
+        if any(c.get("outputs") or c.get("execution_count") for c in nb["cells"] if c["cell_type"] == "code"):
+            shown = path.relative_to(root) if path.is_relative_to(root) else path
+            log.warning(
+                f"{shown} is stored with outputs: clear them (jupyter nbconvert --clear-output --inplace {shown})"
+            )
         md = rel.removesuffix(".ipynb") + ".md"
         files.append(File.generated(config, md, content=notebook_markdown(Path(config.docs_dir) / rel)))
     return files
