@@ -36,65 +36,10 @@ PACKAGES = ("mobman_env", "policies", "eval", "train")
 
 #: HTML elements pages and docstrings may contain (those of Python-Markdown, its extensions, mkdocstrings and
 #: autorefs); any other `<tag>` is text that Markdown took for HTML.
-KNOWN_TAGS = frozenset(
-    [
-        "a",
-        "abbr",
-        "autoref",
-        "b",
-        "blockquote",
-        "br",
-        "caption",
-        "code",
-        "col",
-        "colgroup",
-        "dd",
-        "del",
-        "details",
-        "div",
-        "dl",
-        "dt",
-        "em",
-        "figcaption",
-        "figure",
-        "h1",
-        "h2",
-        "h3",
-        "h4",
-        "h5",
-        "h6",
-        "hr",
-        "i",
-        "img",
-        "input",
-        "ins",
-        "kbd",
-        "label",
-        "li",
-        "mark",
-        "ol",
-        "p",
-        "path",
-        "pre",
-        "q",
-        "s",
-        "small",
-        "span",
-        "strong",
-        "sub",
-        "summary",
-        "sup",
-        "svg",
-        "table",
-        "tbody",
-        "td",
-        "th",
-        "thead",
-        "tr",
-        "u",
-        "ul",
-        "var",
-    ]
+KNOWN_TAGS = frozenset(  # noqa: SIM905 (a list literal of 56 strings would take 58 lines)
+    "a abbr autoref b blockquote br caption code col colgroup dd del details div dl dt em figcaption figure h1 h2 "
+    "h3 h4 h5 h6 hr i img input ins kbd label li mark ol p path pre q s small span strong sub summary sup svg table "
+    "tbody td th thead tr u ul var".split()
 )
 _TAG = re.compile(r"<([A-Za-z][\w-]*)")
 _PARAGRAPH = re.compile(r"<p>(.*?)</p>", flags=re.S)
@@ -107,9 +52,9 @@ def _root(config: Any) -> Path:
     return Path(config.config_file_path).resolve().parent
 
 
-def notebook_markdown(path: Path) -> str:
-    """The notebook as Markdown: Markdown cells unchanged, code cells fenced as Python, outputs dropped."""
-    nb = json.loads(path.read_text(encoding="utf-8"))
+def notebook_markdown(nb: dict, name: str) -> str:
+    """Notebook `nb` (the JSON of file `name`) as Markdown: Markdown cells unchanged, code cells fenced as
+    Python, outputs dropped, and a download link under the title."""
     parts = []
     for cell in nb["cells"]:
         source = "".join(cell["source"]).strip("\n")
@@ -117,7 +62,7 @@ def notebook_markdown(path: Path) -> str:
             parts.append(source)
         elif cell["cell_type"] == "code" and source:
             parts.append(f"```python\n{source}\n```")
-    download = f"*This page is the notebook [`{path.name}`]({path.name}) without its outputs: download it and run it.*"
+    download = f"*This page is the notebook [`{name}`]({name}) without its outputs: download it and run it.*"
     title, _, rest = "\n\n".join(parts).partition("\n")
     return f"{title}\n\n{download}\n{rest}\n"
 
@@ -154,7 +99,7 @@ def on_files(files: Files, config: Any) -> Files:
                 f"{shown} is stored with outputs: clear them (jupyter nbconvert --clear-output --inplace {shown})"
             )
         md = rel.removesuffix(".ipynb") + ".md"
-        files.append(File.generated(config, md, content=notebook_markdown(Path(config.docs_dir) / rel)))
+        files.append(File.generated(config, md, content=notebook_markdown(nb, path.name)))
     return files
 
 
