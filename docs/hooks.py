@@ -36,11 +36,12 @@ PACKAGES = ("mobman_env", "policies", "eval", "train")
 
 #: HTML elements pages and docstrings may contain (those of Python-Markdown, its extensions, mkdocstrings and
 #: autorefs); any other `<tag>` is text that Markdown took for HTML.
-KNOWN_TAGS = frozenset(  # noqa: SIM905 (a list literal of 56 strings would take 58 lines)
+_TAG_NAMES = (
     "a abbr autoref b blockquote br caption code col colgroup dd del details div dl dt em figcaption figure h1 h2 "
     "h3 h4 h5 h6 hr i img input ins kbd label li mark ol p path pre q s small span strong sub summary sup svg table "
-    "tbody td th thead tr u ul var".split()
+    "tbody td th thead tr u ul var"
 )
+KNOWN_TAGS = frozenset(_TAG_NAMES.split())
 _TAG = re.compile(r"<([A-Za-z][\w-]*)")
 _PARAGRAPH = re.compile(r"<p>(.*?)</p>", flags=re.S)
 _LIST_LINE = re.compile(r"\n[ \t]*(?:[*+-]|\d+\.) \S")
