@@ -180,7 +180,7 @@ def test_reset_options_override_for_one_episode(make_env):
         ({"n_substeps": 0}, "n_substeps must be an integer >= 1"),
         ({"path": {"type": "spiral"}}, "unknown path type 'spiral'; known: circle, line, lemniscate, random"),
         ({"path": {"type": "circle", "radius": 0}}, "radius must be a finite number > 0"),
-        ({"arm_joint_pos": [0, 1, 2]}, "arm_joint_pos must be 6 arm angles or 8"),
+        ({"arm_joint_pos": [0, 1, 2]}, "arm_joint_pos must be 6 or 8 finite numbers"),
         ({"arm_joint_pos": [0, 4.5, 0, 0, 0, 0]}, "outside the joint limits"),
         ({"base_pose": [0, 0]}, "base_pose must be 3 finite numbers"),
         ({"reward_weights": {"speed": 1.0}}, "reward_weights must be a dict with keys from"),
@@ -200,7 +200,7 @@ def test_bad_reset_options_and_actions(make_env):
         env.reset(options={"start": [0, 0, 0]})
     with pytest.raises(ValueError, match="unknown path type"):
         env.reset(options={"path": {"type": "square"}})
-    with pytest.raises(ValueError, match="arm_joint_pos must be 6 arm angles or 8"):
+    with pytest.raises(ValueError, match="arm_joint_pos must be 6 or 8 finite numbers"):
         env.reset(options={"arm_joint_pos": [0.0] * 7})
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(8,\)"):
