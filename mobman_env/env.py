@@ -173,7 +173,8 @@ class WheeledPumaEnv(gym.Env):
     opens PyBullet's window; without a display (neither DISPLAY nor WAYLAND_DISPLAY set) a GUI connection would
     kill the process, so the env warns (naming `"rgb_array"`), runs headless with no window, and `render()`
     returns None and draws nothing (so `gymnasium.utils.env_checker.check_env` with its defaults passes
-    headless).
+    headless). In kinematic mode with `wear_rate` != 0 every rendered frame reloads the body of the current
+    robot (about 8.5 ms per frame), so the picture is the true robot of that time.
 
     ## Privileged attributes
     `nominal_params` (the catalogue robot: what a model-based method may know) and `true_params` (the current
