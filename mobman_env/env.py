@@ -9,14 +9,14 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from mobman_env.params import MAX_REL_STD, RobotParams
-from mobman_env.paths import path_from_spec, validate_spec
+from mobman_env.paths import Path, path_from_spec, validate_spec
 from mobman_env.sensors import SENSOR_KEYS, Sensors
 from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
 from mobman_env.validation import integer, number, vector
@@ -189,8 +189,9 @@ class WheeledPumaEnv(gym.Env):
       control frequency; headless "human" warns instead of raising; step/reset after close() raise.
     """
 
-    # render_fps: the default control frequency; each instance sets its own (its control frequency)
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 100.0}
+    # render_fps: the default control frequency; each instance assigns its own dict (its control frequency), the
+    # class dict is never mutated. Not a ClassVar: gymnasium.Env declares `metadata` as an instance attribute.
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 100.0}  # noqa: RUF012
 
     def __init__(
         self,
@@ -261,11 +262,12 @@ class WheeledPumaEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
         self.observation_space = self._make_observation_space()
         # one flat float32 vector per step, clipped once and handed out as views, in OBS_KEYS order
-        sizes = [self.observation_space[k].shape[0] for k in OBS_KEYS]
+        boxes = [cast(spaces.Box, self.observation_space[k]) for k in OBS_KEYS]
+        sizes = [b.shape[0] for b in boxes]
         ends = np.cumsum(sizes)
         self._obs_slices = [(k, slice(e - n, e)) for k, n, e in zip(OBS_KEYS, sizes, ends)]
-        self._obs_low = np.concatenate([self.observation_space[k].low for k in OBS_KEYS])
-        self._obs_high = np.concatenate([self.observation_space[k].high for k in OBS_KEYS])
+        self._obs_low = np.concatenate([b.low for b in boxes])
+        self._obs_high = np.concatenate([b.high for b in boxes])
 
         window = render_mode == "human" and display_available()
         if render_mode == "human" and not window:
@@ -281,7 +283,7 @@ class WheeledPumaEnv(gym.Env):
         self._sim = Sim(dynamics, self.dt, self.n_substeps, gui=window)
         self._sensors = Sensors()
         self._closed = False
-        self._path = None
+        self._path: Path | None = None
         self._wear = 0.0
         self._step_count = 0
         self._n_steps = 0
@@ -368,32 +370,33 @@ class WheeledPumaEnv(gym.Env):
         cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
         self._check_wear(self.dynamics, cond["wear_rate"], _duration(spec))
         self._sensors = Sensors(
-            cond["obs_noise"], cond["obs_noise_vel"], cond["obs_noise_joint_vel"], cond["obs_delay"]
+            cond["obs_noise"], cond["obs_noise_vel"], cond["obs_noise_joint_vel"], int(cond["obs_delay"])
         )
         self._wear = cond["wear_rate"]
         # one RNG stream, in a fixed order: true robot, then the path's own seed, then sensor noise
         self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
         self._sim.reset(self._true_params, q0, pose)
         state = self._sim.state()
-        self._path = path_from_spec(spec, state.ee_pos, self.np_random)
-        self._n_steps = max(1, int(round(self._path.duration * self.control_freq)))
+        self._path = path = path_from_spec(spec, state.ee_pos, self.np_random)
+        self._n_steps = max(1, int(round(path.duration * self.control_freq)))
         self._step_count = 0
         self._n_clipped = 0
         self._limit_hits = 0
         self._task = {
-            "path": self._path.to_spec(),
+            "path": path.to_spec(),
             "start": [float(v) for v in state.ee_pos],
             "arm_joint_pos": [float(v) for v in q0],
             "base_pose": [float(v) for v in pose],
-            "duration": float(self._path.duration),
+            "duration": float(path.duration),
             "n_steps": self._n_steps,
         }
         self._params_hash = self._true_params.hash()
         if self._draws:
-            ts = np.linspace(0.0, self._path.duration, 60)
-            self._path_points = np.array([self._path.position(t) for t in ts])
+            ts = np.linspace(0.0, path.duration, 60)
+            self._path_points = np.array([path.position(t) for t in ts])
             self._sim.draw_path(self._path_points)
-        obs = self._observation(state, 0.0, *self._path.position_velocity(0.0), start=True)
+        r_d, v_d = path.position_velocity(0.0)
+        obs = self._observation(state, 0.0, r_d, v_d, start=True)
         info = {
             "task": self._task,
             "true_params_hash": self._params_hash,
@@ -406,7 +409,8 @@ class WheeledPumaEnv(gym.Env):
 
     def step(self, action):
         self._check_open()
-        if self._path is None:
+        path = self._path
+        if path is None:
             raise RuntimeError("call reset() before step()")
         a = np.asarray(action)
         if a.dtype.kind not in "fiu":
@@ -435,7 +439,7 @@ class WheeledPumaEnv(gym.Env):
             self._true_params = self._params0.scaled(1.0 + self._wear * t)
             self._sim.set_params(self._true_params)
         state = self._sim.state()
-        r_d, v_d = self._path.position_velocity(t)
+        r_d, v_d = path.position_velocity(t)
         err = float(np.linalg.norm(r_d - state.ee_pos))
         terms = {
             "tracking": -self.reward_weights["tracking"] * err,
@@ -509,7 +513,7 @@ class WheeledPumaEnv(gym.Env):
 
     # --- read-only conveniences ------------------------------------------------------------------------
     @property
-    def path(self):
+    def path(self) -> Path | None:
         """The current episode's path object (None before the first reset)."""
         return self._path
 

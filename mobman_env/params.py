@@ -14,6 +14,7 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -115,14 +116,17 @@ class RobotParams:
         if rel_std == 0.0:
             return dataclasses.replace(self)
         z = np.clip(rng.standard_normal(len(PERTURBED_FIELDS)), -CLIP, CLIP)
-        changes = {name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)}
+        changes: dict[str, Any] = {
+            name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)
+        }
         return dataclasses.replace(self, **changes)
 
     def scaled(self, factor: float) -> RobotParams:
         """This robot with each of a2, a3, d3, d4, tool, r, b and d multiplied by `factor` (> 0), e.g. the
         linear wear drift 1 + wear_rate * t of the env. `factor = 1` returns an equal copy."""
         factor = number("factor", factor, low=0.0, open_low=True)
-        return dataclasses.replace(self, **{name: getattr(self, name) * factor for name in PERTURBED_FIELDS})
+        changes: dict[str, Any] = {name: getattr(self, name) * factor for name in PERTURBED_FIELDS}
+        return dataclasses.replace(self, **changes)
 
     # --- derived ---------------------------------------------------------------------------------------
     @property

@@ -166,7 +166,8 @@ class Sim:
         self._markers: list[int] = []
         self._marker_points = np.empty((0, 3))
         self._marker_shape: int | None = None
-        self._params: RobotParams | None = None
+        self._params = RobotParams.nominal()  # replaced by reset(); no body exists before it
+        self._has_robot = False
         #: torque limits of the 8 actuators (6 arm joints, left, right wheel), N m: the same for every robot
         self.torque_limits: list[float] = []
         self._build_world()
@@ -273,6 +274,7 @@ class Sim:
     def reset(self, params: RobotParams, q0: np.ndarray, base_pose: np.ndarray) -> None:
         """Start an episode with the robot `params` at joint angles `q0` (8) and platform pose (3)."""
         self._params = params
+        self._has_robot = True
         self.torque_limits = [*params.arm_torque_limit, params.wheel_torque_limit, params.wheel_torque_limit]
         self._lower = np.array(params.joint_lower)
         self._upper = np.array(params.joint_upper)
@@ -385,7 +387,7 @@ class Sim:
     # --- rendering -------------------------------------------------------------------------------------
     def sync_bodies(self) -> None:
         """Kinematic mode: put the PyBullet body where the integrated state is (only needed to render)."""
-        if self.dynamics == "kinematic" and not self._synced and self._params is not None:
+        if self.dynamics == "kinematic" and not self._synced and self._has_robot:
             self._load_body(self._params)
             self.set_state(self._q, self._pose)
             self._synced = True

@@ -100,13 +100,10 @@ def integer(
 
 
 def _in_range(v: Any, low: float | None, high: float | None) -> bool:
-    return (
-        not isinstance(v, bool)
-        and isinstance(v, numbers.Real)
-        and math.isfinite(v)
-        and (low is None or v >= low)
-        and (high is None or v <= high)
-    )
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        return False
+    x = float(v)
+    return math.isfinite(x) and (low is None or x >= low) and (high is None or x <= high)
 
 
 def vector(
