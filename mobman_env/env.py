@@ -354,6 +354,8 @@ class WheeledPumaEnv(gym.Env):
     # --- gym API ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         self._check_open()
+        if isinstance(seed, bool):  # gymnasium would take True as seed 1
+            raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
         super().reset(seed=seed)
         if options is not None and not isinstance(options, Mapping):
             raise ValueError(

@@ -259,6 +259,8 @@ def test_bad_reset_options_and_actions(make_env):
         env.reset(options="abc")
     with pytest.raises(ValueError, match="obs_noise must be a finite number >= 0, got True"):
         env.reset(options={"obs_noise": True})
+    with pytest.raises(ValueError, match="seed must be None or an integer >= 0, got True"):
+        env.reset(seed=True)
     with pytest.raises(ValueError, match="line path: direction must be 3 finite numbers .*, got 'x'"):
         env.reset(options={"path": {"type": "line", "direction": "x"}})
     with pytest.raises(ValueError, match="unknown path type"):
