@@ -2,10 +2,10 @@
 
 `tests/data/env_defaults_0.1.npz` was recorded by `record()` below from commit 3d1df75 (before the release-0.2
 env options `obs_noise_joint_vel`, `obs_delay` and `wear_rate`, the URDF and leak-guard changes existed), with
-`PYTHONPATH=$PWD python tests/test_env_defaults_unchanged.py --write`. Five episodes in four envs: both dynamics
-modes, with and without sensor noise, a random path whose seed comes from the env's RNG, and two consecutive episodes in one
-physics env (the second reuses the client, so body replacement is covered); actions are random and partly
-outside [-1, 1] (clipping).
+`PYTHONPATH=$PWD python tests/test_env_defaults_unchanged.py --write`. Five episodes in four envs: both
+dynamics modes, with and without sensor noise, a random path whose seed comes from the env's RNG, and two
+consecutive episodes in one physics env (the second reuses the client, so body replacement is covered); actions
+are random and partly outside [-1, 1] (clipping).
 
 Comparison is bit for bit when numpy runs on the same BLAS kernel as at recording time (the kinematic mode's
 4x4 products go through BLAS, and another kernel may round the last bit differently); on another kernel the
