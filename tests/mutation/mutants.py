@@ -13,7 +13,8 @@ there, its tests run with `python -m pytest -x -q` (PYTHONPATH = the copy), and 
 mutant is "killed" when pytest exits with 1 (a test failed), "survived" when it exits with 0, "error" for any
 other exit (collection error, crash). Exit status: 0 if every mutant was killed, 1 otherwise.
 
-Not part of the test suite (pytest collects only test_*.py files); it takes about a minute.
+Not part of the test suite (pytest collects only test_*.py files). 12 mutants with --baseline: 3.5 min on the
+shared 2-core machine (load ~10).
 """
 
 from __future__ import annotations
