@@ -112,7 +112,11 @@ def test_bad_specs_name_the_problem(spec, match):
 def test_random_spec_without_seed_needs_rng():
     with pytest.raises(ValueError, match="no 'seed'"):
         path_from_spec({"type": "random"}, START)
-    assert set(PATH_TYPES) == {"circle", "line", "lemniscate", "random"}
+    # every listed type builds from its type alone (a random one draws its seed from the rng) at the start
+    for kind in PATH_TYPES:
+        path = path_from_spec({"type": kind}, START, np.random.default_rng(1))
+        assert path.to_spec()["type"] == kind
+        np.testing.assert_allclose(path.position(0.0), START, atol=1e-12)
 
 
 @pytest.mark.parametrize("kind", PATH_TYPES)
