@@ -2,7 +2,7 @@
 
 ```
 obs, info = env.reset(seed=S + k)
-policy.reset(obs, info, seed=S + k)          # if the object has `reset` (SB3-only objects do not)
+policy.reset(obs, info, seed=policy_seed(S + k))   # if the object has `reset` (SB3-only objects do not)
 repeat: action, state = policy.predict(obs, state)   # timed with perf_counter, whole call
         obs, reward, terminated, truncated, info = env.step(action)
 ```
@@ -18,6 +18,9 @@ Per step it records (SI units, float64 unless noted):
 | error | (n+1,) | tracking error `info["tracking_error"]` (noise-free), m |
 | action | (n, 8) | normalised action the env applied (after clipping to [-1, 1]) |
 | predict_us | (n,) | wall time of each `predict` call, microseconds |
+
+The policy's seed is `policies.base.policy_seed(S + k)`, derived from the episode seed by a documented rule so
+that it reveals nothing the env drew (the true robot, the path, the noise); it never is the env's seed itself.
 
 A crash anywhere in the episode (env or policy) is caught: the record gets `status: "failed"` and the
 traceback, its metrics are None, and the caller goes on with the next episode.
@@ -35,6 +38,7 @@ import gymnasium as gym
 import numpy as np
 
 from eval import metrics as M
+from policies.base import policy_seed
 
 #: Keys of the per-step arrays one rollout returns (see the module docstring).
 ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
@@ -189,7 +193,7 @@ def rollout(
         }
         reset = getattr(policy, "reset", None)
         if reset is not None:
-            reset(obs, info, seed=seed)
+            reset(obs, info, seed=policy_seed(seed))
         predict = policy.predict
         if on_step is not None:
             on_step(0)
