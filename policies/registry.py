@@ -11,7 +11,7 @@ Spec grammar (one string, as the CLI takes it):
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
 
 Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `zero`, `random`) are built from
-`EnvFacts.from_env(env)` only. `jmpi` (and `nnbc:j0=nominal`) receive the env's `nominal_params`. The oracle
+`EnvFacts.from_env(env)` only. `jmpi`, `clik` (and `nnbc:j0=nominal`) receive the env's `nominal_params`. The oracle
 receives a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
 """
@@ -78,6 +78,22 @@ _REGISTRY: dict[str, _Entry] = {
         "policies.jmpi",
         "JMPI",
         "JMPIConfig",
+        {"full": True},
+        "nominal",
+    ),
+    "clik": _Entry(
+        "closed-loop eq. (10) on the nominal model (resolved rate, paper's J): the practitioner's baseline",
+        "policies.jmpi",
+        "CLIK",
+        "CLIKConfig",
+        {},
+        "nominal",
+    ),
+    "clik-full": _Entry(
+        "closed-loop eq. (10) on the nominal whole-body Jacobian",
+        "policies.jmpi",
+        "CLIK",
+        "CLIKConfig",
         {"full": True},
         "nominal",
     ),
