@@ -11,8 +11,8 @@ Spec grammar (one string, as the CLI takes it):
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
 
 Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `zero`, `random`) are built from
-`EnvFacts.from_env(env)` only. `jmpi`, `clik` (and `nnbc:j0=nominal`) receive the env's `nominal_params`. The oracle
-receives a provider that reads the env's current `true_params` at each episode start - the only code in this
+`EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive the env's
+`nominal_params`. The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
 """
 
@@ -107,6 +107,22 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "oracle-full": _Entry(
         "eq. (10) with the true whole-body Jacobian", "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"
+    ),
+    "qp": _Entry(
+        "whole-body differential-IK QP on the nominal model: joint-limit dampers, speed bounds, posture term",
+        "policies.qp",
+        "QP",
+        "QPConfig",
+        {},
+        "nominal",
+    ),
+    "qp-oracle": _Entry(
+        "the whole-body QP on the true robot: the known-model ceiling (respects joint limits)",
+        "policies.qp",
+        "QP",
+        "QPConfig",
+        {},
+        "true",
     ),
     "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
     "random": _Entry(
