@@ -10,7 +10,7 @@ Spec grammar (one string, as the CLI takes it):
   Policy object, or a class / factory that is called with the env if its signature accepts one positional
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
 
-Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `zero`, `random`) are built from
+Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `broyden`, `rls`, `zero`, `random`) are built from
 `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive the env's
 `nominal_params`. The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
@@ -62,6 +62,22 @@ _REGISTRY: dict[str, _Entry] = {
         "policies.nnbc_plus",
         "NNBCPlus",
         "NNBCPlusConfig",
+        {},
+        "none",
+    ),
+    "broyden": _Entry(
+        "model-free: Broyden's secant Jacobian update in nnbc-plus's probe / excitation / control law",
+        "policies.broyden_rls",
+        "Broyden",
+        "BroydenConfig",
+        {},
+        "none",
+    ),
+    "rls": _Entry(
+        "model-free: recursive least squares with forgetting in nnbc-plus's probe / excitation / control law",
+        "policies.broyden_rls",
+        "RLS",
+        "RLSConfig",
         {},
         "none",
     ),
