@@ -149,6 +149,22 @@ class ControllerPolicy:
     name = "controller"
     #: observation keys `_reset`/`_act` read (None: all); only these are converted on the hot path
     uses_keys: tuple[str, ...] | None = None
+    #: which Jacobian `jacobian_estimate` estimates: "whole_body" (r_a_dot = J u, the platform's translation
+    #: included; `mobman_env.kinematics.whole_body_jacobian`), "paper" (r_a_dot - [p_c_dot; 0] = J u, the J of
+    #: the paper's eq. (6); `mobman_env.kinematics.paper_jacobian`), or None for a controller with no estimate
+    jacobian_kind: str | None = None
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        """The controller's current estimate of the Jacobian, or None (no estimate, or none yet).
+
+        A 3 x 8 float array in the action's physical units: actuator speeds u (rad/s: 6 arm joints, left wheel,
+        right wheel) to end-effector velocity (m/s), for the state of the last observation given to `predict`;
+        `jacobian_kind` names the Jacobian. Eval compares it with the true robot's Jacobian (computed by eval,
+        never by the policy) and records the relative error and the row-space angle. Model-based controllers
+        and those that estimate nothing return None.
+        """
+        return None
 
     def __init__(self, facts: EnvFacts, seed: int | None = None):
         self.facts = facts
