@@ -302,7 +302,11 @@ class EstimatingController(ControllerPolicy):
         X = np.array(self._probe_x).T  # (8, n)
         Y = np.array(self._probe_y).T  # (3, n)
         A = X @ X.T
-        J0 = np.linalg.solve(A + 1e-9 * np.trace(A) / N_ACT * np.eye(N_ACT), X @ Y.T).T
+        tr = np.trace(A)
+        if tr > 0:
+            J0 = np.linalg.solve(A + 1e-9 * tr / N_ACT * np.eye(N_ACT), X @ Y.T).T
+        else:  # no actuator moved during the probe (e.g. the same observation fed again and again): no information
+            J0 = np.zeros((3, N_ACT))
         if self.config.j0_noise > 0:
             noise = self.rng.standard_normal(J0.shape)
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
