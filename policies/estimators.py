@@ -105,7 +105,7 @@ class KalmanEstimator:
         self._sym_phase = sym_phase
         self.X = np.zeros((3, ns))
         self.P = self._P0.copy()
-        self._innov_ms = INNOV_MS0
+        self._innov_ms: float = INNOV_MS0
         self._m = 0
 
     @property
@@ -146,7 +146,7 @@ class KalmanEstimator:
         K = Ph / (h @ Ph + self._r)
         innov = y - X @ h
         if self._clip > 0:
-            n2 = innov @ innov
+            n2 = float(innov @ innov)
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
                 innov *= (lim2 / n2) ** 0.5

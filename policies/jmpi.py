@@ -96,7 +96,7 @@ class _ModelPolicy(ControllerPolicy):
         super().__init__(facts, seed)
         self.config = config
         self._jac = K.whole_body_jacobian if config.full else K.paper_jacobian
-        self.params = None
+        self.params: Any = None  # the RobotParams the law inverts (set by the subclass or at reset)
 
     def _command(self, obs: dict, v: np.ndarray) -> np.ndarray:
         J = self._jac(self.params, obs["joint_pos"][:6], float(obs["base_yaw"][0]))

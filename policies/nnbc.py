@@ -263,7 +263,7 @@ class NNBC(ControllerPolicy):
                 "model); use j0='probe' for the model-free start"
             )
         self._J0 = J0
-        self._nominal = nominal_params if self.j0_source == "nominal" else None
+        self._nominal: Any = nominal_params if self.j0_source == "nominal" else None
         self._full = bool(self.config.full)
         self.jacobian_kind = "whole_body" if self._full else "paper"
         self._dt = facts.dt

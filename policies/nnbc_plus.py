@@ -261,8 +261,8 @@ class EstimatingController(ControllerPolicy):
         self._prev_s = self._task_pos(obs)
         self._s_f = self._prev_s.copy()
         self._prev_vd = obs["target_vel"].copy()
-        self._td = np.zeros(3)
-        self._signs = np.empty((0, N_ACT))
+        self._td: np.ndarray = np.zeros(3)
+        self._signs: np.ndarray = np.empty((0, N_ACT))
         self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
