@@ -19,7 +19,7 @@ from mobman_env.params import RobotParams
 from policies.base import EnvFacts, policy_seed
 from policies.broyden_rls import BroydenConfig, RLSConfig
 from policies.estimators import BroydenEstimator, RLSEstimator
-from policies.jmpi import CLIKConfig, OracleConfig
+from policies.jmpi import CLIKConfig, JMPIConfig, OracleConfig
 from policies.nnbc import damped_pinv_apply
 from policies.nnbc_plus import N_PROBE, NNBCPlusConfig
 from policies.qp import QP, QPConfig
@@ -68,7 +68,8 @@ def test_clik_full_tracks_circle_with_an_exact_model_until_a_joint_limit():
 
 
 def test_clik_is_the_oracle_law_on_the_nominal_model():
-    """Same command as the oracle when the oracle's provider returns the nominal robot (one law, two models)."""
+    """Same command as the oracle when the oracle's provider returns the nominal robot, and as JMPI given
+    CLIK's gain (one law: model source and gain are its only parameters)."""
     env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
     try:
         obs, _ = env.reset(seed=1)
@@ -79,10 +80,13 @@ def test_clik_is_the_oracle_law_on_the_nominal_model():
         for full in (False, True):
             clik = policies.jmpi.CLIK(facts, CLIKConfig(full=full), nominal_params=nominal)
             oracle = policies.jmpi.Oracle(facts, OracleConfig(full=full), params_provider=lambda: nominal)
-            clik.reset(obs)
-            oracle.reset(obs)
-            np.testing.assert_array_equal(clik.predict(obs)[0], oracle.predict(obs)[0])
-            assert clik.config.gamma == 20.0
+            jmpi = policies.jmpi.JMPI(facts, JMPIConfig(full=full, gamma=20.0), nominal_params=nominal)
+            for pol in (clik, oracle, jmpi):
+                pol.reset(obs)
+            u = clik.predict(obs)[0]
+            np.testing.assert_array_equal(u, oracle.predict(obs)[0])
+            np.testing.assert_array_equal(u, jmpi.predict(obs)[0])
+            assert clik.config.gamma == 20.0 and JMPIConfig().gamma == 0.0
     finally:
         env.close()
 
