@@ -58,11 +58,13 @@ class BroydenConfig(ModelFreeConfig):
 @dataclass(frozen=True)
 class RLSConfig(ModelFreeConfig):
     """Options of `rls`: the scaffolding's (`ModelFreeConfig`) and the least-squares filter's. Spec keys:
-    `rls:forgetting=0.95,gamma=20,...`."""
+    `rls:forgetting=0.9,gamma=20,...`."""
 
-    forgetting: float = 0.95
+    forgetting: float = 0.9
     """Exponential forgetting factor lambda per control step, 0 < lambda <= 1 (a window of about
-    1 / (1 - lambda) steps: 20 steps = 0.2 s at 100 Hz)."""
+    1 / (1 - lambda) steps: 10 steps = 0.1 s at 100 Hz). Chosen on development seeds 0-9 (Circle-v0 and Line-v0,
+    kinematic, model error 0.05 and 0.2): successes out of 40 episodes 36 (0.9), 34 (0.95), 31 (0.98); lambda = 1
+    with a random-walk covariance q_jacobian = 1e-4 instead: 4."""
     q_jacobian: float = 0.0
     """Random-walk covariance added to each diagonal entry of P per step (0: off; forgetting alone)."""
     p0: float = 1.0
