@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, episode_seed, short_config, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
@@ -56,6 +56,7 @@ class ExitOnce(HoldStill):
 
     def reset(self, obs, info=None, *, seed=None):
         super().reset(obs, info, seed=seed)
+        seed = episode_seed(seed)
         marker = Path(self.marker_dir) / f"exited-{seed}"
         if seed % 2 == 1 and not marker.exists():
             marker.write_text(str(os.getpid()))
@@ -71,6 +72,7 @@ class ExitAlways(HoldStill):
 
     def reset(self, obs, info=None, *, seed=None):
         super().reset(obs, info, seed=seed)
+        seed = episode_seed(seed)
         if seed % 2 == 1:
             with open(Path(self.log_dir) / f"attempts-{seed}", "a") as f:
                 f.write(f"{os.getpid()}\n")
