@@ -284,3 +284,15 @@ def test_qp_needs_exactly_one_model_source():
     with pytest.raises(ValueError, match="exactly one model source"):
         QP(facts, nominal_params=RobotParams.nominal(), params_provider=RobotParams.nominal)
     assert QP(facts, params_provider=RobotParams.nominal).name == "qp-oracle"
+
+
+def test_qp_falls_back_to_the_clipped_pseudo_inverse_when_the_solver_fails(mid_episode):
+    env, facts, obs = mid_episode
+    params = env.unwrapped.true_params
+    pol = QP(facts, QPConfig(posture_gain=0.0), params_provider=lambda: params)
+    pol.reset(obs)
+    expected = pol.predict(obs)[0]
+    pol._solve_qp = lambda *args, **kwargs: None  # a solver that finds no solution
+    got = pol.predict(obs)[0]
+    assert pol.qp_failures == 1
+    np.testing.assert_allclose(got, expected, rtol=1e-4, atol=1e-6)  # no bound active: the same least-norm u
