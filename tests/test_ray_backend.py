@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, episode_seed, short_config, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
@@ -58,6 +58,7 @@ class ExitOnOddSeed(HoldStill):
 
     def reset(self, obs, info=None, *, seed=None):
         super().reset(obs, info, seed=seed)
+        seed = episode_seed(seed)
         if seed % 2 == 0:
             return
         log = Path(self.log_dir) / f"attempts-{seed}"
