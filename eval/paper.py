@@ -32,7 +32,9 @@ PAPER_SEED = 10_000  # reported seeds start here (DESIGN "Seeds")
 PAPER_GAMMA = 10.0  # the paper's gamma = mu = 10
 PAPER_MAX_ERROR = DEFAULT_TOLERANCE  # m: "the maximum tracking error is not more than 0.006 m"
 PAPER_PATH_SIZE = (0.8, 0.8, 0.2)  # m: "the scale of the desired path is 0.8 m x 0.8 m x 0.2 m"
-CORE_POLICIES = ("nnbc", "jmpi", "oracle", "nnbc-full")
+#: the oracle with the paper's gain (every closed-loop law's default is 20 1/s; the paper's section IV uses 10)
+ORACLE = f"oracle:gamma={PAPER_GAMMA:g}"
+CORE_POLICIES = ("nnbc", "jmpi", ORACLE, "nnbc-full")
 OPTIONAL_POLICIES = ("nnbc-plus",)
 DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "physics": ("physics",)}
 
@@ -277,12 +279,12 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
         aggs = [a for a in result.aggregate if a["dynamics"] == dyn]
         lines += [f"### {dyn}", "", markdown_table(SUMMARY_HEADER, [summary_row(a) for a in aggs]), ""]
     lines += ["## Max error per seed (mm)", ""]
-    header = ["seed"] + [f"{p} ({d})" for d in modes for p in (nnbc, "jmpi", "oracle")]
+    header = ["seed"] + [f"{p} ({d})" for d in modes for p in (nnbc, "jmpi", ORACLE)]
     per_seed = []
     for k in range(n):
         row = [str(cfg["seed"] + k)]
         for d in modes:
-            for p in (nnbc, "jmpi", "oracle"):
+            for p in (nnbc, "jmpi", ORACLE):
                 rec = next(
                     (r for r in result.episodes if r["policy"] == p and r["dynamics"] == d and r["episode"] == k), None
                 )
@@ -333,7 +335,7 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
             f"in y, 0.2 half of the z span)."
         )
     for dyn in modes:
-        a, o = _agg(result, nnbc, dyn), _agg(result, "oracle", dyn)
+        a, o = _agg(result, nnbc, dyn), _agg(result, ORACLE, dyn)
         errs = _errs(result, nnbc, dyn)
         if a is None or not errs:
             continue
@@ -357,7 +359,7 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
                 limited = [
                     r
                     for r in result.episodes
-                    if r["policy"] == "oracle"
+                    if r["policy"] == ORACLE
                     and r["dynamics"] == dyn
                     and r["status"] == "ok"
                     and r.get("joint_limit_hits", 0) > 0
@@ -371,7 +373,7 @@ def _differences(result, nnbc, modes, measured, formula) -> list[str]:
                     f"and the law has no way to hand the turn to the platform. The rest "
                     f"({_mm(max(med - om, 0.0))} of the median) is the cost of the online estimate."
                 )
-                best = _best_other(result, dyn, exclude=(nnbc, "oracle", "jmpi"))
+                best = _best_other(result, dyn, exclude=(nnbc, ORACLE, "jmpi"))
                 if best is not None and best[1] < PAPER_MAX_ERROR:
                     line += (
                         f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1])} "

@@ -43,7 +43,7 @@ def test_paper_writes_figures_and_sets_claims_beside_measurements(tmp_path):
         assert (out / name).is_file(), name
     res = json.loads((out / "results.json").read_text())
     policies = [a["policy"] for a in res["aggregate"]]
-    assert policies[:4] == ["nnbc", "jmpi", "oracle", "nnbc-full"]
+    assert policies[:4] == ["nnbc", "jmpi", "oracle:gamma=10", "nnbc-full"]
     assert {r["seed"] for r in res["episodes"]} == {10_000}
     assert {r["env"] for r in res["episodes"]} == {"WheeledPuma-Circle-v0"}
     md = (out / "paper.md").read_text()
