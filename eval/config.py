@@ -22,7 +22,7 @@ BACKEND_CHOICES = ("local", "ray")
 class EvalConfig:
     """One benchmark run: every (env, dynamics, policy) pair faces the same `episodes` episodes.
 
-    Episode k (0-based) of every pair uses `env.reset(seed=seed + k)` and `policy.reset(..., seed=seed + k)`.
+    Episode k (0-based) of every pair uses `env.reset(seed=seed + k)` and `policy.reset(..., seed=policies.policy_seed(seed + k))` (a seed derived from the episode seed that reveals nothing the env drew).
     """
 
     envs: tuple[str, ...] = ("WheeledPuma-Circle-v0",)
