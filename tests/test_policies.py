@@ -373,7 +373,7 @@ def test_batch_of_one_and_longer_batches(kin_env):
 class _ModelGuard(gym.Wrapper):
     """Raises on any access to the robot model, through `unwrapped` or the wrapper-attribute lookup."""
 
-    FORBIDDEN = ("true_params", "nominal_params")
+    FORBIDDEN = ("true_params", "nominal_params", "sim")  # sim holds the true robot too
 
     def __init__(self, env):
         super().__init__(env)
