@@ -23,7 +23,7 @@ BACKEND_CHOICES = ("local", "ray")
 class EvalConfig:
     """One benchmark run: every (env, dynamics, policy) pair faces the same `episodes` episodes.
 
-    Episode k (0-based) of every pair uses `env.reset(seed=seed + k)` and `policy.reset(..., seed=seed + k)`.
+    Episode k (0-based) of every pair uses `env.reset(seed=seed + k)` and `policy.reset(..., seed=policies.policy_seed(seed + k))` (a seed derived from the episode seed that reveals nothing the env drew).
     """
 
     envs: tuple[str, ...] = ("WheeledPuma-Circle-v0",)
@@ -35,7 +35,7 @@ class EvalConfig:
     seed: int = 10_000
     """Seed of episode 0 (reported results use seeds >= 10,000; tune on 0-999)."""
     out: str | None = None
-    """Output directory; None: runs/<command>-<UTC timestamp>."""
+    """Output directory; None: `runs/<command>-<UTC timestamp>`."""
     overwrite: bool = False
     """Write into an existing non-empty `out` (files of the same name are replaced atomically)."""
     workers: int = 1

@@ -11,6 +11,9 @@ Conventions (SI units throughout; the Markdown and console reports convert to mm
 * Effort = integral over time of ||a||^2 (a: the normalised action), i.e. sum_k ||a_k||^2 dt, in s.
 * Peak speeds are the largest commanded actuator speeds |a_i| * action_scale_i (rad/s), arm joints and wheels
   separately (the command the env applied, after its own clipping).
+* Jacobian-estimate quality (controllers exposing `jacobian_estimate`): per step the relative error
+  ||J_hat - J||_F / ||J||_F and the largest principal angle between the row spaces of J_hat and J (rad), J the
+  true robot's Jacobian of the same kind at the same state, computed by eval; per episode their median and max.
 * Success: the episode ran to its end (`status == "ok"`, not tipped over) and its max error is <= the tolerance
   (default 6 mm, the paper's figure). A failed episode is never a success.
 * Steady-state errors (`steady_max_error_m`, `steady_rms_error_m`): max and RMS of e_k over the samples with
@@ -320,3 +323,71 @@ def aggregate(
                 row[name]["iqm_ci95"] = iqm_ci95(list(strata.values()))
         rows.append(row)
     return rows
+
+
+# --- Jacobian-estimate quality -------------------------------------------------------------------------------
+#: A matrix's row space has the dimension of its singular values above this fraction of the largest one.
+RANK_RTOL = 1e-10
+
+
+def jacobian_relative_error(J_hat: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """||J_hat - J||_F / ||J||_F over the last two axes (J_hat, J: (..., m, n)); returns shape (...,).
+
+    Dimensionless; inf where J = 0 and J_hat != 0, nan where both are 0."""
+    J_hat, J = np.asarray(J_hat, float), np.asarray(J, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.linalg.norm(J_hat - J, axis=(-2, -1)) / np.linalg.norm(J, axis=(-2, -1))
+
+
+def row_space_angle(J_hat: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """The largest principal angle between the row spaces of J_hat and J (rad, in [0, pi/2]), over the last two
+    axes of (..., m, n) arrays; returns shape (...,).
+
+    0 when J_hat's rows span exactly J's row space (whatever their scale), pi/2 when some direction of one is
+    orthogonal to the other, and pi/2 whenever the two ranks differ (a rank-deficient estimate misses a whole
+    direction). With orthonormal bases V1, V2 of the two row spaces (rows of the SVD's V^T), the angle is
+    atan2(||(I - V1^T V1) V2^T||_2, sigma_min(V1 V2^T)): accurate for small angles too (arccos alone is not:
+    it cannot resolve angles below about 1e-8 rad). Equals the largest angle of `scipy.linalg.subspace_angles`
+    (J_hat.T, J.T) when the ranks are equal."""
+    A, B = np.asarray(J_hat, float), np.asarray(J, float)
+    if A.shape != B.shape or A.ndim < 2:
+        raise ValueError(f"J_hat and J must be arrays of the same shape (..., m, n), got {A.shape} and {B.shape}")
+    lead = A.shape[:-2]
+    m, n = A.shape[-2:]
+    A = A.reshape(-1, m, n)
+    B = B.reshape(-1, m, n)
+    out = np.full(A.shape[0], np.nan)
+    _, sa, va = np.linalg.svd(A, full_matrices=False)
+    _, sb, vb = np.linalg.svd(B, full_matrices=False)
+    with np.errstate(invalid="ignore"):
+        ra = np.sum(sa > RANK_RTOL * sa[:, :1], axis=1)
+        rb = np.sum(sb > RANK_RTOL * sb[:, :1], axis=1)
+    valid = (sa[:, 0] > 0) & (sb[:, 0] > 0) & np.isfinite(sa).all(axis=1) & np.isfinite(sb).all(axis=1)
+    out[valid & (ra != rb)] = math.pi / 2
+    for r in range(1, min(m, n) + 1):  # one batched computation per common rank
+        idx = np.flatnonzero(valid & (ra == r) & (rb == r))
+        if idx.size == 0:
+            continue
+        V1, V2 = va[idx, :r], vb[idx, :r]  # (k, r, n): orthonormal rows
+        M = V1 @ V2.transpose(0, 2, 1)
+        cos = np.linalg.svd(M, compute_uv=False)[:, -1]
+        resid = V2.transpose(0, 2, 1) - V1.transpose(0, 2, 1) @ M  # (I - V1^T V1) V2^T, (k, n, r)
+        sin = np.linalg.norm(resid, ord=2, axis=(-2, -1))
+        out[idx] = np.arctan2(sin, cos)
+    return out.reshape(lead)
+
+
+def jacobian_quality(rel_error: np.ndarray, angle: np.ndarray) -> dict[str, float | None]:
+    """Per-episode summary of the per-step Jacobian-estimate quality: median and max of the relative error and
+    of the row-space angle (rad) over the steps that had an estimate (finite values); None if there were none.
+
+    Keys: `jacobian_rel_error_median`, `jacobian_rel_error_max`, `jacobian_angle_median_rad`,
+    `jacobian_angle_max_rad`."""
+    out: dict[str, float | None] = {}
+    for key, values in (("jacobian_rel_error", rel_error), ("jacobian_angle", angle)):
+        v = np.asarray(values, float)
+        v = v[np.isfinite(v)]
+        unit = "_rad" if key == "jacobian_angle" else ""
+        out[f"{key}_median{unit}"] = float(np.median(v)) if v.size else None
+        out[f"{key}_max{unit}"] = float(np.max(v)) if v.size else None
+    return out

@@ -7,11 +7,13 @@ on the true robot, gamma = 10), `nnbc-full` and, when they are registered in thi
 `qp-oracle` (a joint-limit-aware QP on the true robot: the known-model ceiling), at their default gains; in both
 dynamics modes (kinematic = the paper's ideal model, physics = PyBullet contact dynamics); 20 reported seeds
 (10,000 ...) by default, each a different "worn" true robot (model_error 0.05). `nnbc` and `oracle` keep the
-paper's gamma = 10 whatever their defaults are: when a default differs, the spec says `gamma=10` explicitly.
+paper's gamma = 10: the oracle runs as `oracle:gamma=10` (every closed-loop law defaults to 20 1/s), and `nnbc`
+gets its gains set in the spec should its defaults ever differ from the paper's.
 
 paper.md prints chaotic controllers' errors with the digits they have (`eval.output.precision`).
 
 Writes, beside the usual run files (results.json, summary.md, plots/ ...):
+
 * `fig2a_<dynamics>.png` (NNBC's path and platform trace), `fig2b_<dynamics>.png` (NNBC's error per axis),
   `fig3_<dynamics>.png` (NNBC vs JMPI), all of seed 10,000 — the paper's Fig. 2a, 2b and 3;
 * `paper.md`: each claim of the paper beside what was measured, and where and why they differ.
@@ -37,11 +39,13 @@ PAPER_SEED = 10_000  # reported seeds start here (DESIGN "Seeds")
 PAPER_GAMMA = 10.0  # the paper's gamma = mu = 10
 PAPER_MAX_ERROR = DEFAULT_TOLERANCE  # m: "the maximum tracking error is not more than 0.006 m"
 PAPER_PATH_SIZE = (0.8, 0.8, 0.2)  # m: "the scale of the desired path is 0.8 m x 0.8 m x 0.2 m"
-CORE_POLICIES = ("nnbc", "jmpi", "oracle", "nnbc-full")
-#: run when registered (other branches add `clik` and `qp-oracle`), at their default gains
+#: the oracle with the paper's gain (every closed-loop law's default is 20 1/s; the paper's section IV uses 10)
+ORACLE = f"oracle:gamma={PAPER_GAMMA:g}"
+CORE_POLICIES = ("nnbc", "jmpi", ORACLE, "nnbc-full")
+#: run when registered, at their default gains (`clik`, `qp-oracle`: the baselines the paper did not run)
 OPTIONAL_POLICIES = ("nnbc-plus", "clik", "qp-oracle")
-#: policies that keep the paper's gains (gamma = mu = 10) whatever their defaults: {name: gain fields}
-PAPER_GAINS = {"nnbc": ("gamma", "mu"), "oracle": ("gamma",)}
+#: policies run by name whose defaults must equal the paper's gains (else the spec sets them): {name: fields}
+PAPER_GAINS = {"nnbc": ("gamma", "mu")}
 DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "physics": ("physics",)}
 
 
@@ -236,7 +240,7 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
     cfg = res["config"]
     modes = cfg["dynamics"]
     nnbc = spec_of(specs, "nnbc")
-    oracle = spec_of(specs, "oracle") or "oracle"
+    oracle = spec_of(specs, "oracle") or ORACLE
     first = next((r for r in result.episodes if r["index"] in result.arrays), None)
     measured = path_extent(result.arrays[first["index"]]["r_d"]) if first else None
     spec = first["path"] if first else None

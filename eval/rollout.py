@@ -2,7 +2,7 @@
 
 ```
 obs, info = env.reset(seed=S + k)
-policy.reset(obs, info, seed=S + k)          # if the object has `reset` (SB3-only objects do not)
+policy.reset(obs, info, seed=policy_seed(S + k))   # if the object has `reset` (SB3-only objects do not)
 repeat: action, state = policy.predict(obs, state)   # timed with perf_counter, whole call
         obs, reward, terminated, truncated, info = env.step(action)
 ```
@@ -18,6 +18,21 @@ Per step it records (SI units, float64 unless noted):
 | error | (n+1,) | tracking error `info["tracking_error"]` (noise-free), m |
 | action | (n, 8) | normalised action the env applied (after clipping to [-1, 1]) |
 | predict_us | (n,) | wall time of each `predict` call, microseconds |
+
+Policies that expose a Jacobian estimate (a `jacobian_kind` other than None and `jacobian_estimate`: see
+`policies.base.ControllerPolicy`) get two more per-step arrays, computed here from the true robot
+(`env.unwrapped.true_params` and `mobman_env.kinematics`, at the joint angles and heading of the observation the
+policy was given), never by the policy; nan on steps without an estimate (during a probe):
+
+| array | shape | meaning |
+|---|---|---|
+| jacobian_rel_error | (n,) | ||J_hat - J||_F / ||J||_F after each `predict` |
+| jacobian_angle_rad | (n,) | largest principal angle between the row spaces of J_hat and J, rad |
+
+and the record gets their median and max (`JACOBIAN_KEYS`; None for policies without an estimate).
+
+The policy's seed is `policies.base.policy_seed(S + k)`, derived from the episode seed by a documented rule so
+that it reveals nothing the env drew (the true robot, the path, the noise); it never is the env's seed itself.
 
 A crash anywhere in the episode (env or policy) is caught: the record gets `status: "failed"` and the
 traceback, its metrics are None, and the caller goes on with the next episode.
@@ -36,9 +51,22 @@ import numpy as np
 
 from eval import metrics as M
 from eval.errors import EvalError
+from policies.base import policy_seed
 
 #: Keys of the per-step arrays one rollout returns (see the module docstring).
 ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
+
+#: Per-step arrays recorded only for policies that expose `jacobian_estimate` (see the module docstring).
+JACOBIAN_ARRAY_KEYS = ("jacobian_rel_error", "jacobian_angle_rad")
+
+#: Per-episode Jacobian-estimate fields of a record (`eval.metrics.jacobian_quality`); None without an estimate.
+JACOBIAN_KEYS = (
+    "jacobian_kind",
+    "jacobian_rel_error_median",
+    "jacobian_rel_error_max",
+    "jacobian_angle_median_rad",
+    "jacobian_angle_max_rad",
+)
 
 #: Every field of an episode record, in order (see eval/README.md, "results.json").
 RECORD_KEYS = (
@@ -72,6 +100,7 @@ RECORD_KEYS = (
     "terminated",
     "predict_us_median",
     "predict_us_p99",
+    *JACOBIAN_KEYS,
     "wall_s",
     "pid",
 )
@@ -158,11 +187,13 @@ def rollout(
             "terminated": False,
             "predict_us_median": None,
             "predict_us_p99": None,
+            **dict.fromkeys(JACOBIAN_KEYS),
         }
     )
     dt = float(base.dt)
     scale = np.asarray(base.action_scale, float)
     arrays = None
+    jac = None
     k = 0
     wall0 = time.perf_counter()
     try:
@@ -195,8 +226,10 @@ def rollout(
         }
         reset = getattr(policy, "reset", None)
         if reset is not None:
-            reset(obs, info, seed=seed)
+            reset(obs, info, seed=policy_seed(seed))
         predict = policy.predict
+        if getattr(policy, "jacobian_kind", None) is not None:
+            jac = _JacobianRecorder(policy, base, n)
         if on_step is not None:
             on_step(0)
         state = None
@@ -205,6 +238,8 @@ def rollout(
             t0 = clock()
             action, state = predict(obs, state=state, episode_start=None, deterministic=True)
             us[k] = (clock() - t0) * 1e6
+            if jac is not None:
+                jac.record(k, obs)
             a = np.asarray(action, dtype=np.float32)
             if a.shape == (1, 8):  # a batch of one back from an SB3-style object
                 a = a[0]
@@ -241,6 +276,10 @@ def rollout(
             )
         )
         rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
+        if jac is not None:
+            quality = jac.finish(k)
+            arrays.update(quality.pop("arrays"))
+            rec.update(quality)
     except Exception:
         rec["status"] = "failed"
         rec["error"] = traceback.format_exc()
@@ -291,3 +330,57 @@ def make_policy(spec: str, env, seed: int | None):
         if "known" not in msg:
             msg += f" ({_known_policies_text()})"
         raise EvalError(f"policy {spec!r}: {msg}") from None
+
+
+class _JacobianRecorder:
+    """Per-step Jacobian-estimate quality of a policy exposing `jacobian_estimate` (see the module docstring).
+
+    Per step it stores the policy's estimate and the true robot's Jacobian of the same kind at the state of the
+    observation the policy acted on (one FK pass, about 20 us); the metrics are computed once, batched, at the
+    end (`eval.metrics.jacobian_relative_error`, `eval.metrics.row_space_angle`)."""
+
+    def __init__(self, policy: Any, base: Any, n: int):
+        from mobman_env import kinematics as K
+
+        kind = getattr(policy, "jacobian_kind", None)
+        functions = {"paper": K.paper_jacobian, "whole_body": K.whole_body_jacobian}
+        if kind not in functions:
+            raise ValueError(
+                f"{type(policy).__name__} exposes jacobian_estimate but its jacobian_kind is {kind!r}; set it to "
+                f"'paper' or 'whole_body' (see policies.base.ControllerPolicy.jacobian_estimate)"
+            )
+        self.kind = kind
+        self._policy = policy
+        self._base = base
+        self._jacobian = functions[kind]
+        n_act = len(np.asarray(base.action_scale))
+        self._J_hat = np.full((n, 3, n_act), np.nan)
+        self._J = np.full((n, 3, n_act), np.nan)
+
+    def record(self, k: int, obs: dict) -> None:
+        J_hat = self._policy.jacobian_estimate
+        if J_hat is None:
+            return
+        J_hat = np.asarray(J_hat, float)
+        if J_hat.shape != self._J_hat.shape[1:]:
+            raise ValueError(
+                f"{type(self._policy).__name__}.jacobian_estimate has shape {J_hat.shape}, expected "
+                f"{self._J_hat.shape[1:]} (3 x actuators)"
+            )
+        self._J_hat[k] = J_hat
+        q = np.asarray(obs["joint_pos"], float)[:6]
+        self._J[k] = self._jacobian(self._base.true_params, q, float(obs["base_yaw"][0]))
+
+    def finish(self, k: int) -> dict[str, Any]:
+        J_hat, J = self._J_hat[:k], self._J[:k]
+        have = np.isfinite(J_hat).all(axis=(1, 2))
+        rel = np.full(k, np.nan)
+        angle = np.full(k, np.nan)
+        if have.any():
+            rel[have] = M.jacobian_relative_error(J_hat[have], J[have])
+            angle[have] = M.row_space_angle(J_hat[have], J[have])
+        return {
+            "jacobian_kind": self.kind,
+            **M.jacobian_quality(rel, angle),
+            "arrays": {"jacobian_rel_error": rel, "jacobian_angle_rad": angle},
+        }

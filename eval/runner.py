@@ -1,6 +1,7 @@
 """`run(config, policies=None)`: check everything, run every episode (in this process or N workers), report.
 
 Order of work, so that mistakes cost nothing:
+
 1. the config, the output directory (an existing non-empty one needs `overwrite`), every env id and env
    argument (each env is built once) and every policy spec (each is built once with `policies.make`) are
    checked before the first rollout; problems raise `EvalError` listing what is available;
@@ -11,7 +12,7 @@ Order of work, so that mistakes cost nothing:
 Workers: `workers=N > 1` starts N spawned processes, each with its own PyBullet client(s). The episodes are
 dealt round-robin (worker i runs episodes i, i + N, ... of the run's list), so every worker really runs and the
 results do not depend on scheduling: every episode starts from `env.reset(seed=S + k)` and
-`policy.reset(..., seed=S + k)`, whichever process runs it. Results equal those of `workers=1` except the
+`policy.reset(..., seed=policy_seed(S + k))` (`policies.base.policy_seed`), whichever process runs it. Results equal those of `workers=1` except the
 timing fields (`wall_s`, `predict_us_*`) and `pid`.
 """
 

@@ -12,28 +12,38 @@ action, _ = policy.predict(obs)
 | name | what |
 |---|---|
 | `nnbc`, `nnbc-full` | the paper's model-free controller (`policies.nnbc`) |
-| `nnbc-plus` | the improved model-free controller (`policies.nnbc_plus`) |
+| `nnbc-plus` | the improved model-free controller: a Kalman-filtered J (`policies.nnbc_plus`) |
+| `broyden`, `rls` | `nnbc-plus`'s scaffolding with Broyden's update / recursive least squares (`policies.broyden_rls`) |
 | `jmpi`, `jmpi-full` | open-loop pseudo-inverse of the nominal model (`policies.jmpi`) |
+| `clik`, `clik-full` | eq. (10), closed loop, on the nominal model: the practitioner's baseline (`policies.jmpi`) |
 | `oracle`, `oracle-full` | eq. (10) with the true model (`policies.jmpi`) |
+| `qp`, `qp-oracle` | whole-body QP with joint-limit dampers, nominal / true model; `qp-oracle` is the ceiling (`policies.qp`) |
 | `zero`, `random` | floor references (`policies.simple`) |
 | `sb3:PATH` | a Stable-Baselines3 agent (`policies.sb3`) |
 | `module:attr` | your own policy object, class or factory |
 
-Importing this package loads neither torch nor Stable-Baselines3 (`SB3Policy` imports them when built).
+Every closed-loop law defaults to the task-space gain gamma = 20 1/s; the paper-exact `nnbc` keeps the paper's
+gamma = mu = 10 (for the paper's oracle use `oracle:gamma=10`). Eval seeds a policy with
+`policies.base.policy_seed(episode_seed)`, never with the env's own seed.
+
+Importing this package loads neither torch nor Stable-Baselines3 (`SB3Policy` imports them when built), nor
+qpsolvers (`QP` imports it when built).
 """
 
-from policies.base import ControllerPolicy, EnvFacts, Policy, unwrap_env
-from policies.jmpi import JMPI, JMPIConfig, Oracle, OracleConfig
+from policies.base import ControllerPolicy, EnvFacts, Policy, policy_seed, unwrap_env
+from policies.jmpi import CLIK, JMPI, CLIKConfig, JMPIConfig, Oracle, OracleConfig
 from policies.nnbc import NNBC, NNBCConfig
 from policies.registry import KNOWN_POLICIES, SPEC_FORMS, make, parse_spec, true_params_provider
 from policies.sb3 import SB3Policy, resolve_model_path
 from policies.simple import Random, RandomConfig, Zero, ZeroConfig
 
 __all__ = [
+    "CLIK",
     "JMPI",
     "KNOWN_POLICIES",
     "NNBC",
     "SPEC_FORMS",
+    "CLIKConfig",
     "ControllerPolicy",
     "EnvFacts",
     "JMPIConfig",
@@ -48,6 +58,7 @@ __all__ = [
     "ZeroConfig",
     "make",
     "parse_spec",
+    "policy_seed",
     "resolve_model_path",
     "true_params_provider",
     "unwrap_env",

@@ -14,6 +14,9 @@ class Policy(Protocol):
   first `predict`.
 * Model-free controllers are built from a frozen `EnvFacts` (control period, action scale, observation keys),
   never from the env, so they cannot read a model.
+* The seed a policy's `reset(seed=...)` receives is `policy_seed(episode_seed)`, never the env's own episode
+  seed (see `policy_seed`). Controllers that estimate the Jacobian expose the estimate as `jacobian_estimate`
+  (see `ControllerPolicy.jacobian_estimate`), which eval compares with the true robot's.
 """
 
 from __future__ import annotations
@@ -22,6 +25,30 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
+
+from mobman_env.validation import integer
+
+#: Entropy word that separates the policy's random stream from the env's (ASCII "mobman-policy" folded into
+#: 32 bits). Part of the documented seed rule of `policy_seed`; changing it changes every dithering result.
+POLICY_STREAM_ID = 0x6D6F_706F
+
+
+def policy_seed(episode_seed: int) -> int:
+    """The seed a policy gets for the episode the env starts with `reset(seed=episode_seed)`.
+
+    Rule (documented, fixed): ``int(np.random.SeedSequence([episode_seed, POLICY_STREAM_ID]).generate_state(1,
+    np.uint64)[0])``, an integer in [0, 2**64). The env's Generator starts from ``SeedSequence(episode_seed)``,
+    a different entropy pool, so a Generator seeded with this value shares no state with the env's: the policy
+    cannot replay the env's draws (the true robot `RobotParams.nominal().perturbed(default_rng(seed), ...)`,
+    the random path, the sensor noise) from its seed. The rule is public, so a policy that *searches* episode
+    seeds for one whose image equals its own seed could still find it (seeds are small integers); that is
+    deliberate cheating, like reading `true_params`, and no public deterministic rule can prevent it.
+
+    A batched policy seeds robot i of a vector env reset with seed S from ``policy_seed(S + i)``: exactly the
+    seed a single policy gets for a single env reset with S + i. `episode_seed` must be an integer >= 0.
+    """
+    seed = integer("episode_seed", episode_seed, low=0, hint="the seed given to env.reset(seed=...)")
+    return int(np.random.SeedSequence([seed, POLICY_STREAM_ID]).generate_state(1, np.uint64)[0])
 
 
 @runtime_checkable
@@ -122,6 +149,22 @@ class ControllerPolicy:
     name = "controller"
     #: observation keys `_reset`/`_act` read (None: all); only these are converted on the hot path
     uses_keys: tuple[str, ...] | None = None
+    #: which Jacobian `jacobian_estimate` estimates: "whole_body" (r_a_dot = J u, the platform's translation
+    #: included; `mobman_env.kinematics.whole_body_jacobian`), "paper" (r_a_dot - [p_c_dot; 0] = J u, the J of
+    #: the paper's eq. (6); `mobman_env.kinematics.paper_jacobian`), or None for a controller with no estimate
+    jacobian_kind: str | None = None
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        """The controller's current estimate of the Jacobian, or None (no estimate, or none yet).
+
+        A 3 x 8 float array in the action's physical units: actuator speeds u (rad/s: 6 arm joints, left wheel,
+        right wheel) to end-effector velocity (m/s), for the state of the last observation given to `predict`;
+        `jacobian_kind` names the Jacobian. Eval compares it with the true robot's Jacobian (computed by eval,
+        never by the policy) and records the relative error and the row-space angle. Model-based controllers
+        and those that estimate nothing return None.
+        """
+        return None
 
     def __init__(self, facts: EnvFacts, seed: int | None = None):
         self.facts = facts

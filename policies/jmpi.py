@@ -1,4 +1,5 @@
-"""Model-based baselines: JMPI (the paper's comparison, open loop on the nominal model) and the oracle.
+"""Model-based baselines: JMPI (the paper's comparison, open loop on the nominal model), CLIK (the
+practitioner's closed loop on the nominal model) and the oracle (the same closed loop on the true model).
 
 Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:6]`, `base_yaw`), and
 invert it with the same damped pseudo-inverse as NNBC (`policies.nnbc.damped_pinv_apply`; the damping is zero
@@ -13,11 +14,23 @@ away from singularities, so these are the plain pseudo-inverse methods on this t
   The known-model bound: what a perfect model plus the paper's feedback achieves. The true parameters come
   from a `params_provider` callable, called once at every episode start (the env draws a new robot per reset).
   `oracle-full` uses the whole-body Jacobian: u = J_wb^+ (r_d_dot + gamma (r_d - r_a)).
+* `clik` - closed-loop inverse kinematics (resolved-rate control), what an engineer with the catalogue model
+  runs: the oracle's eq. (10) with the *nominal* model's Jacobian, u = J_nom^+ (r_d_dot - [p_c_dot; 0] +
+  gamma (r_d - r_a)); `clik-full`: u = J_wb,nom^+ (r_d_dot + gamma (r_d - r_a)). The feedback corrects the
+  model error that makes `jmpi` drift, so this, not `jmpi`, is the baseline a model-free method must beat.
+  All three are one law and one implementation (`_ModelPolicy`): u = J^+ (v) with
+  v = r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a); JMPI is its gamma = 0 case on the nominal model, CLIK the
+  gamma = 20 case on the nominal model, the oracle the gamma = 20 case on the true model.
+
+Units: gamma in 1/s; v in m/s; u in rad/s (the base class clips u to the speed limits); damping and
+sigma_threshold in m/rad. Default gamma = 20 1/s, the benchmark's one task-space gain for every closed-loop law
+(DESIGN, Release 0.2); the paper's eq. (10) experiments use 10 (`oracle:gamma=10`, as `mobman-eval paper`
+does). None of these laws knows the joint limits: on Circle-v0 joint 1 reaches its stop on many seeds (see
+`policies.qp` for the known-model law that respects them).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -25,42 +38,29 @@ from typing import Any
 import numpy as np
 
 from mobman_env import kinematics as K
+from mobman_env.validation import number
 from policies.base import ControllerPolicy, EnvFacts
 from policies.nnbc import damped_pinv_apply
 
+#: The benchmark's task-space feedback gain for every closed-loop law, 1/s (DESIGN, Release 0.2).
+DEFAULT_GAMMA = 20.0
+
 
 def _check_positive(obj: Any, names: tuple[str, ...], allow_zero: tuple[str, ...] = ()) -> None:
+    """Validate (and convert to float) the numeric fields `names` of a frozen config: > 0, or >= 0 if allowed."""
     for name in names:
-        value = getattr(obj, name)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise ValueError(f"{type(obj).__name__}.{name} must be a finite number, got {value!r}")
-        if value < 0 or (value == 0 and name not in allow_zero):
-            raise ValueError(f"{type(obj).__name__}.{name} must be > 0, got {value!r}")
+        value = number(f"{type(obj).__name__}.{name}", getattr(obj, name), low=0.0, open_low=name not in allow_zero)
+        object.__setattr__(obj, name, value)
 
 
 @dataclass(frozen=True)
 class JMPIConfig:
-    """Options of the open-loop Jacobian pseudo-inverse method. Spec keys: `jmpi:full=false,...`."""
+    """Options of the Jacobian pseudo-inverse method. Spec keys: `jmpi:gamma=0,full=false,...`."""
 
+    gamma: float = 0.0
+    """Position feedback gain of eq. (10), 1/s: 0 is the paper's open-loop JMPI (`jmpi:gamma=20` is `clik`)."""
     full: bool = False
     """False: the paper's J of eq. (6) and the measured p_c_dot subtracted. True: the whole-body Jacobian."""
-    damping: float = 0.02
-    """Maximum damping of the pseudo-inverse, m/rad (acts only when sigma_min < sigma_threshold)."""
-    sigma_threshold: float = 0.02
-    """Smallest singular value below which damping starts, m/rad."""
-
-    def __post_init__(self):
-        _check_positive(self, ("damping", "sigma_threshold"))
-
-
-@dataclass(frozen=True)
-class OracleConfig:
-    """Options of the known-model oracle, eq. (10). Spec keys: `oracle:gamma=10,full=false,...`."""
-
-    gamma: float = 10.0
-    """Position feedback gain of eq. (10), 1/s (the paper's gamma)."""
-    full: bool = False
-    """False: the paper's J of eq. (6) with the measured p_c_dot subtracted. True: the whole-body Jacobian."""
     damping: float = 0.02
     """Maximum damping of the pseudo-inverse, m/rad (acts only when sigma_min < sigma_threshold)."""
     sigma_threshold: float = 0.02
@@ -70,28 +70,57 @@ class OracleConfig:
         _check_positive(self, ("gamma", "damping", "sigma_threshold"), allow_zero=("gamma",))
 
 
+@dataclass(frozen=True)
+class CLIKConfig(JMPIConfig):
+    """Options of CLIK, eq. (10) on the nominal model: JMPI's fields with the benchmark's feedback gain.
+    Spec keys: `clik:gamma=20,full=false,...`."""
+
+    gamma: float = DEFAULT_GAMMA
+    """Position feedback gain of eq. (10), 1/s (the benchmark's 20)."""
+
+
+@dataclass(frozen=True)
+class OracleConfig(JMPIConfig):
+    """Options of the known-model oracle, eq. (10). Spec keys: `oracle:gamma=20,full=false,...`."""
+
+    gamma: float = DEFAULT_GAMMA
+    """Position feedback gain of eq. (10), 1/s (the benchmark's 20; the paper's experiments use 10)."""
+
+
 class _ModelPolicy(ControllerPolicy):
-    """Shared body of JMPI and the oracle: a model Jacobian at the measured state, a velocity command v."""
+    """The one law of this module, u = J^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a)) (whole body: no
+    p_c_dot term), with J a model's Jacobian at the measured state. Subclasses only say where the model comes
+    from (`self.params`, set at construction or at every episode start)."""
+
+    _keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")
 
     def __init__(self, facts: EnvFacts, config: Any, seed: int | None):
         super().__init__(facts, seed)
         self.config = config
         self._jac = K.whole_body_jacobian if config.full else K.paper_jacobian
-        self.params = None
+        self.params: Any = None  # the RobotParams the law inverts (set by the subclass or at reset)
+        self.uses_keys = self._keys + (("target_pos", "ee_pos") if config.gamma > 0 else ())
 
-    def _command(self, obs: dict, v: np.ndarray) -> np.ndarray:
+    def _act(self, obs: dict) -> np.ndarray:
+        gamma = self.config.gamma
+        if gamma > 0:
+            v = obs["target_vel"] + gamma * (obs["target_pos"] - obs["ee_pos"])
+        else:  # open loop (JMPI): the position is not read at all
+            v = obs["target_vel"].copy()
+        if not self.config.full:
+            v[:2] -= obs["arm_base_vel"]
         J = self._jac(self.params, obs["joint_pos"][:6], float(obs["base_yaw"][0]))
         return damped_pinv_apply(J, v, self.config.damping, self.config.sigma_threshold)
 
 
 class JMPI(_ModelPolicy):
-    """Open-loop Jacobian pseudo-inverse on the nominal model: u = J_nom^+ (r_d_dot - [p_c_dot; 0]).
+    """Jacobian pseudo-inverse on the nominal model: u = J_nom^+ (r_d_dot - [p_c_dot; 0]) (open loop, gamma = 0).
 
     `JMPI(facts, config=None, seed=None, *, nominal_params)`.
     """
 
     name = "jmpi"
-    uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")
+    config_cls: type[JMPIConfig] = JMPIConfig
 
     def __init__(
         self,
@@ -102,21 +131,27 @@ class JMPI(_ModelPolicy):
         nominal_params: Any = None,
         **extra: Any,
     ):
+        cls = type(self).__name__
         if extra:
-            raise TypeError(f"JMPI got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
+            raise TypeError(f"{cls} got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
         if nominal_params is None:
-            raise ValueError("JMPI needs nominal_params (a RobotParams: the catalogue model it inverts)")
-        super().__init__(facts, config or JMPIConfig(), seed)
+            raise ValueError(f"{cls} needs nominal_params (a RobotParams: the catalogue model it inverts)")
+        super().__init__(facts, config or self.config_cls(), seed)
         self.params = nominal_params
 
     def _reset(self, obs: dict) -> None:
         pass
 
-    def _act(self, obs: dict) -> np.ndarray:
-        v = obs["target_vel"].copy()
-        if not self.config.full:
-            v[:2] -= obs["arm_base_vel"]
-        return self._command(obs, v)
+
+class CLIK(JMPI):
+    """Closed-loop resolved-rate control on the nominal model: eq. (10) with J_nom, gamma = 20 1/s by default
+    (the oracle's law with the catalogue model; JMPI's with feedback).
+
+    `CLIK(facts, config=None, seed=None, *, nominal_params)`.
+    """
+
+    name = "clik"
+    config_cls = CLIKConfig
 
 
 class Oracle(_ModelPolicy):
@@ -127,7 +162,6 @@ class Oracle(_ModelPolicy):
     """
 
     name = "oracle"
-    uses_keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel", "target_pos", "ee_pos")
 
     def __init__(
         self,
@@ -147,9 +181,3 @@ class Oracle(_ModelPolicy):
 
     def _reset(self, obs: dict) -> None:
         self.params = self._provider()
-
-    def _act(self, obs: dict) -> np.ndarray:
-        v = obs["target_vel"] + self.config.gamma * (obs["target_pos"] - obs["ee_pos"])
-        if not self.config.full:
-            v[:2] -= obs["arm_base_vel"]
-        return self._command(obs, v)

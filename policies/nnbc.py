@@ -224,7 +224,7 @@ class NNBC(ControllerPolicy):
     env (dt, speed limits, observation keys); `J0` an optional 3 x 8 initial estimate; `nominal_params` is only
     needed (and only allowed to matter) with `config.j0 == "nominal"`.
 
-    Diagnostics: `J_hat` (the current estimate, 3 x 8), `residual` (eps of eq. (12) after the last update),
+    Diagnostics: `J_hat` (the current estimate, 3 x 8; `jacobian_estimate` is its documented copy), `residual` (eps of eq. (12) after the last update),
     `probing` (True while J_hat(0) is being measured), `step_count` (controller steps this episode).
     """
 
@@ -263,8 +263,9 @@ class NNBC(ControllerPolicy):
                 "model); use j0='probe' for the model-free start"
             )
         self._J0 = J0
-        self._nominal = nominal_params if self.j0_source == "nominal" else None
+        self._nominal: Any = nominal_params if self.j0_source == "nominal" else None
         self._full = bool(self.config.full)
+        self.jacobian_kind = "whole_body" if self._full else "paper"
         self._dt = facts.dt
         self._decay = 1.0 - self.config.mu * facts.dt  # eps_k = (1 - mu dt) eps_{k-1}: the discrete eq. (13)
         self.uses_keys = NNBC_OBS_KEYS + (("joint_pos", "base_yaw") if self.j0_source == "nominal" else ())
@@ -277,6 +278,15 @@ class NNBC(ControllerPolicy):
     @property
     def probing(self) -> bool:
         return self._initialised and self.step_count < self._n_probe
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        """A copy of J_hat (3 x 8, m/rad: u in rad/s to m/s) after the last update: the paper's J of eq. (6)
+        (`jacobian_kind` "paper") or, for `nnbc-full`, the whole-body Jacobian ("whole_body"). None until the
+        probe has measured every column."""
+        if not self._initialised or (self._n_probe and self.step_count <= self._n_probe):
+            return None
+        return self.J_hat.copy()
 
     # --- helpers -------------------------------------------------------------------------------------
     def _measured_y(self, obs: dict) -> np.ndarray:

@@ -43,6 +43,19 @@ What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
    random matrix of that fraction of its Frobenius norm, drawn from the controller's own RNG (robustness test).
 
 The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics.
+
+One scaffolding, several estimators
+-----------------------------------
+Steps 1, 3, 4 and 5 (measurement, excitation, control law, probe) are `EstimatingController`; step 2 is an
+estimator object behind the interface of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`,
+`Jdot`). `nnbc-plus` is the scaffolding with the Kalman filter (`KalmanEstimator`); `broyden` and `rls`
+(`policies.broyden_rls`) are the same scaffolding with Broyden's secant update and recursive least squares, so
+comparisons between them isolate the estimator. The shared options are the fields of `ModelFreeConfig`;
+`NNBCPlusConfig` adds the Kalman filter's.
+
+The estimate is exposed as `jacobian_estimate` (3 x 8, m/rad: joint_vel in rad/s to task velocity in m/s):
+the whole-body Jacobian d r_a / d u (formulation "whole_body") or the paper's J of eq. (6), the map to
+r_a_dot - [p_c_dot; 0] ("paper"); `jacobian_kind` says which. None during the probe.
 """
 
 from __future__ import annotations
@@ -52,15 +65,23 @@ from typing import Any
 
 import numpy as np
 
+from mobman_env.validation import number
 from policies.base import ControllerPolicy, EnvFacts
+from policies.estimators import JacobianEstimator, KalmanEstimator
 
 FORMULATIONS = ("whole_body", "paper")
 MEASUREMENTS = ("velocity", "position")
 
 
+N_ACT = 8
+N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
+_SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
+
+
 @dataclass(frozen=True)
-class NNBCPlusConfig:
-    """Gains of `NNBCPlus`; defaults tuned on development seeds 0-999 only (see the module docstring)."""
+class ModelFreeConfig:
+    """Options of the shared scaffolding (probe, excitation, control law) of `nnbc-plus`, `broyden` and `rls`;
+    defaults tuned on development seeds 0-999 only (see the module docstring)."""
 
     gamma: float = 20.0
     """Task-space feedback gain, 1/s: v = r_d_dot + gamma (r_d - r_a) (the paper's gamma)."""
@@ -72,38 +93,6 @@ class NNBCPlusConfig:
     """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "position": from
     finite differences of ee_pos (arm_base_pos) against joint_pos over the last step (for sensor sets without
     velocities)."""
-    forgetting: float = 1.0
-    """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
-    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off
-    (the default: the process noise below keeps the estimate fresh instead). 0.92 (without process noise)
-    measured as good with the default excitation; without the task-space dither it lost a physics episode
-    (development seed 93, Random-v0) that the process-noise model kept."""
-    q_jacobian: float = 1e-6
-    """Process noise: variance added to each J_hat entry per step, (m/rad)^2 (J_hat may drift about 1 mm/rad per
-    step beyond what its rate predicts)."""
-    q_rate: float = 2e-3
-    """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
-    0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
-    meas_std: float = 1e-3
-    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R).
-    Set it to the velocity sensor's noise: with `obs_noise_vel` = 0.01 m/s, 1e-3 fails in physics mode and 0.01
-    tracks (measured); without velocity noise 0.01 makes J_hat lag when J changes fast (a physics Lemniscate-v0
-    episode lost, development seed 134) and leaves 10-20% row-space errors instead of 1-5%."""
-    innov_clip: float = 4.0
-    """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
-    running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
-    Single-step violations of y = J x (a platform jolt in physics mode: seen as 20-30 mm/s one-step residuals)
-    are damped, while a truly changed J (the RMS grows quickly) is still learnt. A safeguard: no measured effect
-    on the development seeds."""
-    innov_rate: float = 0.05
-    """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
-    p0_jacobian: float = 1.0
-    """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted."""
-    p0_rate: float = 1.0
-    """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
-    p_max: float = 1.0
-    """Upper bound on the covariance trace (divided by the 16 states), applied when forgetting < 1: stops the
-    forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
     damping: float = 3e-4
     """Damping of the pseudo-inverse, m^2/rad^2: added to J_c W J_c^T before inversion (bounds the speeds near a
     singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity)."""
@@ -140,25 +129,54 @@ class NNBCPlusConfig:
             raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
         if self.weighting not in ("none", "scale"):
             raise ValueError(f"weighting must be 'none' or 'scale', got {self.weighting!r}")
-        if not 0.0 < self.pos_filter <= 1.0:
-            raise ValueError(f"pos_filter must be in (0, 1], got {self.pos_filter!r}")
-        if not 0.0 < self.forgetting <= 1.0:
-            raise ValueError(f"forgetting must be in (0, 1], got {self.forgetting!r}")
+        name = type(self).__name__
         for f in fields(self):
-            v = getattr(self, f.name)
-            if f.type in ("float", float):
-                if isinstance(v, bool) or not isinstance(v, (int, float)):
-                    raise ValueError(f"{f.name} must be a number, got {v!r}")
-                object.__setattr__(self, f.name, float(v))  # spec strings may give ints ("gamma=20")
-                if not (v >= 0.0 and np.isfinite(v)):
-                    raise ValueError(f"{f.name} must be a finite number >= 0, got {v!r}")
+            if f.type in ("float", float):  # spec strings may give ints ("gamma=20"): stored as float
+                object.__setattr__(self, f.name, number(f"{name}.{f.name}", getattr(self, f.name), low=0.0))
+        number(f"{name}.pos_filter", self.pos_filter, low=0.0, open_low=True, high=1.0)
 
 
-N_ACT = 8
-N_STATE = 2 * N_ACT  # one row of [J | J_dot]
-N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
-INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the innovations (10 mm/s RMS: permissive)
-_SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
+@dataclass(frozen=True)
+class NNBCPlusConfig(ModelFreeConfig):
+    """Gains of `NNBCPlus`: the scaffolding's (`ModelFreeConfig`) and the Kalman filter's; defaults tuned on
+    development seeds 0-999 only (see the module docstring)."""
+
+    forgetting: float = 1.0
+    """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
+    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off
+    (the default: the process noise below keeps the estimate fresh instead). 0.92 (without process noise)
+    measured as good with the default excitation; without the task-space dither it lost a physics episode
+    (development seed 93, Random-v0) that the process-noise model kept."""
+    q_jacobian: float = 1e-6
+    """Process noise: variance added to each J_hat entry per step, (m/rad)^2 (J_hat may drift about 1 mm/rad per
+    step beyond what its rate predicts)."""
+    q_rate: float = 2e-3
+    """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
+    0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
+    meas_std: float = 1e-3
+    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R).
+    Set it to the velocity sensor's noise: with `obs_noise_vel` = 0.01 m/s, 1e-3 fails in physics mode and 0.01
+    tracks (measured); without velocity noise 0.01 makes J_hat lag when J changes fast (a physics Lemniscate-v0
+    episode lost, development seed 134) and leaves 10-20% row-space errors instead of 1-5%."""
+    innov_clip: float = 4.0
+    """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
+    running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
+    Single-step violations of y = J x (a platform jolt in physics mode: seen as 20-30 mm/s one-step residuals)
+    are damped, while a truly changed J (the RMS grows quickly) is still learnt. A safeguard: no measured effect
+    on the development seeds."""
+    innov_rate: float = 0.05
+    """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
+    p0_jacobian: float = 1.0
+    """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted."""
+    p0_rate: float = 1.0
+    """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
+    p_max: float = 1.0
+    """Upper bound on the covariance trace (divided by the 16 states), applied when forgetting < 1: stops the
+    forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
+
+    def __post_init__(self):
+        number("NNBCPlusConfig.forgetting", self.forgetting, low=0.0, open_low=True, high=1.0)
+        super().__post_init__()
 
 
 def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
@@ -179,57 +197,58 @@ def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     )
 
 
-class NNBCPlus(ControllerPolicy):
-    """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
+class EstimatingController(ControllerPolicy):
+    """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator.
 
-    After each step: `J_hat` (3x8) and `Jdot_hat` (3x8) are the current estimates, `P` the shared 16x16
-    covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
+    Subclasses set `config_cls` and implement `_make_estimator()`; everything else is shared. After each step:
+    `J_hat` and `Jdot_hat` (3 x 8) are the estimator's current J and J_dot, `estimator` the estimator object,
+    `last_u` the issued command (rad/s), `jacobian_estimate` a copy of J_hat (None during the probe).
     """
 
-    name = "nnbc-plus"
-    Config = NNBCPlusConfig
+    name = "estimating-controller"
+    config_cls: type[ModelFreeConfig] = ModelFreeConfig
 
-    def __init__(self, facts: EnvFacts, config: NNBCPlusConfig | None = None, seed: int | None = None, **extra: Any):
+    def __init__(self, facts: EnvFacts, config: ModelFreeConfig | None = None, seed: int | None = None, **extra: Any):
+        cls = type(self).__name__
         if extra:
             raise TypeError(
-                f"NNBCPlus takes no extra arguments (it is model-free: EnvFacts and observations only), got "
+                f"{cls} takes no extra arguments (it is model-free: EnvFacts and observations only), got "
                 f"{sorted(extra)}"
             )
         if len(facts.action_scale) != N_ACT:
-            raise ValueError(f"NNBCPlus drives {N_ACT} actuators, the env has {len(facts.action_scale)}")
+            raise ValueError(f"{cls} drives {N_ACT} actuators, the env has {len(facts.action_scale)}")
         super().__init__(facts, seed=seed)
         if config is None:
-            config = NNBCPlusConfig()
-        if not isinstance(config, NNBCPlusConfig):
-            raise TypeError(f"config must be an NNBCPlusConfig, got {type(config).__name__}")
+            config = self.config_cls()
+        if not isinstance(config, self.config_cls):
+            raise TypeError(f"config must be a {self.config_cls.__name__}, got {type(config).__name__}")
         self.config = c = config
-        self._dt = dt = facts.dt
-        F = np.eye(N_STATE)
-        F[:N_ACT, N_ACT:] = dt * np.eye(N_ACT)
-        self._F, self._FT = F, F.T.copy()
-        self._inv_lambda = 1.0 / c.forgetting
-        self._r = c.meas_std**2
-        self._trace_max = c.p_max * N_STATE
+        self._dt = facts.dt
         self._w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(N_ACT)
         self._damp = c.damping * np.eye(3)
         self._whole = c.formulation == "whole_body"
         self._use_vel = c.measurement == "velocity"
-        self._h = np.zeros(N_STATE)
-        q = np.r_[np.full(N_ACT, c.q_jacobian), np.full(N_ACT, c.q_rate)]
-        self._q = np.diag(q) if q.any() else None
-        self._clip = c.innov_clip
-        self._clip2 = c.innov_clip**2
-        self._P0 = np.diag(np.r_[np.full(N_ACT, c.p0_jacobian), np.full(N_ACT, c.p0_rate)])
-        self.X = np.zeros((3, N_STATE))
-        self.P = self._P0.copy()
+        self.jacobian_kind = "whole_body" if self._whole else "paper"
+        self.estimator: JacobianEstimator = self._make_estimator()
+        self._k = 0
+
+    def _make_estimator(self) -> JacobianEstimator:
+        raise NotImplementedError
 
     @property
     def J_hat(self) -> np.ndarray:
-        return self.X[:, :N_ACT]
+        return self.estimator.J
 
     @property
     def Jdot_hat(self) -> np.ndarray:
-        return self.X[:, N_ACT:]
+        return self.estimator.Jdot
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        """The estimated Jacobian (3 x 8, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
+        of the last observation: the whole-body Jacobian, or the paper's J of eq. (6) with
+        `formulation="paper"` (`jacobian_kind`). None before the probe has finished."""
+        return self.estimator.J.copy() if self._initialised and self._k > N_PROBE else None
 
     # --- episode start ---------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
@@ -242,11 +261,9 @@ class NNBCPlus(ControllerPolicy):
         self._prev_s = self._task_pos(obs)
         self._s_f = self._prev_s.copy()
         self._prev_vd = obs["target_vel"].copy()
-        self._td = np.zeros(3)
-        self._signs = np.empty((0, N_ACT))
-        self.X = np.zeros((3, N_STATE))
-        self.P = self._P0.copy()
-        self._innov_ms = INNOV_MS0
+        self._td: np.ndarray = np.zeros(3)
+        self._signs: np.ndarray = np.empty((0, N_ACT))
+        self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
         """The position J_hat's output integrates to: r_a (whole body) or r_a - [p_c; 0] (paper)."""
@@ -272,7 +289,7 @@ class NNBCPlus(ControllerPolicy):
             dq = q - self._prev_q
             x = dq / self._dt
             y = (s - self._prev_s) / self._dt
-            ds = self.X[:, :N_ACT] @ dq
+            ds = self.estimator.J @ dq
         self._prev_q = q.copy()
         self._prev_s = s
         a = self.config.pos_filter
@@ -285,48 +302,15 @@ class NNBCPlus(ControllerPolicy):
         X = np.array(self._probe_x).T  # (8, n)
         Y = np.array(self._probe_y).T  # (3, n)
         A = X @ X.T
-        J0 = np.linalg.solve(A + 1e-9 * np.trace(A) / N_ACT * np.eye(N_ACT), X @ Y.T).T
+        tr = np.trace(A)
+        if tr > 0:
+            J0 = np.linalg.solve(A + 1e-9 * tr / N_ACT * np.eye(N_ACT), X @ Y.T).T
+        else:  # no actuator moved during the probe (e.g. the same observation fed again and again): no information
+            J0 = np.zeros((3, N_ACT))
         if self.config.j0_noise > 0:
             noise = self.rng.standard_normal(J0.shape)
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
-        self.X[:, :N_ACT] = J0
-        self.X[:, N_ACT:] = 0.0
-
-    def _kalman(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Predict [J | J_dot] one step (constant rate, process noise, forgetting), then update all rows with
-        y = J x (the same regressor h for the three rows: one gain)."""
-        dt = self._dt
-        X = self.X
-        X[:, :N_ACT] += dt * X[:, N_ACT:]
-        P = self._F @ self.P @ self._FT
-        if self._inv_lambda != 1.0:
-            P *= self._inv_lambda
-        if self._q is not None:
-            P += self._q
-        h = self._h
-        h[:N_ACT] = x
-        if not self._use_vel:
-            h[N_ACT:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
-        Ph = P @ h
-        K = Ph / (h @ Ph + self._r)
-        innov = y - X @ h
-        if self._clip > 0:
-            n2 = innov @ innov
-            lim2 = self._clip2 * self._innov_ms
-            if n2 > lim2:
-                innov *= (lim2 / n2) ** 0.5
-                n2 = lim2
-            self._innov_ms += self.config.innov_rate * (n2 - self._innov_ms)
-        X += innov[:, None] * K
-        P -= K[:, None] * Ph
-        if self._k % 64 == 0:  # P stays symmetric in exact arithmetic; remove the round-off now and then
-            P += P.T
-            P *= 0.5
-        if self._inv_lambda != 1.0:
-            tr = P.trace()
-            if tr > self._trace_max:
-                P *= self._trace_max / tr
-        self.P = P
+        self.estimator.init(J0)
 
     # --- one step --------------------------------------------------------------------------------------
     def _act(self, obs: dict) -> np.ndarray:
@@ -345,15 +329,15 @@ class NNBCPlus(ControllerPolicy):
                 return u
             self._finish_probe()
         else:
-            self._kalman(x, y)
+            self.estimator.update(x, y)
         # --- control: u = z + J_c^+ (v - J_c z)
-        X = self.X
+        J, Jdot = self.estimator.J, self.estimator.Jdot
         vd = obs["target_vel"]
         if c.lookahead:
-            Jc = X[:, :N_ACT] + (0.5 * self._dt) * X[:, N_ACT:]
+            Jc = J + (0.5 * self._dt) * Jdot
             v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
         else:
-            Jc = X[:, :N_ACT]
+            Jc = J
             v = vd.copy()
         self._prev_vd = vd.copy()
         s_d = obs["target_pos"]
@@ -380,3 +364,44 @@ class NNBCPlus(ControllerPolicy):
         JW = Jc * self._w
         lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z)
         return z + JW.T @ lam
+
+
+class NNBCPlus(EstimatingController):
+    """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
+
+    After each step: `J_hat` (3x8) and `Jdot_hat` (3x8) are the current estimates, `P` the shared 16x16
+    covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
+    """
+
+    name = "nnbc-plus"
+    config_cls = NNBCPlusConfig
+    Config = NNBCPlusConfig
+
+    def _make_estimator(self) -> KalmanEstimator:
+        c = self.config
+        assert isinstance(c, NNBCPlusConfig)
+        return KalmanEstimator(
+            N_ACT,
+            self._dt,
+            q_jacobian=c.q_jacobian,
+            q_rate=c.q_rate,
+            meas_std=c.meas_std,
+            innov_clip=c.innov_clip,
+            innov_rate=c.innov_rate,
+            p0_jacobian=c.p0_jacobian,
+            p0_rate=c.p0_rate,
+            forgetting=c.forgetting,
+            p_max=c.p_max,
+            midpoint=not self._use_vel,
+            sym_phase=N_PROBE + 1,
+        )
+
+    @property
+    def P(self) -> np.ndarray:
+        """The Kalman filter's shared 16 x 16 covariance."""
+        return self.estimator.P  # type: ignore[attr-defined]
+
+    @property
+    def X(self) -> np.ndarray:
+        """[J_hat | J_dot_hat] (3 x 16), the Kalman filter's state."""
+        return self.estimator.X  # type: ignore[attr-defined]

@@ -10,9 +10,9 @@ Spec grammar (one string, as the CLI takes it):
   Policy object, or a class / factory that is called with the env if its signature accepts one positional
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
 
-Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `zero`, `random`) are built from
-`EnvFacts.from_env(env)` only. `jmpi` (and `nnbc:j0=nominal`) receive the env's `nominal_params`. The oracle
-receives a provider that reads the env's current `true_params` at each episode start - the only code in this
+Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `broyden`, `rls`, `zero`, `random`) are built from
+`EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive the env's
+`nominal_params`. The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
 """
 
@@ -65,6 +65,22 @@ _REGISTRY: dict[str, _Entry] = {
         {},
         "none",
     ),
+    "broyden": _Entry(
+        "model-free: Broyden's secant Jacobian update in nnbc-plus's probe / excitation / control law",
+        "policies.broyden_rls",
+        "Broyden",
+        "BroydenConfig",
+        {},
+        "none",
+    ),
+    "rls": _Entry(
+        "model-free: recursive least squares with forgetting in nnbc-plus's probe / excitation / control law",
+        "policies.broyden_rls",
+        "RLS",
+        "RLSConfig",
+        {},
+        "none",
+    ),
     "jmpi": _Entry(
         "open-loop Jacobian pseudo-inverse on the nominal model (the paper's comparison)",
         "policies.jmpi",
@@ -81,6 +97,22 @@ _REGISTRY: dict[str, _Entry] = {
         {"full": True},
         "nominal",
     ),
+    "clik": _Entry(
+        "closed-loop eq. (10) on the nominal model (resolved rate, paper's J): the practitioner's baseline",
+        "policies.jmpi",
+        "CLIK",
+        "CLIKConfig",
+        {},
+        "nominal",
+    ),
+    "clik-full": _Entry(
+        "closed-loop eq. (10) on the nominal whole-body Jacobian",
+        "policies.jmpi",
+        "CLIK",
+        "CLIKConfig",
+        {"full": True},
+        "nominal",
+    ),
     "oracle": _Entry(
         "eq. (10) with the true robot's Jacobian: the known-model bound",
         "policies.jmpi",
@@ -91,6 +123,22 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "oracle-full": _Entry(
         "eq. (10) with the true whole-body Jacobian", "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"
+    ),
+    "qp": _Entry(
+        "whole-body differential-IK QP on the nominal model: joint-limit dampers, speed bounds, posture term",
+        "policies.qp",
+        "QP",
+        "QPConfig",
+        {},
+        "nominal",
+    ),
+    "qp-oracle": _Entry(
+        "the whole-body QP on the true robot: the known-model ceiling (respects joint limits)",
+        "policies.qp",
+        "QP",
+        "QPConfig",
+        {},
+        "true",
     ),
     "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
     "random": _Entry(

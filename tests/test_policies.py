@@ -261,7 +261,24 @@ def test_zero_and_random(kin_env):
 
 
 # --- the contract -----------------------------------------------------------------------------------------
-CONTROLLERS = ["nnbc", "nnbc-full", "jmpi", "jmpi-full", "oracle", "oracle-full", "zero", "random"]
+CONTROLLERS = [
+    "nnbc",
+    "nnbc-full",
+    "nnbc-plus",
+    "broyden",
+    "rls",
+    "jmpi",
+    "jmpi-full",
+    "clik",
+    "clik-full",
+    "oracle",
+    "oracle-full",
+    "qp",
+    "qp-oracle",
+    "zero",
+    "random",
+]
+ORACLES = ("oracle", "oracle-full", "qp-oracle")
 
 
 class _Recorder:
@@ -306,7 +323,7 @@ def test_evaluate_policy_runs_two_episodes_and_reinitialises(spec):
     venv.seed(10_000)
     try:
         policy = policies.make(spec, venv, seed=5)
-        if spec.startswith("oracle"):  # spy on the provider: one call per episode, the episode's own robot
+        if spec in ORACLES:  # spy on the provider: one call per episode, the episode's own robot
             seen = []
             inner = policy._provider
             policy._provider = lambda: (seen.append(inner().hash()), inner())[1]
@@ -318,11 +335,11 @@ def test_evaluate_policy_runs_two_episodes_and_reinitialises(spec):
     starts = [i for i, (_, start, _) in enumerate(rec.calls) if start]
     assert starts[:2] == [0, 100]
     assert all(a.shape == (1, 8) for _, _, a in rec.calls)
-    if spec.startswith("oracle"):
+    if spec in ORACLES:
         assert seen == logs[0].hashes[:2] and seen[0] != seen[1]
         return  # a fresh oracle would read another robot; the provider spy covers its re-initialisation
-    if spec == "random":
-        return  # its stream continues across episodes by design (reset(seed=...) re-seeds it)
+    if spec in ("random", "nnbc-plus", "broyden", "rls"):
+        return  # their random streams (actions, dither) continue across episodes by design (reset(seed=) re-seeds)
     # a fresh controller fed episode 2 from its first observation must act exactly the same
     env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE)
     try:
@@ -356,7 +373,7 @@ def test_batch_of_one_and_longer_batches(kin_env):
 class _ModelGuard(gym.Wrapper):
     """Raises on any access to the robot model, through `unwrapped` or the wrapper-attribute lookup."""
 
-    FORBIDDEN = ("true_params", "nominal_params")
+    FORBIDDEN = ("true_params", "nominal_params", "sim")  # sim holds the true robot too
 
     def __init__(self, env):
         super().__init__(env)
@@ -385,10 +402,10 @@ class _GuardedView:
         return getattr(self._env, name)
 
 
-@pytest.mark.parametrize("spec", ["nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random", "nnbc-plus"])
+@pytest.mark.parametrize(
+    "spec", ["nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random", "nnbc-plus", "broyden", "rls"]
+)
 def test_model_free_controllers_never_touch_the_model(spec):
-    if spec == "nnbc-plus":
-        pytest.importorskip("policies.nnbc_plus")
     env = _ModelGuard(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
     try:
         pol = policies.make(spec, env, seed=0)
@@ -398,7 +415,7 @@ def test_model_free_controllers_never_touch_the_model(spec):
     assert env.touched == []
 
 
-@pytest.mark.parametrize("spec", ["jmpi", "oracle", "nnbc:j0=nominal"])
+@pytest.mark.parametrize("spec", ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle"])
 def test_the_guard_catches_model_based_controllers(spec):
     env = _ModelGuard(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
     try:

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, short_config, stable
+from test_eval_helpers import ENV, SHORT, CrashOnOddSeed, HoldStill, episode_seed, short_config, stable
 
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
@@ -47,34 +47,26 @@ def _config(tmp_path, name="out", **kw) -> EvalConfig:
     return short_config(tmp_path, name, **{"policies": ("zero", "nnbc"), **kw})
 
 
-class ExitOnce(HoldStill):
-    """Kills its worker process in the first attempt of each odd-seed episode (a marker file remembers it)."""
+class ExitOnOddSeed(HoldStill):
+    """Kills its worker process when an odd-seed episode starts, in at most `max_exits` attempts of it (None:
+    every attempt); each exit is logged as a line of `log_dir/attempts-<seed>`."""
 
-    def __init__(self, marker_dir: str):
-        super().__init__()
-        self.marker_dir = marker_dir
-
-    def reset(self, obs, info=None, *, seed=None):
-        super().reset(obs, info, seed=seed)
-        marker = Path(self.marker_dir) / f"exited-{seed}"
-        if seed % 2 == 1 and not marker.exists():
-            marker.write_text(str(os.getpid()))
-            os._exit(3)
-
-
-class ExitAlways(HoldStill):
-    """Kills its worker process in every attempt of odd-seed episodes, logging each attempt."""
-
-    def __init__(self, log_dir: str):
+    def __init__(self, log_dir: str, max_exits: int | None = None):
         super().__init__()
         self.log_dir = log_dir
+        self.max_exits = max_exits
 
     def reset(self, obs, info=None, *, seed=None):
         super().reset(obs, info, seed=seed)
-        if seed % 2 == 1:
-            with open(Path(self.log_dir) / f"attempts-{seed}", "a") as f:
-                f.write(f"{os.getpid()}\n")
-            os._exit(3)
+        seed = episode_seed(seed)
+        if seed % 2 == 0:
+            return
+        log = Path(self.log_dir) / f"attempts-{seed}"
+        if self.max_exits is not None and log.exists() and len(log.read_text().split()) >= self.max_exits:
+            return
+        with open(log, "a") as f:
+            f.write(f"{os.getpid()}\n")
+        os._exit(3)
 
 
 def _fail_to_unpickle(log_dir: str):
@@ -165,12 +157,12 @@ def test_ray_backend_equals_local_backend(tmp_path, ray_cluster):
 
 
 def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluster):
-    markers, log = tmp_path / "markers", tmp_path / "log"
-    markers.mkdir()
+    once_log, log = tmp_path / "once", tmp_path / "always"
+    once_log.mkdir()
     log.mkdir()
     result = run(
         _config(tmp_path, policies=("zero",), backend="ray"),
-        policies={"once": ExitOnce(str(markers)), "always": ExitAlways(str(log))},
+        policies={"once": ExitOnOddSeed(str(once_log), max_exits=1), "always": ExitOnOddSeed(str(log))},
     )
     status = {(r["policy"], r["seed"]): r["status"] for r in result.episodes}
     assert status == {
@@ -181,7 +173,7 @@ def test_a_dead_worker_is_retried_once_then_recorded_failed(tmp_path, ray_cluste
         ("always", SEED): "ok",
         ("always", SEED + 1): "failed",
     }
-    assert (markers / f"exited-{SEED + 1}").is_file()
+    assert len((once_log / f"attempts-{SEED + 1}").read_text().split()) == 1  # it exited once, then ran
     assert len((log / f"attempts-{SEED + 1}").read_text().split()) == 2  # the first attempt and one retry
     dead = next(r for r in result.episodes if r["status"] == "failed")
     assert "retry failed too" in dead["error"] and "WorkerCrashedError" in dead["error"]

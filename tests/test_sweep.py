@@ -84,17 +84,20 @@ def test_seed_forms_scalars_and_defaults(tmp_path):
     assert sweep.seeds == (5, 6, 7) and sweep.dynamics == ("kinematic",) and sweep.model_error == (0.1,)
     assert sweep.policies == SweepConfig().policies and sweep.obs_noise == (0.0,)
     assert SweepConfig.from_dict({"seeds": [3, 1, 2]}).seeds == (3, 1, 2)
-    assert set(KEYS) == {
-        "envs",
-        "policies",
-        "seeds",
-        "dynamics",
-        "model_error",
-        "obs_noise",
-        "env_kwargs",
-        "tolerance",
-        "settle_time",
-    }
+    # every key is read: a config differing from the defaults in every key round-trips through its dict
+    custom = SweepConfig(
+        envs=("WheeledPuma-Line-v0",),
+        policies=("zero",),
+        seeds=(3,),
+        dynamics=("kinematic",),
+        model_error=(0.2,),
+        obs_noise=(0.001,),
+        env_kwargs={"control_freq": 50.0},
+        tolerance=0.01,
+        settle_time=1.0,
+    )
+    assert all(getattr(custom, k) != getattr(SweepConfig(), k) for k in KEYS)
+    assert set(custom.to_dict()) == set(KEYS) and SweepConfig.from_dict(custom.to_dict()) == custom
 
 
 @pytest.mark.parametrize(

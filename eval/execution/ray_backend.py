@@ -4,7 +4,7 @@
   policy, seed, model error, noise), builds the env and the policy inside the Ray worker process (its own
   PyBullet client), runs the one rollout loop of `eval.rollout` and closes the env, so no PyBullet client or
   temporary URDF outlives the task (Ray kills its worker processes without running their exit handlers).
-  Every episode starts from `env.reset(seed)` and `policy.reset(..., seed=seed)`: the records equal those of
+  Every episode starts from `env.reset(seed)` and `policy.reset(..., seed=policy_seed(seed))`: the records equal those of
   `--backend local` except `wall_s`, `pid` and `predict_us_*` (tested on a local `ray.init(num_cpus=2)`).
 * **Failures.** An exception inside an episode (policy or env) is a result, exactly as locally: the record gets
   `status: "failed"` and the traceback; it is not retried (same seed, same crash). A *task* that fails — its

@@ -4,7 +4,7 @@ A `Task` describes one episode completely (env id, dynamics, policy, seed, model
 fills them from its config, a sweep (`eval.sweep`) gives every task its own condition. Each process builds
 each env (per id, dynamics, model error and noise) and each policy (per env) once and reuses them (the
 `Executor.MAX_ENVS` most recently used envs are kept); every episode starts from `env.reset(seed)` and
-`policy.reset(..., seed=seed)`, so results do not depend on which process runs an episode or what it ran before
+`policy.reset(..., seed=policy_seed(seed))`, so results do not depend on which process runs an episode or what it ran before
 (physics mode included: tested bit-identical). A worker that dies marks its unfinished episodes failed.
 `config.backend == "ray"` hands the tasks to `eval.ray_backend` instead.
 """
@@ -24,7 +24,7 @@ class Task(NamedTuple):
     dynamics: str
     policy: str
     episode: int  # k: the k-th seed of the run (run: seed S + k)
-    seed: int  # env.reset(seed=seed) and policy.reset(..., seed=seed)
+    seed: int  # env.reset(seed=seed) and policy.reset(..., seed=policy_seed(seed))
     model_error: float | None  # env argument; None: the env's default
     obs_noise: float | None  # env argument; None: the env's default
 

@@ -41,7 +41,7 @@ class SweepConfig:
     policies: tuple[str, ...] = ("nnbc", "jmpi", "oracle")
     """Policy specs for `policies.make` (`name[:key=value,...]`, `sb3:PATH`, `module:attr`)."""
     seeds: tuple[int, ...] = tuple(range(10_000, 10_005))
-    """Episode seeds: `env.reset(seed)` and `policy.reset(..., seed=seed)`; every cell gets the same ones."""
+    """Episode seeds: `env.reset(seed)` and `policy.reset(..., seed=policy_seed(seed))`; every cell gets the same ones."""
     dynamics: tuple[str, ...] = ("physics",)
     """Dynamics modes ("physics", "kinematic")."""
     model_error: tuple[float, ...] = (0.05,)
