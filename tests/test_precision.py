@@ -13,8 +13,10 @@ from eval.output import precision as P
         (0.1614, "nnbc", "~200"),  # one significant digit, marked
         (0.000397, "nnbc-full", "~0.4"),
         (0.0123, "nnbc:gamma=10", "~10"),  # a spec with keys is still that policy
-        (0.01234, "oracle", "12"),  # two digits
-        (0.00456, "oracle", "4.6"),
+        (0.01234, "oracle:gamma=10", "12"),  # the paper's oracle: two digits (a spec's own entry)
+        (0.00456, "oracle:gamma=10", "4.6"),
+        (0.01234, "oracle", "12.34"),  # the default-gain oracle: regular
+        (0.0123, "broyden", "~10"),
         (0.000397, "nnbc-plus", "0.40"),  # measured regular: the normal two decimals
         (0.0567, "mine:Policy", "56.70"),  # not measured: the normal precision
         (None, "nnbc", "-"),
@@ -26,7 +28,7 @@ def test_format_mm(x, spec, expected):
 
 
 def test_chaotic_set_is_the_one_digit_policies():
-    assert {"nnbc", "nnbc-full"} == P.CHAOTIC
+    assert {"nnbc", "nnbc-full", "broyden", "rls"} == P.CHAOTIC
     assert P.is_chaotic("nnbc:gamma=20") and not P.is_chaotic("nnbc-plus")
     assert P.significant_digits("sb3:runs/x/model.zip") is None
 

@@ -10,20 +10,31 @@ How it was measured (`eval.bench.chaos.measure`, rerun it when a controller chan
 the second with the initial angle of joint 1 moved by 1e-12 rad (env argument `arm_joint_pos`), kinematic
 dynamics, default 5% wear, the four WheeledPuma tasks, development seeds 0-9 (40 episode pairs per policy). The
 spread is the largest relative change of the max error |e' - e| / e over the pairs; digits = floor(-log10(spread))
-clipped to [1, 4]. Measured at commit 2bb11a9 on a 2-core x86-64 machine (OpenBLAS):
+clipped to [1, 4]. Measured on a 2-core x86-64 machine (OpenBLAS 0.3.31, SkylakeX kernel): the first block at
+commit 2bb11a9 (gamma 10 for the oracles), the second at 626b74f (release 0.2 baselines, default gains 20):
 
 | policy | largest relative change | median | digits |
 |---|---|---|---|
 | `nnbc` | 4.7 (Lemniscate; Circle 2.5, Random 1.5, Line 0.19) | 0.24 | 1 (chaotic) |
 | `nnbc-full` | 8.1 (Circle; Lemniscate 3.5, Line 2.4, Random 1.2) | 0.37 | 1 (chaotic) |
-| `oracle` | 8.0e-3 (one Line seed: joint limits; other tasks <= 2.6e-6) | 1.7e-11 | 2 |
-| `oracle-full` | 1.1e-5 | 1.2e-9 | 4 |
+| `oracle:gamma=10` (the paper's gain) | 8.0e-3 (one Line seed: joint limits; other tasks <= 2.6e-6) | 1.7e-11 | 2 |
+| `oracle-full` (gamma 10) | 1.1e-5 | 1.2e-9 | 4 |
 | `nnbc-plus` | 2.0e-6 | 0 | 4 |
 | `jmpi` | 7.9e-12 | 1.0e-12 | 4 |
 | `jmpi-full` | 1.5e-9 | 4.1e-12 | 4 |
 | `zero`, `random` | 5.2e-13 (Circle only, seeds 0-9) | | 4 |
+| `nnbc` (626b74f) | 4.6 | 0.29 | 1 (chaotic) |
+| `broyden` | 9.6 | 0.47 | 1 (chaotic) |
+| `rls` | 1.0 (one pair of 40; the others <= 1e-5) | 2.3e-6 | 1 (chaotic in some episodes) |
+| `oracle` (gamma 20) | 4.9e-5 | 1.2e-11 | 4 |
+| `clik` | 8.8e-7 | 1.1e-11 | 4 |
+| `clik-full` | 1.7e-6 | 1.4e-10 | 4 |
+| `qp` | 2.7e-6 | 3.8e-8 | 4 |
+| `qp-oracle` | 8.5e-5 | 1.4e-7 | 4 |
+| `nnbc-plus` (626b74f) | 2.2e-6 | 0 | 4 |
 
-The median max error of `nnbc` over those 40 episodes moved from 161 mm to 321 mm under this change.
+The median max error of `nnbc` over the first 40 episodes moved from 161 mm to 321 mm under this change.
+An entry may be a whole spec (`oracle:gamma=10`), looked up before the policy's name.
 
 A policy without an entry (the user's, SB3 agents, controllers added later) is printed with the normal precision
 until it is measured: absence is not a claim that it is not chaotic.
@@ -39,8 +50,15 @@ import math
 SIGNIFICANT_DIGITS: dict[str, int] = {
     "nnbc": 1,
     "nnbc-full": 1,
-    "oracle": 2,
+    "broyden": 1,
+    "rls": 1,
+    "oracle:gamma=10": 2,
+    "oracle": 4,
     "oracle-full": 4,
+    "clik": 4,
+    "clik-full": 4,
+    "qp": 4,
+    "qp-oracle": 4,
     "nnbc-plus": 4,
     "jmpi": 4,
     "jmpi-full": 4,
@@ -69,12 +87,15 @@ def policy_name(spec: str) -> str:
 
 
 def significant_digits(spec: str) -> int | None:
-    """Measured significant digits of the policy's results; None when it has not been measured."""
-    return SIGNIFICANT_DIGITS.get(policy_name(spec))
+    """Measured significant digits of the policy's results (the spec's own entry, else its name's); None when
+    it has not been measured."""
+    spec = str(spec)
+    return SIGNIFICANT_DIGITS.get(spec, SIGNIFICANT_DIGITS.get(policy_name(spec)))
 
 
 def is_chaotic(spec: str) -> bool:
-    return policy_name(spec) in CHAOTIC
+    digits = significant_digits(spec)
+    return digits is not None and digits <= 1
 
 
 def format_value(x: float | None, spec: str, decimals: int = 2, scale: float = 1.0) -> str:
