@@ -103,12 +103,35 @@ class ArmDescription:
                 f"convention must be one of {', '.join(map(repr, CONVENTIONS))}, got {self.convention!r} "
                 f"(standard: A = Rz Tz Tx Rx; modified, Craig: A = Rx Tx Rz Tz)"
             )
-        try:
-            n = len(self.a)
-        except TypeError:
-            raise ValueError(f"a must be a sequence of DH lengths (m), got {self.a!r}") from None
+        per_joint = (
+            "a",
+            "alpha",
+            "d",
+            "theta_offset",
+            "joint_lower",
+            "joint_upper",
+            "speed_limit",
+            "torque_limit",
+            "masses",
+            "coms",
+            "inertias",
+        )
+        sizes = {}
+        for name in per_joint:
+            try:
+                sizes[name] = len(getattr(self, name))
+            except TypeError:
+                raise ValueError(
+                    f"{name} must be a sequence with one entry per joint, got {getattr(self, name)!r}"
+                ) from None
+        n = sizes["a"]
         if n < 1:
             raise ValueError("an arm needs at least one joint: a, alpha, d, ... are empty")
+        if len(set(sizes.values())) > 1:
+            raise ValueError(
+                f"every per-joint field needs one entry per joint, but their lengths differ: {sizes}; "
+                f"give each of {', '.join(per_joint)} the same number of entries"
+            )
         fix = object.__setattr__  # frozen: normalise once, here
         for name in ("a", "alpha", "d", "theta_offset", "joint_lower", "joint_upper"):
             fix(self, name, _floats(name, getattr(self, name), n))
