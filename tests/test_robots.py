@@ -13,7 +13,7 @@ import pytest
 
 from mobman_env import kinematics as K
 from mobman_env.params import RobotParams
-from mobman_env.robots import random_arm as RA
+from mobman_env.robots import random_arms as RA
 from mobman_env.robots import starts as S
 from mobman_env.robots.catalogue import PANDA, PUMA560, ROBOTS, UR5
 from mobman_env.robots.description import ArmDescription, rod_inertia
