@@ -91,6 +91,24 @@ def test_puma_generic_kinematics_equal_todays():
         np.testing.assert_allclose(J1, J0, rtol=0, atol=1e-12)
 
 
+def test_puma_worn_copy_equals_robot_params_perturbed_bit_for_bit():
+    """The integration can keep the PUMA's draws: the same normals, applied through `length_slots`, give the
+    same bits as `RobotParams.perturbed` (which draws a2, a3, d3, d4, tool, r, b, d in one call)."""
+    from mobman_env.params import PERTURBED_FIELDS
+
+    nominal = RobotParams.nominal()
+    assert [f"{n}{i + 1}" if n != "tool" else n for n, i in PUMA560.length_slots] == list(PERTURBED_FIELDS[:5])
+    for seed in range(5):
+        worn = nominal.perturbed(np.random.default_rng(seed), 0.05)
+        z = np.clip(np.random.default_rng(seed).standard_normal(len(PERTURBED_FIELDS)), -3.0, 3.0)
+        arm = PUMA560.scaled_lengths(1.0 + 0.05 * z[: len(PUMA560.length_slots)])
+        assert arm.a == tuple(worn.dh_a) and arm.d == tuple(worn.dh_d) and arm.tool == worn.tool
+        assert arm.masses == PUMA560.masses and arm.joint_lower == PUMA560.joint_lower
+    with pytest.raises(ValueError, match="5 perturbable lengths"):
+        PUMA560.scaled_lengths([1.0, 1.0])
+    assert len(UR5.length_slots) == 7 and len(PANDA.length_slots) == 8
+
+
 # --- every arm ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("arm", ARMS, ids=ARM_IDS)
 def test_jacobian_matches_central_differences(arm):
@@ -263,6 +281,11 @@ def test_chosen_starts_track_the_circle_with_the_arm_alone(name):
     assert geo["max_ratio"] < 0.95 and geo["sigma_min"] >= 0.15 and geo["margin"] >= 0.2
     rec = S.track(arm, start, S.TASK_SPECS["circle"], whole_body=False)
     assert rec["max_error"] < 1e-3 and rec["limit_hits"] == 0
+
+
+def test_kinematic_ceiling_predicate():
+    assert S.kinematic_ceiling(RA.RandomArm(UR5, S.STARTS["ur5"].q0, 1))
+    assert not S.kinematic_ceiling(RA.RandomArm(UR5, S.STARTS["ur5"].q0, 1), tolerance=1e-6)
 
 
 def test_reach_of_the_puma():

@@ -41,10 +41,10 @@ URDF writer and the controllers are not wired to it yet.
 `joint_vel` `Box(.., (n_act,))`; `arm_joint_pos` accepts n or n + 2 numbers and is checked against the
 description's limits; `EnvFacts` gains `n_actuators` (today it carries `action_scale`, whose length is already
 the count: `n_actuators = len(action_scale)` keeps old pickles/configs meaningful). `nominal_params.tool` is
-`ArmDescription.tool`; `model_error` perturbs the description's non-zero `a` (row order), then its non-zero
-`d`, then `tool`, then the platform's r, b and mount offset: for the PUMA that is a2, a3, d3, d4, tool, r, b, d, exactly today's
-`PERTURBED_FIELDS` in today's order, so its draws stay the same (check bit for bit with `mobman-eval paper`
-before and after).
+`ArmDescription.tool`; `model_error` perturbs `ArmDescription.length_slots` (every non-zero `a` in row order,
+every non-zero `d`, then `tool`) through `scaled_lengths`, then the platform's r, b and mount offset: for the
+PUMA that is a2, a3, d3, d4, tool, r, b, d, today's `PERTURBED_FIELDS` in today's order, and a test shows the
+same normals give the same bits as `RobotParams.perturbed` (still check `mobman-eval paper` before and after).
 
 **Kinematics**: `mobman_env.kinematics.arm_point_and_jacobian(params, q)` is equal to
 `robots.kinematics.arm_point_and_jacobian(PUMA560, q)` to 1e-12 (tested), not bit for bit (different

@@ -26,6 +26,7 @@ import dataclasses
 import functools
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -41,9 +42,9 @@ Vec3 = tuple[float, float, float]
 Inertia = tuple[float, float, float, float, float, float]
 
 
-def _floats(name: str, values: object, n: int, *, low: float | None = None, open_low: bool = False) -> tuple:
+def _floats(name: str, values: Any, n: int, *, low: float | None = None, open_low: bool = False) -> tuple:
     try:
-        items = tuple(values)  # type: ignore[call-overload]
+        items: tuple[Any, ...] = tuple(values)
     except TypeError:
         raise ValueError(f"{name} must be a sequence of {n} numbers, got {values!r}") from None
     if len(items) != n:
@@ -190,6 +191,34 @@ class ArmDescription:
     def inertia_matrix(self, i: int) -> np.ndarray:
         """The 3 x 3 inertia tensor of link i (0-based) about its centre of mass, DH frame i axes, kg m^2."""
         return _inertia_matrix(self.inertias[i])
+
+    @functools.cached_property
+    def length_slots(self) -> tuple[tuple[str, int], ...]:
+        """The kinematic lengths a "worn" copy changes, in draw order: every non-zero `a` (row order), every
+        non-zero `d`, then `tool` (index -1). For the PUMA: a2, a3, d3, d4, tool, today's `PERTURBED_FIELDS`
+        order (the platform's r, b, d follow them there)."""
+        slots = [("a", i) for i, v in enumerate(self.a) if v != 0.0]
+        slots += [("d", i) for i, v in enumerate(self.d) if v != 0.0]
+        return (*slots, ("tool", -1))
+
+    def scaled_lengths(self, factors: Any) -> ArmDescription:
+        """A copy with the lengths of `length_slots` multiplied by `factors` (one per slot, in that order), each
+        product computed as `float(value * factor)` like `RobotParams.perturbed`, so equal factors give equal
+        bits. Masses, inertias and limits are unchanged."""
+        f = [float(x) for x in factors]
+        slots = self.length_slots
+        if len(f) != len(slots):
+            raise ValueError(f"{self.name} has {len(slots)} perturbable lengths {slots}, got {len(f)} factors")
+        a, d = list(self.a), list(self.d)
+        tool = self.tool
+        for (name, i), k in zip(slots, f):
+            if name == "a":
+                a[i] = float(a[i] * k)
+            elif name == "d":
+                d[i] = float(d[i] * k)
+            else:
+                tool = float(tool * k)
+        return self.replace(a=tuple(a), d=tuple(d), tool=tool)
 
     def replace(self, **changes: object) -> ArmDescription:
         """A copy with some fields changed (validated again)."""

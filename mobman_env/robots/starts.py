@@ -150,7 +150,7 @@ def _rot_z(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def ee_world(arm: ArmDescription, q: Sequence[float], pose: Sequence[float]) -> np.ndarray:
+def ee_world(arm: ArmDescription, q: Sequence[float] | np.ndarray, pose: Sequence[float] | np.ndarray) -> np.ndarray:
     """The end-effector point in the world (m) for joint angles q and platform pose (x, y, yaw) of P_0."""
     x, y, yaw = pose
     base = np.array([x + arm.mount_offset * math.cos(yaw), y + arm.mount_offset * math.sin(yaw), arm.base_height])
