@@ -267,10 +267,22 @@ def test_accept_hook_redraws_from_the_same_stream():
 
 
 @pytest.mark.slow
-def test_documented_acceptance_rate():
+def test_documented_acceptance_rate(capsys):
+    from mobman_env.robots.__main__ import main
+
+    main(["acceptance"])
+    printed = capsys.readouterr().out
     rate, mean = RA.acceptance(range(1000))
-    assert f"{100 * rate:.1f}% of draws" in RA.__doc__
-    assert f"{mean:.2f} draws per arm" in RA.__doc__
+    assert printed.startswith(f"{100 * rate:.1f}% of draws pass the start rule, {mean:.2f} draws per arm")
+    assert printed.split(" (seeds")[0] in " ".join(RA.__doc__.split())
+
+
+def test_cli_refuses_an_unknown_command(capsys):
+    from mobman_env.robots.__main__ import main
+
+    with pytest.raises(SystemExit):
+        main(["tabel"])
+    assert "invalid choice: 'tabel'" in capsys.readouterr().err
 
 
 # --- starts ---------------------------------------------------------------------------------------------

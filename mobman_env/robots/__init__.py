@@ -12,6 +12,8 @@ URDF writer and the controllers are not wired to it yet.
 | `catalogue` | `PUMA560` (today's `RobotParams`, number for number), `UR5`, `PANDA`, `ROBOTS` |
 | `random_arms` | `random_arm(rng, accept=None)`: the random 6-joint family, its start rule and acceptance rate |
 | `starts` | `STARTS` (q0 and heading per named arm) and the kinematic checks behind them |
+| `bench` | timing of the kinematics against numpy 4 x 4 products |
+| `__main__` | `python -m mobman_env.robots {table,select,acceptance,ceiling,bench}`: the quoted figures, regenerated |
 
 ## Design note for the integration (later session)
 

@@ -1,4 +1,4 @@
-"""`python -m mobman_env.robots.bench`: time the generic kinematics against numpy 4 x 4 products.
+"""`python -m mobman_env.robots bench`: time the generic kinematics against numpy 4 x 4 products.
 
 Prints microseconds per call (best of 5 repeats of `timeit`) for the end-effector point and its position
 Jacobian:
@@ -60,11 +60,9 @@ def measure(number: int = 5000, batch: int = 1000) -> list[tuple[str, str, float
     return rows
 
 
-def main() -> None:
-    print("| arm | method | us per configuration |\n|---|---|---|")
-    for arm, method, us in measure():
-        print(f"| {arm} | {method} | {us:.2f} |")
-
-
-if __name__ == "__main__":
-    main()
+def table(rows: list[tuple[str, str, float]]) -> str:
+    """The Markdown table of `measure()`'s rows."""
+    return "\n".join(
+        ["| arm | method | us per configuration |", "|---|---|---|"]
+        + [f"| {a} | {m} | {us:.2f} |" for a, m, us in rows]
+    )

@@ -8,7 +8,7 @@ each axis at most 0.3 m; all start at the end-effector point. Every arm therefor
 ## How the starts were chosen
 
 For the PUMA, the paper's theta(0). For the UR5 and the Panda, `select_start` (run by
-`python -m mobman_env.robots.starts --select`) draws 400 configurations uniformly inside the joint limits
+`python -m mobman_env.robots select`) draws 400 configurations uniformly inside the joint limits
 shrunk by 0.3 rad and cut to [-pi, pi] (`default_rng(0)`), keeps those that pass the random-arm start rule
 (`mobman_env.robots.random_arms.start_ok`: sigma_min >= 0.15 m/rad, point >= 0.45 m above the ground) and put the
 circle's far side within 95% of the reach, tracks the circle from each with the arm-only damped least squares
@@ -56,7 +56,6 @@ platform's wheel numbers).
 
 from __future__ import annotations
 
-import argparse
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -65,12 +64,23 @@ import numpy as np
 
 from mobman_env.params import RobotParams
 from mobman_env.paths import path_from_spec
-from mobman_env.robots.catalogue import PANDA, ROBOTS, UR5
+from mobman_env.robots.catalogue import ROBOTS
 from mobman_env.robots.description import ArmDescription
 from mobman_env.robots.kinematics import arm_point_and_jacobian, link_frames
-from mobman_env.robots.random_arms import RandomArm, start_ok
+from mobman_env.robots.random_arms import RandomArm, random_arm, start_ok
 
-__all__ = ["STARTS", "TASK_SPECS", "Start", "circle_geometry", "kinematic_ceiling", "reach", "select_start", "track"]
+__all__ = [
+    "STARTS",
+    "TASK_SPECS",
+    "Start",
+    "ceiling_acceptance",
+    "circle_geometry",
+    "kinematic_ceiling",
+    "reach",
+    "select_start",
+    "table",
+    "track",
+]
 
 #: The four tasks' path specs (those of `mobman_env.TASKS`, copied so this module does not import the env).
 TASK_SPECS = {
@@ -319,18 +329,13 @@ def table() -> str:
     return "\n".join(lines)
 
 
-def main(argv: Sequence[str] | None = None) -> None:
-    """`python -m mobman_env.robots.starts [--select]`: print the table (or run the start search)."""
-    parser = argparse.ArgumentParser(prog="python -m mobman_env.robots.starts", description=__doc__.split("\n")[0])
-    parser.add_argument("--select", action="store_true", help="run select_start for the UR5 and the Panda")
-    args = parser.parse_args(argv)
-    if args.select:
-        for arm in (UR5, PANDA):
-            start, rec = select_start(arm)
-            print(arm.name, start, rec)
-        return
-    print(table())
+def ceiling_acceptance(seeds: range = range(200)) -> tuple[int, int, float]:
+    """(arms, predicate calls, mean draws per arm) of `random_arm(default_rng(seed), kinematic_ceiling)`."""
+    calls = []
 
+    def counted(draw: RandomArm) -> bool:
+        calls.append(draw)
+        return kinematic_ceiling(draw)
 
-if __name__ == "__main__":
-    main()
+    draws = [random_arm(np.random.default_rng(s), counted).n_draws for s in seeds]
+    return len(draws), len(calls), sum(draws) / len(draws)
