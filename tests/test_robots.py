@@ -172,6 +172,48 @@ def test_theta_offset_shifts_the_joint_zero():
     np.testing.assert_allclose(arm_point(shifted, q), arm_point(UR5, q + np.array(off)), atol=1e-12)
 
 
+OFFSET_ARMS = [
+    UR5.replace(theta_offset=(0.1, -0.2, 0.3, 0.0, 0.5, -0.6)),
+    PANDA.replace(theta_offset=(0.1, -0.2, 0.3, 0.4, 0.5, -0.6, 0.7)),
+]
+
+
+@pytest.mark.parametrize("arm", [*ARMS, *OFFSET_ARMS], ids=[*ARM_IDS, "ur5-offsets", "panda-offsets"])
+def test_urdf_end_effector_equals_the_numpy_fk(arm, tmp_path):
+    """The design note's frame mapping, checked in PyBullet: the `ee` frame origin is the numpy tool point and
+    its z axis is z_n, at 50 random configurations."""
+    import pybullet
+    from pybullet_utils.bullet_client import BulletClient
+
+    from mobman_env.robots.arm_urdf import EE_LINK, arm_urdf_string
+
+    path = tmp_path / f"{arm.name}.urdf"
+    path.write_text(arm_urdf_string(arm))
+    client = BulletClient(connection_mode=pybullet.DIRECT)
+    try:
+        body = client.loadURDF(str(path), useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
+        names = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
+        links = {client.getJointInfo(body, j)[12].decode(): j for j in range(client.getNumJoints(body))}
+        joints = [names[f"joint{i + 1}"] for i in range(arm.n_joints)]
+        worst = 0.0
+        for q in _configs(arm, 50, seed=7):
+            for j, v in zip(joints, q):
+                client.resetJointState(body, j, float(v))
+            state = client.getLinkState(body, links[EE_LINK], computeForwardKinematics=True)
+            F = link_frames(arm, q)
+            worst = max(worst, float(np.abs(np.array(state[4]) - arm_point(arm, q)).max()))
+            z = np.array(client.getMatrixFromQuaternion(state[5])).reshape(3, 3)[:, 2]
+            np.testing.assert_allclose(z, F[-1, :3, 2], atol=1e-6)
+        assert worst < 1e-6
+        # the inertial data arrived: PyBullet keeps the mass and the principal moments' sum (the trace)
+        for i, j in enumerate(joints):
+            info = client.getDynamicsInfo(body, j)
+            assert info[0] == pytest.approx(arm.masses[i])
+            assert sum(info[2]) == pytest.approx(float(np.trace(arm.inertia_matrix(i))), rel=1e-6)
+    finally:
+        client.disconnect()
+
+
 # --- descriptions refuse what cannot work ------------------------------------------------------------
 @pytest.mark.parametrize(
     ("changes", "match"),

@@ -12,6 +12,7 @@ URDF writer and the controllers are not wired to it yet.
 | `catalogue` | `PUMA560` (today's `RobotParams`, number for number), `UR5`, `PANDA`, `ROBOTS` |
 | `random_arms` | `random_arm(rng, accept=None)`: the random 6-joint family, its start rule and acceptance rate |
 | `starts` | `STARTS` (q0 and heading per named arm) and the kinematic checks behind them |
+| `arm_urdf` | `arm_urdf_string(arm)`: the arm alone as URDF, the design note's frame mapping, checked in PyBullet |
 | `bench` | timing of the kinematics against numpy 4 x 4 products |
 | `__main__` | `python -m mobman_env.robots {table,select,acceptance,ceiling,bench}`: the quoted figures, regenerated |
 
@@ -35,8 +36,11 @@ URDF writer and the controllers are not wired to it yet.
 * `theta_offset` (both conventions): Rz(offset_i) commutes with joint i's Rz(q_i), so right-multiply joint i's
   origin by Rz(offset_i) (convert the composed rotation to rpy); `joint_pos` stays q.
 * `<limit>` from `joint_lower`/`joint_upper`/`speed_limit`/`torque_limit`; inertias as full tensors
-  (ixx, iyy, izz, ixy, ixz, iyz are all set: the Panda's have products of inertia). The test to add: PyBullet's
-  `ee` equals `kinematics.arm_point` (through `starts.ee_world`) at 50 random configurations to 1e-6 m, per arm.
+  (ixx, iyy, izz, ixy, ixz, iyz are all set: the Panda's have products of inertia).
+* `arm_urdf.arm_urdf_string` implements exactly this for the arm alone; `tests/test_robots.py` loads it in
+  PyBullet and finds the `ee` frame at `kinematics.arm_point` (max error < 1e-6 m, z axis = z_n) at 50 random
+  configurations for the PUMA, the UR5, the Panda, three random arms and the UR5 and Panda with non-zero
+  theta offsets. The integrated writer can call it for the arm and keep the platform parts of `mobman_env.urdf`.
 
 **Spaces and facts** (n = `arm.n_joints`, n_act = `arm.n_actuators` = n + 2): action `Box(-1, 1, (n_act,))`
 = [arm speeds, left wheel, right wheel]; `action_scale` = [*`speed_limit`, wheel, wheel]; `joint_pos` and
