@@ -178,40 +178,65 @@ OFFSET_ARMS = [
 ]
 
 
-@pytest.mark.parametrize("arm", [*ARMS, *OFFSET_ARMS], ids=[*ARM_IDS, "ur5-offsets", "panda-offsets"])
-def test_urdf_end_effector_equals_the_numpy_fk(arm, tmp_path):
-    """The design note's frame mapping, checked in PyBullet: the `ee` frame origin is the numpy tool point and
-    its z axis is z_n, at 50 random configurations."""
+@pytest.fixture
+def loaded(request, tmp_path):
+    """(client, body, joint indices, ee link index) of `request.param` loaded from its arm URDF; closed after."""
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
     from mobman_env.robots.arm_urdf import EE_LINK, arm_urdf_string
 
+    arm = request.param
     path = tmp_path / f"{arm.name}.urdf"
     path.write_text(arm_urdf_string(arm))
     client = BulletClient(connection_mode=pybullet.DIRECT)
     try:
         body = client.loadURDF(str(path), useFixedBase=True, flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
-        names = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
-        links = {client.getJointInfo(body, j)[12].decode(): j for j in range(client.getNumJoints(body))}
-        joints = [names[f"joint{i + 1}"] for i in range(arm.n_joints)]
-        worst = 0.0
-        for q in _configs(arm, 50, seed=7):
-            for j, v in zip(joints, q):
-                client.resetJointState(body, j, float(v))
-            state = client.getLinkState(body, links[EE_LINK], computeForwardKinematics=True)
-            F = link_frames(arm, q)
-            worst = max(worst, float(np.abs(np.array(state[4]) - arm_point(arm, q)).max()))
-            z = np.array(client.getMatrixFromQuaternion(state[5])).reshape(3, 3)[:, 2]
-            np.testing.assert_allclose(z, F[-1, :3, 2], atol=1e-6)
-        assert worst < 1e-6
-        # the inertial data arrived: PyBullet keeps the mass and the principal moments' sum (the trace)
-        for i, j in enumerate(joints):
-            info = client.getDynamicsInfo(body, j)
-            assert info[0] == pytest.approx(arm.masses[i])
-            assert sum(info[2]) == pytest.approx(float(np.trace(arm.inertia_matrix(i))), rel=1e-6)
+        info = [client.getJointInfo(body, j) for j in range(client.getNumJoints(body))]
+        joints = [
+            next(k for k, row in enumerate(info) if row[1].decode() == f"joint{i + 1}") for i in range(arm.n_joints)
+        ]
+        ee = next(k for k, row in enumerate(info) if row[12].decode() == EE_LINK)
+        yield arm, client, body, joints, ee
     finally:
         client.disconnect()
+
+
+@pytest.mark.parametrize("loaded", [*ARMS, *OFFSET_ARMS], ids=[*ARM_IDS, "ur5-offsets", "panda-offsets"], indirect=True)
+def test_urdf_end_effector_equals_the_numpy_fk(loaded):
+    """The design note's frame mapping, checked in PyBullet: the `ee` frame origin is the numpy tool point and
+    its z axis is z_n, at 50 random configurations; masses and inertias arrive, the `ee` link is massless."""
+    arm, client, body, joints, ee = loaded
+    worst = 0.0
+    for q in _configs(arm, 50, seed=7):
+        for j, v in zip(joints, q):
+            client.resetJointState(body, j, float(v))
+        state = client.getLinkState(body, ee, computeForwardKinematics=True)
+        worst = max(worst, float(np.abs(np.array(state[4]) - arm_point(arm, q)).max()))
+        z = np.array(client.getMatrixFromQuaternion(state[5])).reshape(3, 3)[:, 2]
+        np.testing.assert_allclose(z, link_frames(arm, q)[-1, :3, 2], atol=1e-6)
+    assert worst < 1e-6  # measured: 3e-8 to 6e-8 m
+    for i, j in enumerate(joints):
+        info = client.getDynamicsInfo(body, j)
+        assert info[0] == pytest.approx(arm.masses[i])
+        assert sum(info[2]) == pytest.approx(float(np.trace(arm.inertia_matrix(i))), rel=1e-6)
+    assert client.getDynamicsInfo(body, ee)[0] == 0.0
+
+
+@pytest.mark.parametrize("loaded", ARMS, ids=ARM_IDS, indirect=True)
+def test_torque_limits_hold_the_arm_against_gravity(loaded):
+    """Static gravity torques (PyBullet inverse dynamics, fixed base) at 100 random configurations: below 60% of
+    the torque limits for every arm, and below 1/3 for random arms (their limits are 3x a bound on the load)."""
+    arm, client, body, joints, ee = loaded
+    client.setGravity(0, 0, -9.81)
+    n = arm.n_joints
+    worst = max(
+        float(
+            np.max(np.abs(client.calculateInverseDynamics(body, q.tolist(), [0.0] * n, [0.0] * n)) / arm.torque_limit)
+        )
+        for q in _configs(arm, 100, seed=8)
+    )
+    assert worst < (1 / 3 + 1e-9 if arm.name.startswith("random") else 0.6)
 
 
 # --- descriptions refuse what cannot work ------------------------------------------------------------

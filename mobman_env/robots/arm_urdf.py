@@ -62,6 +62,7 @@ def arm_urdf_string(arm: ArmDescription) -> str:
     parts = [
         '<?xml version="1.0"?>',
         f'<robot name="{arm.name}">',
+        # the fixed base's inertia is irrelevant (it never moves); the platform replaces it in the integration
         '<link name="arm_base"><inertial><mass value="1"/>'
         '<inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial></link>',
     ]
@@ -100,7 +101,9 @@ def arm_urdf_string(arm: ArmDescription) -> str:
         ee_xyz = np.array([a, 0.0, d]) + _rx(al) @ np.array([0.0, 0.0, arm.tool])
         ee_R = _rx(al)
     parts += [
-        f'<link name="{EE_LINK}"/>',
+        # massless, with an explicit inertial: without one PyBullet gives the link 1 kg
+        f'<link name="{EE_LINK}"><inertial><mass value="0"/>'
+        '<inertia ixx="0" iyy="0" izz="0" ixy="0" ixz="0" iyz="0"/></inertial></link>',
         f'<joint name="ee_joint" type="fixed"><parent link="{parent}"/><child link="{EE_LINK}"/>'
         f"{_origin(ee_xyz, ee_R)}</joint>",
         "</robot>",
