@@ -4,8 +4,8 @@
 |---|---|---|
 | `table` | the starts table (reach, circle ratios, sigma_min, DLS tracking) | `mobman_env.robots.starts` |
 | `select` | the start search for the UR5 and the Panda (minutes) | `mobman_env.robots.starts` (`STARTS`) |
-| `acceptance` | the random arms' start-rule acceptance, seeds 0-999 | `mobman_env.robots.random_arms` |
-| `ceiling` | the acceptance under `kinematic_ceiling`, seeds 0-199 (minutes) | `mobman_env.robots.random_arms` |
+| `acceptance` | the random arms' start-rule acceptance, seeds 0-999 and 10000-10999 | `mobman_env.robots.random_arms` |
+| `ceiling` | the acceptance under `kinematic_ceiling`, seeds 0-199 and 10000-10199 (minutes) | `mobman_env.robots.random_arms` |
 | `bench` | kinematics timing (machine-dependent) | `mobman_env.robots.kinematics` |
 
 May import: the standard library, `mobman_env.robots.*`.
@@ -34,14 +34,19 @@ def main(argv: Sequence[str] | None = None) -> None:
             start, rec = starts.select_start(arm)
             print(arm.name, start, rec)
     elif args.command == "acceptance":
-        rate, mean = random_arms.acceptance(range(1000))
-        print(f"{100 * rate:.1f}% of draws pass the start rule, {mean:.2f} draws per arm on average (seeds 0-999)")
+        for seeds in (range(1000), range(10_000, 11_000)):
+            rate, mean = random_arms.acceptance(seeds)
+            print(
+                f"{100 * rate:.1f}% of draws pass the start rule, {mean:.2f} draws per arm on average "
+                f"(seeds {seeds.start}-{seeds.stop - 1})"
+            )
     elif args.command == "ceiling":
-        arms, calls, mean = starts.ceiling_acceptance()
-        print(
-            f"{100 * arms / calls:.1f}% of the draws that pass the rule are accepted ({arms} of {calls}), "
-            f"{mean:.2f} draws per arm (seeds 0-199)"
-        )
+        for seeds in (range(200), range(10_000, 10_200)):
+            arms, calls, mean = starts.ceiling_acceptance(seeds)
+            print(
+                f"{100 * arms / calls:.1f}% of the draws that pass the rule are accepted ({arms} of {calls}), "
+                f"{mean:.2f} draws per arm (seeds {seeds.start}-{seeds.stop - 1})"
+            )
     else:
         print(bench.table(bench.measure()))
 

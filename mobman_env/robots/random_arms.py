@@ -40,8 +40,9 @@ draw (design and q0 together) is accepted when
   the named arms' starts more: see `mobman_env.robots.starts`), and
 * the end-effector point is at least 0.45 m above the ground (above the deck, whose top is at 0.32 m).
 
-Measured acceptance (`python -m mobman_env.robots acceptance`, seeds 0-999, one `default_rng(seed)` each):
-44.9% of draws pass the start rule, 2.23 draws per arm on average (2.2 s for the 1000 arms). With
+Measured acceptance (`python -m mobman_env.robots acceptance`, one `default_rng(seed)` per arm): on seeds 0-999
+44.9% of draws pass the start rule, 2.23 draws per arm on average (2.2 s for the 1000 arms); on the held-out
+seeds 10000-10999 42.8% of draws pass the start rule, 2.34 draws per arm on average. With
 `accept=mobman_env.robots.starts.kinematic_ceiling` (whole-body DLS tracks the circle within 1 mm, no joint
 limit met; `python -m mobman_env.robots ceiling`, seeds 0-199): 57.8% of the draws that pass the rule
 are accepted (200 of 346), 3.85 draws per arm.

@@ -10,8 +10,8 @@ each axis at most 0.3 m; all start at the end-effector point. Every arm therefor
 For the PUMA, the paper's theta(0). For the UR5 and the Panda, `select_start` (run by
 `python -m mobman_env.robots select`) draws 400 configurations uniformly inside the joint limits
 shrunk by 0.3 rad and cut to [-pi, pi] (`default_rng(0)`), keeps those that pass the random-arm start rule
-(`mobman_env.robots.random_arms.start_ok`: sigma_min >= 0.15 m/rad, point >= 0.45 m above the ground) and put the
-circle's far side within 95% of the reach, tracks the circle from each with the arm-only damped least squares
+(`mobman_env.robots.random_arms.start_ok`: sigma_min >= 0.15 m/rad, point >= 0.45 m above the ground) and
+whose circle's far side lies within 95% of the reach, tracks the circle from each with the arm-only damped least squares
 below, and keeps the one whose whole tracked circle has the largest smallest singular value of the position
 Jacobian, among those that track it to < 1 mm without coming within 0.1 rad of a joint limit. The winner is
 rounded to 0.01 rad and checked again (the table below is for the rounded values).
@@ -20,8 +20,9 @@ rounded to 0.01 rad and checked again (the table below is for the rounded values
 
 * reach: the largest distance of the end-effector point from the shoulder (the point of joint 2's axis that
   `link_frames` gives: frame 1's origin in standard DH, frame 2's in modified DH) over all configurations,
-  ignoring the joint limits (Gauss-Newton stretches from 64 random starts). For the PUMA this is the README's
-  1.074 m = hypot(d3, a2 + hypot(a3, d4 + tool)).
+  ignoring the joint limits (least-squares stretches from 16 random starts, `reach`). For the PUMA this is
+  hypot(d3, a2 + hypot(a3, d4)) + tool = 1.077 m (the wrist centre as far as it goes, the tool pointing
+  straight away from the shoulder; a test checks it to 1e-6 m).
 * circle far side / circle max: the distance from the shoulder of the circle's far side (its start plus 0.8 m
   along the heading) and of its farthest point, as a fraction of the reach, the platform at rest.
 * sigma_min: the smallest singular value of the 3 x n position Jacobian at the start (m/rad); margin: the
