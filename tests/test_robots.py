@@ -165,6 +165,15 @@ def test_modified_and_standard_conventions_agree_on_the_same_arm():
         assert np.linalg.norm(arm_point(relabelled, q) - arm_point(arm, q)) > 1e-3
 
 
+def test_too_few_angles_are_refused():
+    with pytest.raises(ValueError, match="panda has 7 joints; q must have at least 7 angles"):
+        arm_point(PANDA, np.zeros(6))
+    with pytest.raises(ValueError, match=r"q must have shape \(N, 7\)"):
+        arm_point_and_jacobian_batch(PANDA, np.zeros((3, 6)))
+    # extra entries (the wheel angles of joint_pos) are ignored
+    np.testing.assert_array_equal(arm_point(UR5, np.r_[np.zeros(6), 5.0, 6.0]), arm_point(UR5, np.zeros(6)))
+
+
 def test_theta_offset_shifts_the_joint_zero():
     off = (0.1, -0.2, 0.3, 0.0, 0.5, -0.6)
     shifted = UR5.replace(theta_offset=off)

@@ -102,6 +102,8 @@ def _chain(desc: ArmDescription, ct: Any, st: Any, n: int) -> tuple[list, list]:
 
 def _trig(desc: ArmDescription, q: Any) -> tuple[list[float], list[float], int]:
     n = desc.n_joints
+    if len(q) < n:
+        raise ValueError(f"{desc.name} has {n} joints; q must have at least {n} angles (rad), got {len(q)}")
     off = desc.theta_offset
     th = [float(q[i]) + off[i] for i in range(n)]
     return [math.cos(x) for x in th], [math.sin(x) for x in th], n
