@@ -10,10 +10,11 @@ batch (its inputs are numpy arrays of shape (N,)): the operators are the same, o
 of the DH transforms (Rz(theta) then Rx(alpha) act on two axes at a time) instead of 4 x 4 products: for a
 6-joint arm that is about 100 multiplications per link pass against 64 for each dense 4 x 4 product, and no
 numpy call per link (numpy's per-call overhead, ~1 us, dominated the old `dh_frames` loop). Measured with
-`python -m mobman_env.robots bench` (2 shared cores, load average ~15, so absolute figures are ~3x slow; the
-ratios are what carries over): point + Jacobian of the PUMA 160 us with release 0.1's numpy path, 342 us with
-the obvious generic 4 x 4 + `np.cross`, 56 us with this kernel (58 us UR5, 64 us Panda); batched over 1000
-configurations, 1-5 us per configuration.
+`python -m mobman_env.robots bench` (best of 5 `timeit` repeats, 2 shared cores at load average ~10, so the
+ratios carry over better than the absolute figures): point + Jacobian of the PUMA 43 us with release 0.1's
+numpy path (`mobman_env.kinematics.arm_point_and_jacobian`), 74 us with the obvious generic 4 x 4 products +
+`np.cross`, 14 us with this kernel (UR5 14 us, Panda 16 us); batched over 1000 configurations 0.4-0.7 us per
+configuration.
 
 `link_frames` gives the n + 1 homogeneous frames by plain 4 x 4 products (slow, obvious; for URDF checks).
 
