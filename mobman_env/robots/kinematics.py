@@ -7,9 +7,9 @@ standard convention, frame k in the modified one), so the Jacobian is analytic, 
 One kernel, `_chain`, does the arithmetic for both a single configuration (its inputs are Python floats) and a
 batch (its inputs are numpy arrays of shape (N,)): the operators are the same, only cos and sin are taken by
 `math` or by numpy before the call. Per link it updates the frame's axes column by column, using the structure
-of the DH transforms (Rz(theta) then Rx(alpha) act on two axes at a time) instead of 4 x 4 products: for a
-6-joint arm that is about 100 multiplications per link pass against 64 for each dense 4 x 4 product, and no
-numpy call per link (numpy's per-call overhead, ~1 us, dominated the old `dh_frames` loop). Measured with
+of the DH transforms (Rz(theta) then Rx(alpha) act on two axes at a time) instead of 4 x 4 products: about 30
+multiplications per link against 64 for a dense 4 x 4 product (plus building the matrix), and no numpy call per
+link (numpy's per-call overhead, ~1 us, dominated the old `dh_frames` loop). Measured with
 `python -m mobman_env.robots bench` (best of 5 `timeit` repeats, 2 shared cores at load average ~10, so the
 ratios carry over better than the absolute figures): point + Jacobian of the PUMA 43 us with release 0.1's
 numpy path (`mobman_env.kinematics.arm_point_and_jacobian`), 74 us with the obvious generic 4 x 4 products +
