@@ -189,7 +189,8 @@ OFFSET_ARMS = [
 
 @pytest.fixture
 def loaded(request, tmp_path):
-    """(client, body, joint indices, ee link index) of `request.param` loaded from its arm URDF; closed after."""
+    """(arm, client, body, joint indices, ee link index) for the arm `request.param`, loaded from its arm URDF in
+    a PyBullet client of its own, disconnected afterwards."""
     import pybullet
     from pybullet_utils.bullet_client import BulletClient
 
