@@ -119,9 +119,9 @@ UR5 = ArmDescription(
         rod_inertia(m, r, length, standard_segment(a, al, d))
         for m, (r, length), a, al, d in zip(_UR5_MASSES, _UR5_CYLINDERS, _UR5_A, _UR5_ALPHA, _UR5_D)
     ),
-    # ours: the flange (d6 = 0.0823 m past joint 5's axis) plus 0.15 m, about a parallel gripper's length, so
-    # joint 5 moves the point with a 0.23 m lever (0.08 m bare) and joints 4-5 matter as the PUMA's do;
-    # joint 6 turns about the tool axis and never moves it
+    # ours: 0.15 m past the flange, a gripper-sized tool. Joint 5 then moves the point with a lever of
+    # d6 + tool = 0.23 m (0.08 m with the bare flange), so the wrist matters as the PUMA's does; joint 6 turns
+    # about the tool axis and never moves it
     tool=0.15,
     base_height=0.51,  # m, ours: a pedestal that puts the shoulder axis (d1 = 0.0895 m up) 0.6 m up, as the PUMA's
     mount_offset=0.1,  # m, as the PUMA
@@ -165,7 +165,8 @@ PANDA = ArmDescription(
         (1.25160e-02, 1.00270e-02, 4.81500e-03, -4.28000e-04, -1.19600e-03, -7.41000e-04),
     ),
     # RTB DH.Panda's hand: 0.103 m along z7 past the flange. The point lies on joint 7's axis (joint 7 never
-    # moves it); joint 6 moves it through a7 = 0.088 m and the 0.21 m flange + hand, joint 5 through the same
+    # moves it); joint 6 moves it with a lever of hypot(a7, d7 + tool) = hypot(0.088, 0.21) = 0.23 m, and joint 5
+    # with up to that much, depending on q6
     tool=0.103,
     base_height=0.32,  # m, ours: on the deck top (DECK_BOTTOM + deck height in mobman_env.urdf), no pedestal
     mount_offset=0.1,  # m, as the PUMA
