@@ -287,6 +287,14 @@ def test_rod_inertia_known_answer():
     assert sum(t[:3]) == pytest.approx(ixx + iyy + izz) and t[3] != 0.0
 
 
+@pytest.mark.parametrize("arm", [PUMA560, UR5, PANDA], ids=["puma560", "ur5", "panda"])
+def test_last_joint_turns_about_the_tool_axis_and_the_wrist_moves_the_point(arm):
+    for q in _configs(arm, 10, seed=9):
+        J = arm_point_and_jacobian(arm, q)[1]
+        assert np.abs(J[:, -1]).max() < 1e-15
+        assert np.linalg.norm(J[:, -2]) > 0.05  # the joint before it moves the point (the tool's purpose)
+
+
 def test_named_arms():
     assert set(ROBOTS) == {"puma560", "ur5", "panda"}
     assert (UR5.n_joints, UR5.n_actuators, UR5.convention) == (6, 8, "standard")
