@@ -64,16 +64,51 @@ def run_config_dict(config: TrainConfig) -> dict:
     }
 
 
+def read_json_file(path: Path) -> dict:
+    """A JSON object from a run folder's file; ValueError naming the file when it is not one."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} must hold a JSON object, got {type(data).__name__}")
+    return data
+
+
 def load_run_config(run_dir: Path | str) -> TrainConfig:
+    """The TrainConfig of a run folder's config.json (errors name the file)."""
     path = Path(run_dir) / "config.json"
     if not path.exists():
         raise ValueError(f"{run_dir} is not a run folder (no config.json); pass the --out folder of a mobman-train run")
-    return TrainConfig.from_dict(json.loads(path.read_text()), ignore_extra=True)
+    try:
+        return TrainConfig.from_dict(read_json_file(path), ignore_extra=True)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"cannot resume from {path}: {exc}") from None
+
+
+#: Keys of checkpoints/latest.json: step count and the file names (None: not saved) inside checkpoints/.
+CHECKPOINT_KEYS = ("steps", "model", "vecnormalize", "replay_buffer")
 
 
 def latest_checkpoint(run_dir: Path) -> dict | None:
-    path = Path(run_dir) / "checkpoints" / "latest.json"
-    return json.loads(path.read_text()) if path.exists() else None
+    """checkpoints/latest.json (None without one), checked: its keys, and that the files it names exist."""
+    folder = Path(run_dir) / "checkpoints"
+    path = folder / "latest.json"
+    if not path.exists():
+        return None
+    entry = read_json_file(path)
+    missing = [k for k in CHECKPOINT_KEYS if k not in entry]
+    if missing or isinstance(entry["steps"], bool) or not isinstance(entry["steps"], int):
+        raise ValueError(
+            f"{path} is not a checkpoint index (keys {list(CHECKPOINT_KEYS)}, an integer 'steps'); got {entry}"
+        )
+    for key in ("model", "vecnormalize", "replay_buffer"):
+        name = entry[key]
+        if name is not None and not (folder / str(name)).is_file():
+            raise ValueError(
+                f"{path} names {key} file {folder / str(name)}, which is missing; restore it, or start a new run"
+            )
+    return entry
 
 
 def setup_logging(out: Path, verbose: bool = True) -> None:
