@@ -1,4 +1,4 @@
-"""eval: benchmark policies on the wheeled PUMA 560 envs side by side, on identical episodes.
+"""eval: benchmark policies on the wheeled mobile manipulator envs side by side, on identical episodes.
 
 ```python
 from eval import EvalConfig, run
@@ -7,15 +7,28 @@ result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinema
 result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
 ```
 
-Command line: `mobman-eval run|sweep|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual. Modules:
-`config` (EvalConfig), `rollout` (the one rollout loop), `metrics` (pure functions), `checks` (everything checked
-before the first rollout), `workers` (episodes in this process or N spawned ones), `runner` (`run`), `report`
-(results.json / csv / summary.md, atomic writes), `plots`, `video`, `paper` (the paper's section IV), `speed`
-(the speed benchmark), `ray_backend` (episodes as Ray tasks), `sweep`, `sweep_config`, `sweep_plots` (resumable
-grids of policies x tasks x seeds x model errors x noise levels).
+Command line: `mobman-eval run|sweep|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual.
+
+## Layout and dependency rule
+
+Each layer may import only the layers above it in this list (imports inside functions count; a test parses
+every module and fails on a cycle or an upward import):
+
+1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays)
+2. `rollout` (make_env, make_policy, the one rollout loop)
+3. `config` (EvalConfig)
+4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
+5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `tables` <-
+   `results`, `plots`, `video`: what is written)
+6. `runner` (`run`), `sweep` (`config`, `journal`, `report`, `plots` <- `run`: resumable grids)
+7. `paper` (section IV of the paper), `speed` (the speed benchmark)
+8. `cli` (one module per subcommand; nothing imports it but `__main__`)
+
+Across packages: `mobman_env` <- `policies` <- `eval` <- `train`; eval never imports `train`.
 """
 
-from eval.config import EvalConfig, EvalError
+from eval.config import EvalConfig
+from eval.errors import EvalError
 from eval.runner import RunResult, run
 
 __all__ = ["EvalConfig", "EvalError", "RunResult", "run"]

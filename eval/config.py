@@ -7,16 +7,13 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from eval.errors import EvalError
 from eval.metrics import DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
 
 DYNAMICS_CHOICES = ("physics", "kinematic")
 SAVE_ARRAYS_CHOICES = ("all", "first", "none")
 BACKEND_CHOICES = ("local", "ray")
-
-
-class EvalError(ValueError):
-    """A bad configuration found before any rollout (unknown env id or policy, existing --out, ...)."""
 
 
 @dataclass(frozen=True)
@@ -119,20 +116,17 @@ class EvalConfig:
             raise EvalError(f"env_kwargs must be plain JSON data: {exc}") from None
 
     def validate_backend(self) -> None:
-        """The backend, address and workers fit together, and Ray is installed if it is asked for."""
+        """The backend, address and workers fit together (whether Ray is installed is checked by
+        `eval.checks.check_all`, before any rollout)."""
         if self.backend not in BACKEND_CHOICES:
             raise EvalError(f"unknown backend {self.backend!r}; accepted: {', '.join(BACKEND_CHOICES)}")
         if self.address is not None and self.backend != "ray":
             raise EvalError(f"--address {self.address!r} needs --backend ray (the local backend runs on this machine)")
-        if self.backend == "ray":
-            if self.address is not None and self.workers != 1:
-                raise EvalError(
-                    f"--workers {self.workers} sets the CPUs of a Ray instance started for this run; with --address "
-                    f"{self.address!r} the cluster's CPUs set the parallelism: drop --workers"
-                )
-            from eval.ray_backend import require_ray
-
-            require_ray()
+        if self.backend == "ray" and self.address is not None and self.workers != 1:
+            raise EvalError(
+                f"--workers {self.workers} sets the CPUs of a Ray instance started for this run; with --address "
+                f"{self.address!r} the cluster's CPUs set the parallelism: drop --workers"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

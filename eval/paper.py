@@ -20,8 +20,10 @@ from pathlib import Path
 
 import numpy as np
 
-from eval.config import EvalConfig, EvalError
-from eval.report import SUMMARY_HEADER, atomic_save_figure, atomic_write_text, markdown_table, summary_row
+from eval.config import EvalConfig
+from eval.errors import EvalError
+from eval.output.files import atomic_save_figure, atomic_write_text
+from eval.output.tables import SUMMARY_HEADER, markdown_table, summary_row
 
 PAPER_ENV = "WheeledPuma-Circle-v0"
 PAPER_SEED = 10_000  # reported seeds start here (DESIGN "Seeds")
@@ -31,40 +33,6 @@ PAPER_PATH_SIZE = (0.8, 0.8, 0.2)  # m: "the scale of the desired path is 0.8 m 
 CORE_POLICIES = ("nnbc", "jmpi", "oracle", "nnbc-full")
 OPTIONAL_POLICIES = ("nnbc-plus",)
 DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "physics": ("physics",)}
-
-
-def add_parser(sub) -> None:
-    from eval.cli import HelpFormatter
-
-    p = sub.add_parser(
-        "paper",
-        help="reproduce the paper's section IV (NNBC vs JMPI on the circle) and write paper.md",
-        description=__doc__.split("\n\n")[0],
-        formatter_class=HelpFormatter,
-    )
-    p.add_argument("--out", default=None, help="output directory (default: runs/paper-<UTC timestamp>)")
-    p.add_argument("--seeds", type=int, default=20, help=f"reported seeds ({PAPER_SEED}, {PAPER_SEED + 1}, ...)")
-    p.add_argument("--dynamics", choices=tuple(DYNAMICS_ARG), default="both", help="dynamics mode(s)")
-    p.add_argument("--workers", type=int, default=2, help="worker processes")
-    p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
-    p.add_argument("--video", action="store_true", help="also write videos of seed 10000 (slow)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
-    p.set_defaults(func=_main)
-
-
-def _main(args) -> int:
-    out = reproduce(
-        out=args.out,
-        seeds=args.seeds,
-        dynamics=args.dynamics,
-        workers=args.workers,
-        overwrite=args.overwrite,
-        video=args.video,
-        progress=not args.quiet,
-    )
-    if not args.quiet:
-        print(f"paper reproduction: {out / 'paper.md'}")
-    return 0
 
 
 def choose_policies(dynamics: str) -> tuple[tuple[str, ...], list[str]]:
@@ -149,7 +117,7 @@ def _first_episode_traces(result, dyn: str) -> dict[str, dict]:
 def write_figures(result, out_dir: Path) -> dict[str, list[str]]:
     import matplotlib.pyplot as plt
 
-    from eval import plots
+    from eval.output import plots
 
     written: dict[str, list[str]] = {}
     for dyn in result.results["config"]["dynamics"]:

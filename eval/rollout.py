@@ -35,6 +35,7 @@ import gymnasium as gym
 import numpy as np
 
 from eval import metrics as M
+from eval.errors import EvalError
 
 #: Keys of the per-step arrays one rollout returns (see the module docstring).
 ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
@@ -256,3 +257,31 @@ def _trim(arrays, r_d, r_a, p_c, err, act, us, k):
         "action": act[:k],
         "predict_us": us[:k],
     }
+
+
+def _known_policies_text() -> str:
+    try:
+        import policies
+
+        known = getattr(policies, "KNOWN_POLICIES", {})
+        names = ", ".join(known) if known else "see the policies package"
+    except Exception as exc:  # pragma: no cover - policies broken: say so
+        names = f"(the policies package failed to import: {exc})"
+    return f"known: {names}; also sb3:PATH and module:attr"
+
+
+def make_policy(spec: str, env, seed: int | None):
+    """`policies.make(spec, env, seed)`; errors become `EvalError` naming the spec and the known names."""
+    try:
+        import policies
+    except Exception as exc:
+        raise EvalError(f"cannot import the policies package to build {spec!r}: {exc}") from None
+    try:
+        return policies.make(spec, env, seed=seed)
+    except FileNotFoundError as exc:
+        raise EvalError(f"policy {spec!r}: model file not found: {exc}") from None
+    except Exception as exc:
+        msg = str(exc)
+        if "known" not in msg:
+            msg += f" ({_known_policies_text()})"
+        raise EvalError(f"policy {spec!r}: {msg}") from None

@@ -24,11 +24,16 @@ from pathlib import Path
 from typing import Any
 
 from eval import metrics as M
-from eval.checks import _known_policies_text, check_all, check_out, check_user_policies, resolve_out
-from eval.config import EvalConfig, EvalError
-from eval.report import ResultsView
-from eval.rollout import RECORD_KEYS
-from eval.workers import execute, make_tasks
+from eval.checks import check_all, check_user_policies
+from eval.config import EvalConfig
+from eval.errors import EvalError
+from eval.execution.dispatch import execute
+from eval.execution.tasks import make_tasks
+from eval.output.files import check_out, resolve_out
+from eval.output.results import ResultsView, arrays_key, build_results, write_run
+from eval.output.tables import print_table
+from eval.output.video import write_videos
+from eval.rollout import RECORD_KEYS, _known_policies_text
 
 
 @dataclass
@@ -51,15 +56,13 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     Writes the report files into the output directory and returns a `RunResult`. With `workers > 1` the
     workers are spawned processes: a script calling this needs the usual `if __name__ == "__main__":` guard.
     """
-    from eval import report
-
     user = dict(policies or {})
     config.validate()
     if not config.policies and not user:
         raise EvalError(f"no policy given; pass --policy SPEC ({_known_policies_text()})")
     # Ray pickles policy objects itself (and ray_backend words its own error): check for local workers only
     user_bytes = check_user_policies(user, config.policies, config.workers if config.backend == "local" else 1)
-    out = resolve_out(config)
+    out = resolve_out(config.out, config.command)
     check_out(out, config.overwrite)
     check_all(config, user)
 
@@ -101,7 +104,7 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
             rec.setdefault(key, False if key in ("success", "tipped_over", "terminated") else None)
         rec["index"] = t.index
         rec["arrays_key"] = (
-            report.arrays_key(t.index)
+            arrays_key(t.index)
             if (
                 t.index in arrays
                 and (config.save_arrays == "all" or (config.save_arrays == "first" and t.episode == 0))
@@ -112,13 +115,11 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     cfg = config.to_dict()
     cfg["out"] = str(out)
     cfg["policy_objects"] = {name: type(obj).__name__ for name, obj in user.items()}
-    results = report.build_results(cfg, records, M.aggregate(records), wall_s=wall)
+    results = build_results(cfg, records, M.aggregate(records), wall_s=wall)
     result = RunResult(out=out, results=results, arrays=arrays)
-    report.write_run(result, config)
+    write_run(result, config)
     if config.video:
-        from eval.video import write_videos
-
         write_videos(result, config, user)
     if config.progress:
-        report.print_table(results, out)
+        print_table(results, out)
     return result

@@ -18,49 +18,17 @@ recorded beside the figures. Writes `speed.json` into `--out` and prints a table
 
 from __future__ import annotations
 
-import argparse
 import os
 import platform
-import sys
 import tempfile
 import time
 from datetime import datetime, timezone
-from pathlib import Path
 
 import numpy as np
-
-from eval.cli import HelpFormatter
 
 SPEED_ENV = "WheeledPuma-Circle-v0"
 SUBSTEPS = (2, 4, 10)
 WORKERS = (1, 2)
-
-
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--steps", type=int, default=4000, help="control steps per timed block")
-    p.add_argument("--repeats", type=int, default=3, help="repeats per timed block (the best is reported)")
-    p.add_argument("--episodes", type=int, default=8, help="20 s episodes per workers setting")
-    p.add_argument(
-        "--policy",
-        action="append",
-        dest="policies",
-        metavar="SPEC",
-        help="policies whose predict is timed (default: every built-in name)",
-    )
-    p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
-    p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
-    p.add_argument("--quiet", action="store_true", help="no table")
-
-
-def add_parser(sub) -> None:
-    p = sub.add_parser(
-        "speed",
-        help="the speed benchmark (env steps/s, predict µs, episodes/s)",
-        description=__doc__.split("\n\n")[0],
-        formatter_class=HelpFormatter,
-    )
-    add_arguments(p)
-    p.set_defaults(func=run_from_args)
 
 
 # --- timed blocks ----------------------------------------------------------------------------------------
@@ -150,8 +118,7 @@ def env_vs_bare(dynamics: str, n_substeps: int, steps: int, repeats: int, seed: 
 
 def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     """Median and p99 of the whole predict call of each policy over one kinematic episode (the eval loop)."""
-    from eval.checks import make_policy
-    from eval.rollout import rollout
+    from eval.rollout import make_policy, rollout
 
     rows = []
     env = _env("kinematic")
@@ -231,7 +198,7 @@ def default_policies() -> list[str]:
 def measure(
     steps: int = 4000, repeats: int = 3, episodes: int = 8, specs: list[str] | None = None, progress=print
 ) -> dict:
-    from eval.report import git_rev, versions
+    from eval.output.provenance import git_rev, versions
 
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
     out: dict = {
@@ -309,41 +276,3 @@ def print_table(res: dict) -> None:
     load = res["machine"]["loadavg_1_5_15_at_start"]
     if load:
         c.print(f"{res['machine']['cpus']} CPUs, load average at start {load[0]:.2f} (1 min)")
-
-
-def run_from_args(args) -> int:
-    from eval.checks import check_out
-    from eval.config import EvalError
-    from eval.report import atomic_write_json
-
-    for name in ("steps", "repeats", "episodes"):
-        if getattr(args, name) < 1:
-            raise EvalError(f"--{name} must be an integer >= 1, got {getattr(args, name)}")
-    out = Path(args.out) if args.out else Path("runs") / f"speed-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}"
-    check_out(out, args.overwrite)
-    say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    res = measure(args.steps, args.repeats, args.episodes, args.policies, progress=say)
-    atomic_write_json(out / "speed.json", res)
-    if not args.quiet:
-        print_table(res)
-        print(f"speed.json in {out}")
-    return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    from eval.config import EvalError
-
-    p = argparse.ArgumentParser(
-        prog="python -m eval.speed", description=__doc__.split("\n\n")[0], formatter_class=HelpFormatter
-    )
-    add_arguments(p)
-    args = p.parse_args(argv)
-    try:
-        return run_from_args(args)
-    except EvalError as exc:
-        print(f"speed: error: {exc}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

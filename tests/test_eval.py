@@ -277,7 +277,7 @@ def test_existing_out_is_refused_unless_overwrite(tmp_path, capsys):
 
 
 def test_atomic_write_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypatch):
-    from eval import report
+    from eval.output import files as report
 
     target = tmp_path / "results.json"
     report.atomic_write_json(target, {"a": 1})
@@ -293,7 +293,7 @@ def test_atomic_write_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypa
 
 
 def test_to_jsonable_turns_nan_and_numpy_into_plain_json():
-    from eval.report import to_jsonable
+    from eval.output.files import to_jsonable
 
     data = to_jsonable(
         {"x": np.float32(1.5), "n": np.int64(3), "bad": float("nan"), "v": np.arange(2), "t": (True, np.bool_(False))}
@@ -306,7 +306,7 @@ def test_to_jsonable_turns_nan_and_numpy_into_plain_json():
 
 
 def test_plot_functions_take_records_and_return_figures(tmp_path):
-    from eval import plots
+    from eval.output import plots
 
     result = run(_config(tmp_path, policies=("zero", "nnbc"), episodes=1))
     records = [{**r, **result.arrays[r["index"]]} for r in result.episodes]

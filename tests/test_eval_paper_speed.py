@@ -108,13 +108,11 @@ def test_speed_writes_speed_json(tmp_path):
     assert [(e["workers"], e["processes"]) for e in res["episodes"]] == [(1, 1), (2, 2)]
 
 
-def test_speed_module_entry_point_refuses_existing_out(tmp_path, capsys):
-    from eval import speed
-
+def test_speed_refuses_existing_out(tmp_path, capsys):
     out = tmp_path / "taken"
     out.mkdir()
     (out / "x").write_text("x")
-    assert speed.main(["--out", str(out), "--steps", "10"]) == 2
+    assert main(["speed", "--out", str(out), "--steps", "10"]) == 2
     assert "--overwrite" in capsys.readouterr().err
 
 

@@ -28,7 +28,7 @@ def ray_cluster():
     """A local Ray instance with 2 CPUs for the module; the runs use it as it is (and leave it running)."""
     import ray
 
-    from eval.ray_backend import local_runtime_env
+    from eval.execution.ray_backend import local_runtime_env
 
     ray.init(
         address="local",
@@ -296,8 +296,8 @@ def test_backend_arguments_that_do_not_fit_together(tmp_path, capsys, extra, nee
 
 
 def test_a_sweep_started_locally_and_finished_on_ray_equals_a_local_one(tmp_path, ray_cluster):
-    from eval.sweep import run_sweep
-    from eval.sweep_config import SweepConfig
+    from eval.sweep.config import SweepConfig
+    from eval.sweep.run import run_sweep
 
     sweep = SweepConfig.from_dict(
         {

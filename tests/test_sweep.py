@@ -23,8 +23,9 @@ from test_eval_helpers import ENV, SHORT, VOLATILE, CrashOnOddSeed, stable
 from eval import EvalConfig, EvalError, run
 from eval.cli import main
 from eval.rollout import RECORD_KEYS
-from eval.sweep import JOURNAL, Journal, run_sweep
-from eval.sweep_config import KEYS, SweepConfig, example_path, load_sweep
+from eval.sweep.config import KEYS, SweepConfig, example_path, load_sweep
+from eval.sweep.journal import JOURNAL, Journal
+from eval.sweep.run import run_sweep
 
 #: reported seeds of this module (DESIGN "Seeds")
 SEEDS = [10_000, 10_001]
@@ -187,7 +188,7 @@ def test_a_sweep_episode_equals_the_run_episode_of_the_same_settings(uninterrupt
 
 
 def test_sweep_plot_takes_aggregate_rows_and_returns_a_figure(uninterrupted):
-    from eval.sweep_plots import plot_vs, sweep_figures
+    from eval.sweep.plots import plot_vs, sweep_figures
 
     agg = json.loads((uninterrupted / "results.json").read_text())["aggregate"]
     fig = plot_vs(agg, "model_error", tolerance=0.006)

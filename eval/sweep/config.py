@@ -25,7 +25,8 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
-from eval.config import DYNAMICS_CHOICES, EvalError
+from eval.config import DYNAMICS_CHOICES
+from eval.errors import EvalError
 from eval.metrics import DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
 
@@ -133,7 +134,7 @@ def load_sweep(path: str | Path) -> SweepConfig:
 
 
 def example_path() -> Path:
-    """The example sweep shipped with the package (eval/examples/sweep.yaml)."""
+    """The example sweep shipped with the package (eval/sweep/examples/sweep.yaml)."""
     return Path(__file__).resolve().parent / "examples" / "sweep.yaml"
 
 

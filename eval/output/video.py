@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from eval.report import atomic_write_bytes, slug
-from eval.rollout import make_env, rollout
+from eval.output.files import atomic_write_bytes, slug
+from eval.rollout import make_env, make_policy, rollout
 
 
 def frame_stride(control_freq: float, render_fps: float) -> int:
@@ -49,7 +49,6 @@ def record_episode(
     env_id: str, name: str, user: dict, seed: int, config, dynamics: str
 ) -> tuple[list[np.ndarray], float, dict]:
     """Frames of one episode of policy `name` (a spec, or a key of `user`), the frame rate, and its record."""
-    from eval.checks import make_policy
 
     env = make_env(env_id, dynamics, config.model_error, config.obs_noise, config.env_kwargs, render_mode="rgb_array")
     try:

@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import numpy as np
 from matplotlib.figure import Figure
 
-from eval.plots import _COLORS
+from eval.output.plots import _COLORS
 
 #: the swept variables and their axis labels
 VARIABLES = {
@@ -82,7 +82,7 @@ def _mm(v: float | None) -> float:
 
 def sweep_figures(aggregate: Sequence[dict], tolerance: float | None = None) -> list[tuple[str, Figure]]:
     """(file stem, Figure) for every (env, dynamics) and every swept variable with at least two values."""
-    from eval.report import slug
+    from eval.output.files import slug
 
     groups: dict[tuple, list[dict]] = {}
     for a in aggregate:

@@ -38,8 +38,9 @@ import sys
 from contextlib import contextmanager
 from typing import Any
 
-from eval.config import EvalConfig, EvalError
-from eval.workers import Executor, Task, failed_record, keep_arrays
+from eval.config import EvalConfig
+from eval.errors import EvalError
+from eval.execution.tasks import Executor, Task, failed_record, keep_arrays
 
 #: Ray re-runs a task once when its worker dies or it raises outside the episode; then it is recorded failed.
 MAX_RETRIES = 1

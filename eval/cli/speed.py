@@ -1,0 +1,54 @@
+"""`mobman-eval speed`: the speed benchmark (calls `eval.speed.measure`, writes speed.json)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+from eval import speed
+from eval.cli.common import HelpFormatter
+from eval.errors import EvalError
+from eval.output.files import atomic_write_json, check_out
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--steps", type=int, default=4000, help="control steps per timed block")
+    p.add_argument("--repeats", type=int, default=3, help="repeats per timed block (the best is reported)")
+    p.add_argument("--episodes", type=int, default=8, help="20 s episodes per workers setting")
+    p.add_argument(
+        "--policy",
+        action="append",
+        dest="policies",
+        metavar="SPEC",
+        help="policies whose predict is timed (default: every built-in name)",
+    )
+    p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
+    p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
+    p.add_argument("--quiet", action="store_true", help="no table")
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "speed",
+        help="the speed benchmark (env steps/s, predict µs, episodes/s)",
+        description=speed.__doc__.split("\n\n")[0],
+        formatter_class=HelpFormatter,
+    )
+    add_arguments(p)
+
+
+def main(args) -> int:
+    for name in ("steps", "repeats", "episodes"):
+        if getattr(args, name) < 1:
+            raise EvalError(f"--{name} must be an integer >= 1, got {getattr(args, name)}")
+    out = Path(args.out) if args.out else Path("runs") / f"speed-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}"
+    check_out(out, args.overwrite)
+    say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    res = speed.measure(args.steps, args.repeats, args.episodes, args.policies, progress=say)
+    atomic_write_json(out / "speed.json", res)
+    if not args.quiet:
+        speed.print_table(res)
+        print(f"speed.json in {out}")
+    return 0

@@ -1,0 +1,8 @@
+"""`EvalError`: the one exception eval raises for a bad configuration. A leaf module: it imports nothing."""
+
+
+class EvalError(ValueError):
+    """A bad configuration found before any rollout (unknown env id or policy, existing --out, ...).
+
+    The CLIs print it as `mobman-eval <command>: error: <message>` and exit with code 2; the message names the bad
+    value, what is accepted and the fix."""

@@ -1,0 +1,141 @@
+"""Local execution: the tasks in this process (`workers=1`) or dealt round-robin to N spawned worker processes,
+one pipe each; a worker that dies marks its unfinished episodes failed."""
+
+from __future__ import annotations
+
+import os
+import pickle
+
+from eval.config import EvalConfig
+from eval.execution.tasks import Executor, Task, failed_record, keep_arrays
+
+
+def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out) -> None:
+    """Entry point of one worker process: run `tasks` in order, send each result through the pipe `out`."""
+    user = pickle.loads(user_bytes) if user_bytes else {}
+    ex = Executor(config, user)
+    try:
+        for task in tasks:
+            rec, arrays = ex.run(task)
+            out.send(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
+    finally:
+        ex.close()
+        out.send(("done", wid, None, None))
+        out.close()
+
+
+def execute_local(
+    config: EvalConfig, user: dict, tasks: list[Task], user_bytes: bytes | None = None, on_result=None
+) -> tuple[dict[int, dict], dict[int, dict]]:
+    """Run `tasks` in this process (workers=1) or in spawned worker processes; returns ({index: record}, {index: arrays}). `on_result(record)` is called as each ends."""
+    records: dict[int, dict] = {}
+    arrays: dict[int, dict] = {}
+
+    def take(index, rec, arr):
+        records[index] = rec
+        if arr is not None:
+            arrays[index] = arr
+        if on_result is not None:
+            on_result(rec)
+
+    n_workers = min(config.workers, len(tasks))
+    if n_workers <= 1:
+        ex = Executor(config, user)
+        try:
+            for task in tasks:
+                rec, arr = ex.run(task)
+                take(task.index, rec, arr if keep_arrays(config, task) else None)
+        finally:
+            ex.close()
+        return records, arrays
+
+    import multiprocessing as mp
+    from multiprocessing.connection import wait
+
+    # one pipe per worker: send() is synchronous, so a result sent before a crash is never lost
+    ctx = mp.get_context("spawn")
+    shares = [tasks[i::n_workers] for i in range(n_workers)]
+    readers, procs = [], []
+    with _single_threaded_children():
+        for i in range(n_workers):
+            r, w = ctx.Pipe(duplex=False)
+            p = ctx.Process(
+                target=_worker_main,
+                args=(i, config, user_bytes, shares[i], w),
+                daemon=True,
+                name=f"mobman-eval-worker-{i}",
+            )
+            p.start()
+            w.close()  # the parent keeps only the read end: EOF when the worker is gone
+            readers.append(r)
+            procs.append(p)
+    active = set(range(n_workers))
+    try:
+        while active:
+            wait([readers[i] for i in active] + [procs[i].sentinel for i in active])
+            for i in sorted(active):
+                if _read_available(readers[i], take):
+                    active.discard(i)  # said "done"
+                elif not procs[i].is_alive():
+                    _read_available(readers[i], take)
+                    procs[i].join()
+                    active.discard(i)
+                    for t in shares[i]:
+                        if t.index not in records:
+                            take(
+                                t.index,
+                                failed_record(
+                                    t,
+                                    (
+                                        f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
+                                        f"is on stderr; a script that calls eval.run with workers > 1 needs an "
+                                        f"`if __name__ == '__main__':` guard)"
+                                    ),
+                                ),
+                                None,
+                            )
+    finally:
+        for p in procs:
+            p.join(timeout=10)
+            if p.is_alive():
+                p.terminate()
+        for r in readers:
+            r.close()
+    for t in tasks:  # a worker that stopped early (it reports its own error on stderr)
+        if t.index not in records:
+            take(t.index, failed_record(t, "the worker process stopped before running this episode"), None)
+    return records, arrays
+
+
+#: Thread-pool sizes for worker processes: one process per core is the parallelism; BLAS / OpenMP thread pools
+#: on top of it would only oversubscribe the cores.
+_THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+class _single_threaded_children:
+    """Set the thread-pool variables to 1 (unless the user set them) while worker processes are spawned."""
+
+    def __enter__(self):
+        self._saved = {k: os.environ.get(k) for k in _THREAD_VARS}
+        for k in _THREAD_VARS:
+            os.environ.setdefault(k, "1")
+
+    def __exit__(self, *exc):
+        for k, v in self._saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def _read_available(conn, take) -> bool:
+    """Take every message waiting on `conn`; True once the worker said "done" (or its pipe is closed)."""
+    try:
+        while conn.poll():
+            kind, a, rec, arr = conn.recv()
+            if kind == "done":
+                return True
+            take(a, rec, arr)
+    except (EOFError, OSError):
+        return False
+    return False

@@ -1,0 +1,134 @@
+"""Tasks: one `Task` describes one episode completely; an `Executor` runs tasks in this process.
+
+A `Task` describes one episode completely (env id, dynamics, policy, seed, model error, sensor noise); `run`
+fills them from its config, a sweep (`eval.sweep`) gives every task its own condition. Each process builds
+each env (per id, dynamics, model error and noise) and each policy (per env) once and reuses them (the
+`Executor.MAX_ENVS` most recently used envs are kept); every episode starts from `env.reset(seed)` and
+`policy.reset(..., seed=seed)`, so results do not depend on which process runs an episode or what it ran before
+(physics mode included: tested bit-identical). A worker that dies marks its unfinished episodes failed.
+`config.backend == "ray"` hands the tasks to `eval.ray_backend` instead.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, NamedTuple
+
+from eval.config import EvalConfig
+from eval.rollout import make_env, make_policy, rollout
+
+
+class Task(NamedTuple):
+    index: int  # position in results["episodes"]
+    env: str
+    dynamics: str
+    policy: str
+    episode: int  # k: the k-th seed of the run (run: seed S + k)
+    seed: int  # env.reset(seed=seed) and policy.reset(..., seed=seed)
+    model_error: float | None  # env argument; None: the env's default
+    obs_noise: float | None  # env argument; None: the env's default
+
+
+class Executor:
+    """Runs tasks in one process, building each env (per id, dynamics, model error and noise) and policy (per
+    env) once; beyond `MAX_ENVS` envs the least recently used one is closed with its policies."""
+
+    #: envs kept open per process: each holds a PyBullet client (about 25 MB); a sweep visits its conditions
+    #: one after the other, so a few suffice
+    MAX_ENVS = 8
+
+    def __init__(self, config: EvalConfig, user: dict):
+        self.config = config
+        self.user = user
+        self._envs: dict[tuple, Any] = {}  # insertion order = least recently used first
+        self._policies: dict[tuple, Any] = {}
+
+    def env(self, task: Task):
+        key = (task.env, task.dynamics, task.model_error, task.obs_noise)
+        if key in self._envs:
+            self._envs[key] = self._envs.pop(key)  # most recently used last
+        else:
+            while len(self._envs) >= self.MAX_ENVS:
+                old = next(iter(self._envs))
+                self._envs.pop(old).close()
+                self._policies = {k: v for k, v in self._policies.items() if k[0] != old}
+            self._envs[key] = make_env(
+                task.env, task.dynamics, task.model_error, task.obs_noise, self.config.env_kwargs
+            )
+        return self._envs[key]
+
+    def policy(self, task: Task):
+        if task.policy in self.user:
+            return self.user[task.policy]
+        env = self.env(task)
+        key = ((task.env, task.dynamics, task.model_error, task.obs_noise), task.policy)
+        if key not in self._policies:
+            self._policies[key] = make_policy(task.policy, env, self.config.seed)
+        return self._policies[key]
+
+    def run(self, task: Task) -> tuple[dict, dict | None]:
+        meta = {"env": task.env, "policy": task.policy, "episode": task.episode}
+        try:
+            env = self.env(task)
+            pol = self.policy(task)
+        except Exception:
+            import traceback
+
+            rec = {
+                **meta,
+                "seed": task.seed,
+                "dynamics": task.dynamics,
+                "model_error": task.model_error,
+                "obs_noise": task.obs_noise,
+                "status": "failed",
+                "error": traceback.format_exc(),
+                "success": False,
+                "wall_s": 0.0,
+                "pid": os.getpid(),
+            }
+            return rec, None
+        return rollout(env, pol, task.seed, tolerance=self.config.tolerance, meta=meta)
+
+    def close(self) -> None:
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
+        self._policies.clear()
+
+
+def keep_arrays(config: EvalConfig, task: Task) -> bool:
+    """Episode 0 of every condition is kept for the plots; all of them with save_arrays="all"; none when
+    nothing uses them (save_arrays="none" and no plots)."""
+    if config.save_arrays == "none" and not config.plots:
+        return False
+    return task.episode == 0 or config.save_arrays == "all"
+
+
+def failed_record(task: Task, message: str) -> dict:
+    """The record of an episode that produced no result (its worker process died, its Ray task failed)."""
+    return {
+        "env": task.env,
+        "policy": task.policy,
+        "episode": task.episode,
+        "seed": task.seed,
+        "dynamics": task.dynamics,
+        "model_error": task.model_error,
+        "obs_noise": task.obs_noise,
+        "status": "failed",
+        "error": message,
+        "success": False,
+        "wall_s": None,
+        "pid": None,
+    }
+
+
+def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
+    tasks = []
+    for env_id in config.envs:
+        for dyn in config.dynamics:
+            for name in names:
+                for k in range(config.episodes):
+                    tasks.append(
+                        Task(len(tasks), env_id, dyn, name, k, config.seed + k, config.model_error, config.obs_noise)
+                    )
+    return tasks

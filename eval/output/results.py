@@ -1,0 +1,205 @@
+"""Results: records -> results.json, results.csv (tidy rows) and the whole run folder.
+
+Files of one run directory:
+
+| file | content |
+|---|---|
+| results.json | schema 1: config, versions, git, episodes (one record each), aggregate (one row per condition); SI |
+| results.csv | one row per episode, one column per variable (SI units; axis errors split into x/y/z columns) |
+| summary.md | a table per env and dynamics mode, errors in mm |
+| config.json | the resolved config (what the run was asked to do) |
+| episodes.npz | per-step arrays: key "ep00012__r_a" = array "r_a" of the episode whose "arrays_key" is "ep00012" |
+| plots/*.png | per env and dynamics mode: 3-D paths, per-axis errors and error norms of episode 0 |
+
+Every file is written to a temporary name in the same directory and renamed (`os.replace`), so a crash never
+leaves a half-written file and never destroys the previous version of a file before the new one is complete.
+
+## results.json, schema 1 (SI units: m, s, rad/s; NaN/inf are written as null)
+
+```
+{"schema": 1,
+ "config": {...},            # the resolved EvalConfig (as config.json), plus "policy_objects" {name: class}
+ "versions": {"python", "mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "stable-baselines3", "torch"},
+ "git": "<sha>[-dirty]" | "unknown",
+ "wall_s": float,            # time spent running the episodes
+ "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
+   {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
+    "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
+    "status": "ok" | "failed", "error": traceback | null,
+    "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
+    "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
+    "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success",
+    "predict_us_median", "predict_us_p99" (whole predict call, microseconds), "wall_s", "pid",
+    "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
+ "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
+   {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
+    "max_error_m" | "rms_error_m" | "final_error_m" | "effort" | "peak_joint_speed" | "peak_wheel_speed" |
+    "predict_us_median" | "predict_us_p99": {"median", "mean", "std", "min", "max"}}]}   # over status-ok episodes
+```
+Comparisons across workers or machines skip `wall_s`, `pid` and `predict_us_*`.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+
+from eval.output.files import atomic_save_figure, atomic_savez, atomic_write_json, atomic_write_text, slug, to_jsonable
+from eval.output.provenance import git_rev, versions
+from eval.output.tables import summary_markdown
+
+SCHEMA = 1
+
+
+def build_results(config: dict, records: list[dict], aggregate: list[dict], wall_s: float | None = None) -> dict:
+    return to_jsonable(
+        {
+            "schema": SCHEMA,
+            "config": config,
+            "versions": versions(),
+            "git": git_rev(),
+            "wall_s": wall_s,
+            "episodes": records,
+            "aggregate": aggregate,
+        }
+    )
+
+
+def arrays_key(index: int) -> str:
+    return f"ep{index:05d}"
+
+
+CSV_COLUMNS = (
+    "index",
+    "env",
+    "policy",
+    "episode",
+    "seed",
+    "dynamics",
+    "model_error",
+    "obs_noise",
+    "control_freq",
+    "path_type",
+    "path",
+    "true_params_hash",
+    "status",
+    "success",
+    "max_error_m",
+    "rms_error_m",
+    "final_error_m",
+    "axis_max_error_x_m",
+    "axis_max_error_y_m",
+    "axis_max_error_z_m",
+    "effort",
+    "peak_joint_speed",
+    "peak_wheel_speed",
+    "joint_limit_hits",
+    "n_clipped",
+    "tipped_over",
+    "terminated",
+    "n_steps",
+    "predict_us_median",
+    "predict_us_p99",
+    "wall_s",
+    "pid",
+    "error_summary",
+)
+
+
+def csv_rows(records: list[dict]) -> list[dict]:
+    """One tidy row per episode (SI units); the path spec as JSON, the traceback reduced to its last line."""
+    rows = []
+    for r in records:
+        axis = r.get("axis_max_error_m") or [None, None, None]
+        path = r.get("path")
+        err = r.get("error")
+        row = {k: r.get(k) for k in CSV_COLUMNS}
+        row.update(
+            {
+                "path_type": path.get("type") if isinstance(path, dict) else None,
+                "path": json.dumps(path, sort_keys=True) if path is not None else None,
+                "axis_max_error_x_m": axis[0],
+                "axis_max_error_y_m": axis[1],
+                "axis_max_error_z_m": axis[2],
+                "error_summary": err.strip().splitlines()[-1] if err else None,
+            }
+        )
+        rows.append(row)
+    return rows
+
+
+def csv_text(records: list[dict]) -> str:
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=CSV_COLUMNS, lineterminator="\n")
+    w.writeheader()
+    for row in csv_rows(records):
+        w.writerow({k: ("" if v is None else v) for k, v in row.items()})
+    return buf.getvalue()
+
+
+class ResultsView:
+    """`episodes` and `aggregate` of the results.json dict held in `self.results` (run and sweep results)."""
+
+    results: dict
+
+    @property
+    def episodes(self) -> list[dict]:
+        return self.results["episodes"]
+
+    @property
+    def aggregate(self) -> list[dict]:
+        return self.results["aggregate"]
+
+
+def write_run(result, config) -> None:
+    """Write every file of a run directory (see the module docstring)."""
+    out = Path(result.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = result.results
+    atomic_write_json(out / "config.json", results["config"])
+    atomic_write_json(out / "results.json", results)
+    atomic_write_text(out / "results.csv", csv_text(results["episodes"]))
+    atomic_write_text(out / "summary.md", summary_markdown(results))
+    saved = {}
+    for rec in results["episodes"]:
+        key = rec.get("arrays_key")
+        if key is not None:
+            for name, arr in result.arrays[rec["index"]].items():
+                saved[f"{key}__{name}"] = np.asarray(arr, dtype=np.float32)
+    if saved:
+        atomic_savez(out / "episodes.npz", saved)
+    if config.plots:
+        write_plots(result, out / "plots", config.tolerance)
+
+
+def traces_for_plots(result) -> dict[tuple[str, str], list[dict]]:
+    """(env, dynamics) -> the records of episode 0 of each policy with their arrays merged in."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for rec in result.results["episodes"]:
+        if rec.get("episode") == 0 and rec["index"] in result.arrays:
+            groups.setdefault((rec["env"], rec["dynamics"]), []).append({**rec, **result.arrays[rec["index"]]})
+    return groups
+
+
+def write_plots(result, plot_dir: Path, tolerance: float) -> list[Path]:
+    import matplotlib.pyplot as plt
+
+    from eval.output import plots
+
+    written = []
+    for (env, dyn), traces in traces_for_plots(result).items():
+        stem = f"{slug(env)}_{dyn}"
+        for name, fig in (
+            ("paths3d", plots.plot_paths_3d(traces)),
+            ("axis_errors", plots.plot_axis_errors(traces)),
+            ("error_norm", plots.plot_error_norm(traces, tolerance)),
+        ):
+            path = plot_dir / f"{stem}_{name}.png"
+            atomic_save_figure(fig, path)
+            plt.close(fig)
+            written.append(path)
+    return written

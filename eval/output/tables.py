@@ -1,0 +1,157 @@
+"""Tables: aggregate rows -> Markdown (summary.md) and the console table (rich); errors in mm."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def _mm(x: float | None, digits: int = 2) -> str:
+    return "-" if x is None else f"{x * 1e3:.{digits}f}"
+
+
+def _num(x: float | None, fmt: str = "{:.2f}") -> str:
+    return "-" if x is None else fmt.format(x)
+
+
+SUMMARY_HEADER = (
+    "policy",
+    "n",
+    "failed",
+    "tipped over",
+    "success",
+    "max err median (mm)",
+    "max err mean ± std (mm)",
+    "rms median (mm)",
+    "final median (mm)",
+    "effort median (s)",
+    "peak joint (rad/s)",
+    "peak wheel (rad/s)",
+    "predict median / p99 (µs)",
+)
+
+
+def summary_row(a: dict) -> list[str]:
+    me = a["max_error_m"]
+    return [
+        str(a["policy"]),
+        str(a["n"]),
+        str(a["n_failed"]),
+        str(a.get("n_tipped_over", 0)),
+        f"{a['success_rate'] * 100:.0f}%",
+        _mm(me["median"]),
+        "-" if me["mean"] is None else f"{me['mean'] * 1e3:.2f} ± {me['std'] * 1e3:.2f}",
+        _mm(a["rms_error_m"]["median"]),
+        _mm(a["final_error_m"]["median"]),
+        _num(a["effort"]["median"]),
+        _num(a["peak_joint_speed"]["median"]),
+        _num(a["peak_wheel_speed"]["median"]),
+        f"{_num(a['predict_us_median']['median'], '{:.0f}')} / {_num(a['predict_us_p99']['median'], '{:.0f}')}",
+    ]
+
+
+def _conditions(aggregate: list[dict]) -> dict[tuple, list[dict]]:
+    groups: dict[tuple, list[dict]] = {}
+    for a in aggregate:
+        groups.setdefault((a["env"], a["dynamics"], a["model_error"], a["obs_noise"]), []).append(a)
+    return groups
+
+
+def markdown_table(header, rows) -> str:
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def summary_markdown(results: dict) -> str:
+    cfg = results["config"]
+    lines = [
+        "# mobman-eval summary",
+        "",
+        f"{cfg['episodes']} episode(s) per policy and condition, seeds {cfg['seed']}..{cfg['seed'] + cfg['episodes'] - 1}; "
+        f"success = max tracking error <= {cfg['tolerance'] * 1e3:g} mm over the whole episode (failed or tipped-over "
+        f"episodes are not successes). Errors in mm, statistics over the episodes that ran (status ok). "
+        f"git {results['git']}.",
+        "",
+    ]
+    for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
+        lines += [
+            f"## {env} — {dyn} (model_error {me}, obs_noise {on} m)",
+            "",
+            markdown_table(SUMMARY_HEADER, [summary_row(a) for a in rows]),
+            "",
+        ]
+    lines += failed_episode_lines(
+        results["episodes"],
+        lambda r: f"{r['env']} / {r['dynamics']} / {r['policy']} / seed {r['seed']}",
+        " (traceback in results.json)",
+    )
+    return "\n".join(lines)
+
+
+def failed_episode_lines(episodes: list[dict], describe, suffix: str = "") -> list[str]:
+    """A Markdown section listing the failed episodes (last line of each traceback); [] when none failed.
+    `describe(record)` names the episode's condition."""
+    failed = [r for r in episodes if r["status"] != "ok"]
+    if not failed:
+        return []
+    lines = [f"## Failed episodes ({len(failed)})", ""]
+    for r in failed:
+        last = (r.get("error") or "").strip().splitlines()
+        lines.append(f"* {describe(r)}: `{last[-1] if last else 'unknown error'}`{suffix}")
+    return lines + [""]
+
+
+CONSOLE_HEADER = (
+    "policy",
+    "n",
+    "failed\n/tipped",
+    "succ",
+    "max\nmed",
+    "max\nmean",
+    "rms\nmed",
+    "final\nmed",
+    "pred\nµs",
+)
+
+
+def console_row(a: dict) -> list[str]:
+    me = a["max_error_m"]
+    return [
+        str(a["policy"]),
+        str(a["n"]),
+        f"{a['n_failed']}/{a.get('n_tipped_over', 0)}",
+        f"{a['success_rate'] * 100:.0f}%",
+        _mm(me["median"], 1),
+        _mm(me["mean"], 1),
+        _mm(a["rms_error_m"]["median"], 1),
+        _mm(a["final_error_m"]["median"], 1),
+        _num(a["predict_us_median"]["median"], "{:.0f}"),
+    ]
+
+
+def print_table(results: dict, out: Path | None = None) -> None:
+    """A compact table per condition on stdout (errors in mm; summary.md has every column)."""
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
+        table = Table(
+            title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)",
+            box=box.SIMPLE_HEAD,
+            caption="errors in mm: max over each episode, then median/mean over episodes; pred: median "
+            "predict call; summary.md has all columns",
+            padding=(0, 1),
+        )
+        for h in CONSOLE_HEADER:
+            if h == "policy":
+                longest = max(len(str(a["policy"])) for a in rows)
+                table.add_column(h, justify="left", overflow="fold", min_width=min(max(longest, 6), 16))
+            else:
+                table.add_column(h, justify="right", no_wrap=True)
+        for a in rows:
+            table.add_row(*console_row(a))
+        console.print(table)
+    if out is not None:
+        console.print(f"results in {out}")

@@ -1,0 +1,228 @@
+"""`run_sweep`: run the episodes of a sweep grid not yet in its journal, then rebuild the tables (resumable; see
+the package docstring)."""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from eval import metrics as M
+from eval.checks import check_all, check_user_policies
+from eval.config import EvalConfig
+from eval.errors import EvalError
+from eval.execution.dispatch import execute
+from eval.execution.tasks import Task
+from eval.output.files import atomic_write_json, check_out, slug, to_jsonable
+from eval.output.results import ResultsView, build_results
+from eval.rollout import make_env
+from eval.sweep.config import SweepConfig
+from eval.sweep.journal import JOURNAL, Journal, episode_key
+from eval.sweep.report import write_tables
+
+#: settings that must not change when a sweep is resumed (they change every episode's result)
+FIXED_KEYS = ("env_kwargs", "tolerance")
+
+
+def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
+    """Every episode of the grid in table order: env, dynamics, model_error, obs_noise, policy, seed."""
+    tasks = []
+    for env_id in sweep.envs:
+        for dyn in sweep.dynamics:
+            for me in sweep.model_error:
+                for on in sweep.obs_noise:
+                    for name in policy_names:
+                        for k, seed in enumerate(sweep.seeds):
+                            tasks.append(Task(len(tasks), env_id, dyn, name, k, seed, me, on))
+    return tasks
+
+
+@dataclass
+class SweepResult(ResultsView):
+    """What `run_sweep` returns: the output directory, the results.json content and this run's counts."""
+
+    out: Path
+    results: dict
+    n_run: int  # episodes run now
+    n_skipped: int  # episodes already in the journal
+    n_left: int  # episodes of the grid still to run (max_episodes, or interrupted)
+
+
+def default_out(source: str | None) -> Path:
+    stem = Path(source).stem if source else "sweep"
+    return Path("runs") / f"sweep-{slug(stem)}"
+
+
+def run_sweep(
+    sweep: SweepConfig,
+    out: str | Path | None = None,
+    *,
+    backend: str = "local",
+    address: str | None = None,
+    workers: int = 1,
+    max_episodes: int | None = None,
+    retry_failed: bool = False,
+    plots: bool = True,
+    progress: bool = True,
+    policies: dict[str, Any] | None = None,
+    source: str | None = None,
+) -> SweepResult:
+    """Run the episodes of `sweep` not yet in `out`, then rebuild the table, summary and plots.
+
+    `policies` adds the user's own objects ({name: object with predict/reset}) beside the specs; `source` is
+    the YAML file's path (recorded, and naming the default output directory)."""
+    user = dict(policies or {})
+    out = Path(out) if out is not None else default_out(source)
+    if max_episodes is not None and (
+        isinstance(max_episodes, bool) or not isinstance(max_episodes, int) or max_episodes < 0
+    ):
+        raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
+    base = EvalConfig(
+        envs=sweep.envs,
+        policies=sweep.policies,
+        episodes=len(sweep.seeds),
+        seed=sweep.seeds[0],
+        out=str(out),
+        overwrite=True,
+        workers=workers,
+        backend=backend,
+        address=address,
+        dynamics=sweep.dynamics,
+        model_error=sweep.model_error[0],
+        obs_noise=sweep.obs_noise[0],
+        env_kwargs=sweep.env_kwargs,
+        tolerance=sweep.tolerance,
+        plots=False,
+        save_arrays="none",
+        progress=False,
+        command="sweep",
+    )
+    base.validate()
+    if not sweep.policies and not user:
+        raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
+    user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
+    resuming = _check_out_dir(out, sweep, check_out)
+    check_all(base, user)
+    _check_conditions(sweep)
+
+    names = list(sweep.policies) + list(user)
+    tasks = grid_tasks(sweep, names)
+    cfg = {
+        "command": "sweep",
+        "source": source,
+        **sweep.to_dict(),
+        "policy_objects": {name: type(obj).__name__ for name, obj in user.items()},
+        "out": str(out),
+        "backend": backend,
+        "address": address,
+        "workers": workers,
+        "n_episodes": len(tasks),
+    }
+    out.mkdir(parents=True, exist_ok=True)
+    atomic_write_json(out / "config.json", cfg)  # first: the directory is a sweep's from now on
+    journal = Journal(out / JOURNAL)
+    journal.open()  # locked before reading: no other sweep appends meanwhile
+    try:
+        done, dropped = journal.load()
+        if dropped and progress:
+            print(f"sweep: dropped a torn last line of {journal.path} (its episode runs again)", file=sys.stderr)
+        todo = [
+            t
+            for t in tasks
+            if episode_key(t) not in done or (retry_failed and done[episode_key(t)].get("status") != "ok")
+        ]
+        n_skipped = len(tasks) - len(todo)
+        if max_episodes is not None:
+            todo = todo[:max_episodes]
+        if progress:
+            print(
+                f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
+                f"{' (resuming)' if resuming else ''}, {len(todo)} to run now",
+                file=sys.stderr,
+            )
+        lost: dict[tuple, dict] = {}  # episodes without any result (dead worker, failed Ray task): not journaled
+        n_run = 0
+        bar = _progress_bar(len(todo)) if progress and todo else None
+
+        def on_result(rec: dict) -> None:
+            nonlocal n_run
+            rec = to_jsonable(rec)
+            if rec.get("pid") is None:
+                lost[episode_key(rec)] = rec
+            else:
+                journal.append(rec)
+                done[episode_key(rec)] = rec
+                lost.pop(episode_key(rec), None)
+            n_run += 1
+            if bar is not None:
+                bar.update(1)
+
+        t0 = time.perf_counter()
+        try:
+            if todo:
+                execute(base, user, todo, user_bytes, on_result)
+        finally:  # interrupted or not: the table shows what the journal holds
+            if bar is not None:
+                bar.close()
+            records = []
+            for t in tasks:  # grid order, whatever order the episodes ran in
+                rec = done.get(episode_key(t)) or lost.get(episode_key(t))
+                if rec is not None:
+                    records.append({**rec, "episode": t.episode, "index": len(records), "arrays_key": None})
+            results = build_results(cfg, records, M.aggregate(records), wall_s=time.perf_counter() - t0)
+            write_tables(out, results, sweep.tolerance, plots)
+    finally:
+        journal.close()
+    n_left = sum(episode_key(t) not in done for t in tasks)
+    return SweepResult(out=out, results=results, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
+
+
+def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
+    """True if `out` holds a sweep to resume; EvalError if it holds something else or an incompatible sweep."""
+    cfg_path = out / "config.json"
+    if not out.is_dir() or not any(out.iterdir()):
+        check_out(out, overwrite=False)
+        return False
+    try:
+        old = json.loads(cfg_path.read_text())
+    except (OSError, ValueError):
+        old = None
+    if not isinstance(old, dict) or old.get("command") != "sweep":
+        raise EvalError(
+            f"--out {str(out)!r} exists and does not hold a sweep (no sweep config.json); choose another --out"
+        )
+    new = sweep.to_dict()
+    changed = [k for k in FIXED_KEYS if old.get(k) != new[k]]
+    if changed:
+        diff = "; ".join(f"{k}: {old.get(k)!r} there, {new[k]!r} now" for k in changed)
+        raise EvalError(
+            f"--out {str(out)!r} holds a sweep with other settings ({diff}); its episodes would not be "
+            f"comparable: use another --out, or delete that directory to start over"
+        )
+    return True
+
+
+def _check_conditions(sweep: SweepConfig) -> None:
+    """Every model_error and obs_noise value builds an env (the other grid values were checked by check_all)."""
+
+    for me in sweep.model_error:
+        for on in sweep.obs_noise:
+            try:
+                env = make_env(sweep.envs[0], sweep.dynamics[0], me, on, sweep.env_kwargs)
+            except Exception as exc:
+                raise EvalError(
+                    f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: {exc}"
+                ) from None
+            env.close()
+
+
+def _progress_bar(total: int):
+    from tqdm import tqdm
+
+    tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+    return tqdm(
+        total=total, desc="sweep", unit="ep", file=sys.stderr, dynamic_ncols=True, mininterval=0.1 if tty else 5.0
+    )
