@@ -6,9 +6,43 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
+import sys
+from pathlib import Path
 from typing import Any
 
 from eval.config import BACKEND_CHOICES, EvalConfig
+from eval.errors import EvalError
+
+#: mobman's top-level packages that eval uses; a file or folder of the same name earlier on sys.path (e.g. a
+#: user's `policies.py` beside their script) would be imported instead.
+OWN_PACKAGES = ("mobman_env", "policies", "eval")
+
+
+def check_own_packages(names: tuple[str, ...] = OWN_PACKAGES) -> None:
+    """Raise `EvalError` if one of mobman's packages was imported from somewhere else than beside this `eval`
+    package (a file of the same name shadows it), naming the file and the fix."""
+    import importlib
+
+    root = Path(__file__).resolve().parents[2]  # the folder holding mobman's packages
+    for name in names:
+        module = importlib.import_module(name)
+        origin = getattr(module, "__file__", None)
+        if origin is None or Path(origin).resolve().parent.parent != root:
+            raise EvalError(
+                f"`import {name}` found {origin or 'a namespace package'}, not mobman's {name} package in {root}: "
+                f"a file or folder named {name!r} in the working directory or on sys.path hides it; rename it "
+                f"(and delete its __pycache__)"
+            )
+
+
+def working_directory_importable() -> None:
+    """Put the working directory at the end of `sys.path`, so `--policy mymod:MyCtrl` imports the `mymod.py`
+    of the folder the command runs in (console scripts do not put it on sys.path; `python -m eval` does). At the
+    end, a file there never hides an installed package. Spawned workers inherit sys.path."""
+    cwd = os.getcwd()
+    if not any(os.path.realpath(p or os.curdir) == os.path.realpath(cwd) for p in sys.path):
+        sys.path.append(cwd)
 
 
 def default(cls: Any, name: str) -> Any:
@@ -36,9 +70,18 @@ def policy_help() -> str:
         from policies.registry import KNOWN_POLICIES, SPEC_FORMS
 
         items = {**KNOWN_POLICIES, **SPEC_FORMS}
-        return "; ".join(f"{k}: {v}" for k, v in items.items())
+        text = "; ".join(f"{k}: {v}" for k, v in items.items())
     except Exception:
-        return "nnbc, nnbc-full, nnbc-plus, jmpi, jmpi-full, oracle, oracle-full, zero, random, sb3:PATH, module:attr"
+        text = "nnbc, nnbc-full, nnbc-plus, jmpi, jmpi-full, oracle, oracle-full, zero, random, sb3:PATH, module:attr"
+    return text + f". {TRUST_NOTE}"
+
+
+#: The --help note on loading agents (model files hold pickles).
+TRUST_NOTE = (
+    "Load only agents you trust: sb3: model.zip and vecnormalize.pkl hold pickles (mobman reads them with a "
+    "restricted unpickler, which narrows but does not sandbox what a crafted file can do), and module:attr runs "
+    "the module's code"
+)
 
 
 def env_kwargs_arg(text: str) -> dict:

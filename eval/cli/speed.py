@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import datetime, timezone
-from pathlib import Path
 
 from eval import speed
 from eval.cli.common import HelpFormatter
 from eval.errors import EvalError
-from eval.output.files import atomic_write_json, check_out
+from eval.output.files import atomic_write_json, check_out, make_out, resolve_out
+from mobman_env.validation import integer
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -41,10 +40,11 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     for name in ("steps", "repeats", "episodes"):
-        if getattr(args, name) < 1:
-            raise EvalError(f"--{name} must be an integer >= 1, got {getattr(args, name)}")
-    out = Path(args.out) if args.out else Path("runs") / f"speed-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}"
+        integer(f"--{name}", getattr(args, name), low=1, error=EvalError)
+    out = resolve_out(args.out, "speed")
     check_out(out, args.overwrite)
+    speed.check_policies(args.policies)
+    out = make_out(out, exclusive=not args.out)
     say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     res = speed.measure(args.steps, args.repeats, args.episodes, args.policies, progress=say)
     atomic_write_json(out / "speed.json", res)

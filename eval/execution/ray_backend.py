@@ -40,7 +40,7 @@ from typing import Any
 
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.execution.tasks import Executor, Task, failed_record, keep_arrays
+from eval.execution.tasks import ExecutionInterrupted, Executor, Task, failed_record, keep_arrays
 
 #: Ray re-runs a task once when its worker dies or it raises outside the episode; then it is recorded failed.
 MAX_RETRIES = 1
@@ -48,6 +48,9 @@ MAX_RETRIES = 1
 #: Object store of a Ray instance started for a run: records and per-step arrays are small (0.3 MB for the
 #: arrays of a 20 s episode), and Ray spills to disk beyond it.
 OBJECT_STORE_BYTES = 128 * 2**20
+
+#: The address a Ray instance started for a run binds to.
+LOOPBACK = "127.0.0.1"
 
 #: How long the driver waits for finished tasks before it looks again (progress latency), s.
 POLL_S = 0.2
@@ -136,6 +139,36 @@ def local_runtime_env() -> dict[str, Any]:
     return {"env_vars": {"PYTHONPATH": os.pathsep.join(extra)}} if extra else {}
 
 
+#: How long a run waits for the TCP connection to a `--address HOST:PORT` before it gives up, s (a refused
+#: port fails at once; Ray itself would retry for minutes).
+CONNECT_TIMEOUT_S = 10.0
+
+
+def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise `EvalError` within `timeout` s if `address` ("HOST:PORT" or "ray://HOST:PORT") takes no TCP
+    connection. "auto" and None are left to Ray (it reads the address of the cluster on this node)."""
+    if address is None or address == "auto":
+        return
+    text = address[len("ray://") :] if address.startswith("ray://") else address
+    host, sep, port_text = text.rpartition(":")
+    if not sep or not port_text.isdigit() or not host:
+        raise EvalError(
+            f"--address {address!r} is not HOST:PORT, ray://HOST:PORT or auto; e.g. --address 10.0.0.5:6379"
+        )
+    import socket
+
+    try:
+        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise EvalError(
+            f"cannot reach the Ray cluster at --address {address!r} ({reason} within {timeout:g} s). Start it "
+            f"with `ray start --head` on the head node, check the host and port (the head prints them), or use "
+            f"--address auto on a node of the cluster, or drop --address for a local Ray instance"
+        ) from None
+
+
 def init_kwargs(config: EvalConfig) -> dict[str, Any]:
     """Arguments of `ray.init` for a run that starts (no address) or joins (address) Ray itself."""
     common = {"log_to_driver": False, "logging_level": logging.ERROR}
@@ -148,6 +181,7 @@ def init_kwargs(config: EvalConfig) -> dict[str, Any]:
         "include_dashboard": False,
         "object_store_memory": OBJECT_STORE_BYTES,
         "runtime_env": local_runtime_env(),
+        "_node_ip_address": LOOPBACK,  # the instance of one run serves this machine only: no open ports
         **common,
     }
 
@@ -199,6 +233,14 @@ def execute_ray(
     arrays: dict[int, dict] = {}
     if not tasks:
         return records, arrays
+    try:
+        _run_on_ray(config, user_bytes, tasks, records, arrays, on_result)
+    except KeyboardInterrupt:  # the pending tasks are cancelled and the instance started for the run shut down
+        raise ExecutionInterrupted(records, arrays) from None
+    return records, arrays
+
+
+def _run_on_ray(config: EvalConfig, user_bytes, tasks: list[Task], records: dict, arrays: dict, on_result) -> None:
     with ray_session(config) as ray:
         remote = _remote_task()
         cfg_ref = ray.put(config)
@@ -222,4 +264,3 @@ def execute_ray(
             for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
                 with contextlib.suppress(Exception):
                     ray.cancel(ref, force=True)
-    return records, arrays
