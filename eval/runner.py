@@ -31,7 +31,7 @@ from eval.execution.tasks import ExecutionInterrupted, interrupted_record, make_
 from eval.output.files import check_out, make_out, remove_stale, resolve_out, sigint_deferred
 from eval.output.progress import progress_bar
 from eval.output.results import RUN_OUTPUTS, ResultsView, arrays_key, build_results, print_results, write_run
-from eval.output.video import write_videos
+from eval.output.video import video_format, write_videos
 from eval.rollout import RECORD_KEYS, _known_policies_text
 
 
@@ -68,6 +68,8 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     out = resolve_out(config.out, config.command)
     check_out(out, config.overwrite)
     check_all(config, user)
+    if config.video:
+        video_format()  # the encoder is there (or a clear message) before any episode runs
     out = make_out(out, exclusive=not config.out)
 
     names = list(config.policies) + list(user)

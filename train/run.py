@@ -36,9 +36,10 @@ from train.callbacks import CheckpointSaver, PeriodicEval, read_curve, truncate_
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
 from train.runfolder import (
+    check_run_folder,
     latest_checkpoint,
     load_run_config,
-    prepare_out,
+    make_run_folder,
     read_json_file,
     run_config_dict,
     save_checkpoint,
@@ -232,8 +233,9 @@ def run(config: TrainConfig) -> dict:
     import torch
     from stable_baselines3.common.vec_env import VecMonitor
 
+    out = check_run_folder(config)
     _prepare(config)
-    out = prepare_out(config)
+    out = make_run_folder(config, out)
     setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)

@@ -6,12 +6,10 @@ import json
 import logging
 import os
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-
+from eval.output.provenance import versions
 from train.callbacks import write_json
 from train.config import TrainConfig
 
@@ -19,37 +17,27 @@ log = logging.getLogger("train")
 CONFIG_SCHEMA = 1
 
 
-def default_out(config: TrainConfig) -> Path:
+def check_run_folder(config: TrainConfig) -> Path:
+    """The run folder `config.out` (or the default `runs/train-<algo>-<task>-<UTC date-time>`), checked before
+    anything is written: not a file, empty unless `overwrite`, writable (eval's `check_out`)."""
+    from eval.output.files import check_out, resolve_out
+
     task = config.env_id.split("-")[1].lower() if "-" in config.env_id else config.env_id
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"train-{config.algo}-{task}-{stamp}"
-
-
-def prepare_out(config: TrainConfig) -> Path:
-    out = Path(config.out) if config.out else default_out(config)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a folder; choose another --out")
+    out = resolve_out(config.out, f"train-{config.algo}-{task}")
     if out.is_dir() and any(out.iterdir()) and not config.overwrite:
         raise ValueError(
             f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
             f"continue it with --resume {out}"
         )
-    out.mkdir(parents=True, exist_ok=True)
+    check_out(out, config.overwrite)
     return out
 
 
-def versions() -> dict:
-    import numpy
-    import stable_baselines3
-    import torch
+def make_run_folder(config: TrainConfig, out: Path) -> Path:
+    """Create the checked run folder; a default name is created exclusively (two runs never share one)."""
+    from eval.output.files import make_out
 
-    return {
-        "python": sys.version.split()[0],
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": torch.__version__,
-        "gymnasium": gym.__version__,
-        "numpy": numpy.__version__,
-    }
+    return make_out(out, exclusive=not config.out)
 
 
 def run_config_dict(config: TrainConfig) -> dict:
@@ -60,7 +48,7 @@ def run_config_dict(config: TrainConfig) -> dict:
         "hyperparams_resolved": config.resolved_hyperparams,
         "env_make_kwargs": config.train_env_kwargs,
         "eval_env_kwargs": config.eval_env_kwargs,
-        "versions": versions(),
+        "versions": versions(),  # eval's provenance: python, mobman, numpy, gymnasium, pybullet, SB3, torch
     }
 
 
