@@ -9,9 +9,11 @@ from typing import Any
 from eval.errors import EvalError
 from eval.metrics import DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
+from mobman_env.sim import DYNAMICS_MODES
 from mobman_env.validation import integer, number
 
-DYNAMICS_CHOICES = ("physics", "kinematic")
+#: the env's dynamics modes (one home: mobman_env.sim)
+DYNAMICS_CHOICES = DYNAMICS_MODES
 SAVE_ARRAYS_CHOICES = ("all", "first", "none")
 STDOUT_FORMATS = ("table", "markdown", "json", "csv")
 BACKEND_CHOICES = ("local", "ray")

@@ -22,13 +22,14 @@ import numpy as np
 
 from eval.config import EvalConfig
 from eval.errors import EvalError
+from eval.metrics import DEFAULT_TOLERANCE
 from eval.output.files import atomic_save_figure, atomic_write_text
 from eval.output.tables import SUMMARY_HEADER, markdown_table, summary_row
 
 PAPER_ENV = "WheeledPuma-Circle-v0"
 PAPER_SEED = 10_000  # reported seeds start here (DESIGN "Seeds")
 PAPER_GAMMA = 10.0  # the paper's gamma = mu = 10
-PAPER_MAX_ERROR = 0.006  # m: "the maximum tracking error is not more than 0.006 m"
+PAPER_MAX_ERROR = DEFAULT_TOLERANCE  # m: "the maximum tracking error is not more than 0.006 m"
 PAPER_PATH_SIZE = (0.8, 0.8, 0.2)  # m: "the scale of the desired path is 0.8 m x 0.8 m x 0.2 m"
 CORE_POLICIES = ("nnbc", "jmpi", "oracle", "nnbc-full")
 OPTIONAL_POLICIES = ("nnbc-plus",)

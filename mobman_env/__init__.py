@@ -31,7 +31,8 @@ __all__ = [
     "WheeledPumaEnv",
     "register_envs",
 ]
-__version__ = "0.1.0"
+#: The one source of mobman's version (pyproject.toml reads it; Semantic Versioning, CHANGELOG.md).
+__version__ = "0.2.0.dev0"
 
 #: id -> path spec of each registered task (all start at the paper's theta(0), heading pi).
 TASKS = {

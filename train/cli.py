@@ -15,6 +15,8 @@ import json
 import sys
 from pathlib import Path
 
+from mobman_env import __version__
+from mobman_env.sim import DYNAMICS_MODES
 from train import algos
 from train.config import LEARNING_ENV_KWARGS, TrainConfig
 
@@ -29,6 +31,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Train a Stable-Baselines3 agent on a mobman env; the run folder holds model.zip, "
         "vecnormalize.pkl and config.json, which `mobman-eval run --policy sb3:DIR/model.zip` loads.",
     )
+    p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     p.add_argument("--algo", choices=algos.algo_names(), help=f"algorithm (default {d.algo})")
     p.add_argument("--env", dest="env_id", metavar="ID", help=f"env id (default {d.env_id})")
     p.add_argument("--timesteps", type=int, metavar="N", help=f"total env steps (default {d.timesteps})")
@@ -38,7 +41,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, metavar="S", help=f"training seed, a development seed 0-999 (default {d.seed})")
     p.add_argument("--out", metavar="DIR", help="run folder (default runs/train-<algo>-<task>-<timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out")
-    p.add_argument("--dynamics", choices=("kinematic", "physics"), help=f"env dynamics (default {d.dynamics})")
+    p.add_argument("--dynamics", choices=DYNAMICS_MODES, help=f"env dynamics (default {d.dynamics})")
     p.add_argument(
         "--env-kwargs",
         metavar="JSON",

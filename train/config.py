@@ -13,6 +13,7 @@ import json
 from dataclasses import dataclass, field
 from typing import Any
 
+from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer, number
 from train import algos
 from train.wrappers import check_wrappers
@@ -83,7 +84,7 @@ class TrainConfig:
     """First seed of the final evaluation (reported seeds start at 10,000)."""
     final_eval_episodes: int = 5
     """Episodes of the final evaluation with the benchmark's env settings (0: skip)."""
-    tolerance: float = 0.006
+    tolerance: float = DEFAULT_TOLERANCE
     """Success threshold of the evaluations, m (max tracking error); eval's default, the paper's 6 mm."""
     checkpoint_freq: int = 25_000
     """Save a checkpoint (model, normaliser, replay buffer) every this many env steps (0: only at the end or

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from eval.metrics import DEFAULT_TOLERANCE
+
 
 def summarize(records: list[dict]) -> dict:
     """Median / worst RMS and max tracking error (m) and success rate of episode records (eval's schema)."""
@@ -127,7 +129,7 @@ def eval_command(cfg) -> str:
         parts += ["--obs-noise", repr(cfg.obs_noise)]
     if cfg.env_kwargs:
         parts += ["--env-kwargs", json.dumps(cfg.env_kwargs)]
-    if cfg.tolerance != 0.006:
+    if cfg.tolerance != DEFAULT_TOLERANCE:
         parts += ["--tolerance", repr(cfg.tolerance)]
     return " ".join(shlex.quote(p) for p in parts)
 

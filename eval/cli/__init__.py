@@ -23,12 +23,14 @@ import sys
 from eval.cli import paper, run, speed, sweep
 from eval.cli.common import check_own_packages, working_directory_importable
 from eval.errors import EvalError, RunInterrupted
+from mobman_env import __version__
 
 SUBCOMMANDS = {"run": run, "sweep": sweep, "paper": paper, "speed": speed}
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="mobman-eval", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="{" + ",".join(SUBCOMMANDS) + "}")
     sub.required = True
     for module in SUBCOMMANDS.values():
