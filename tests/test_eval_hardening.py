@@ -280,13 +280,6 @@ def test_a_run_connects_to_no_port_it_cannot_reach_and_parses_the_address():
         check_address("localhost")
 
 
-def test_the_ray_instance_of_a_run_binds_the_loopback_address():
-    from eval import EvalConfig
-    from eval.execution.ray_backend import init_kwargs
-
-    assert init_kwargs(EvalConfig(backend="ray", workers=2))["_node_ip_address"] == "127.0.0.1"
-
-
 # --- policies that call sys.exit ------------------------------------------------------------------------------
 def test_system_exit_in_a_constructor_names_it(tmp_path, capsys):
     assert main(["run", "--policy", "test_eval_helpers:ExitInConstructor", "--out", str(tmp_path / "o")]) == 2

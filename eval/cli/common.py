@@ -55,6 +55,16 @@ def default(cls: Any, name: str) -> Any:
     raise KeyError(f"{cls.__name__}.{name} has no default")
 
 
+def param_default(func: Any, name: str) -> Any:
+    """The default of parameter `name` of `func` (for subcommands whose library entry is a function)."""
+    import inspect
+
+    value = inspect.signature(func).parameters[name].default
+    if value is inspect.Parameter.empty:
+        raise KeyError(f"{func.__name__}({name}) has no default")
+    return value
+
+
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
     """Shows "(default: X)" only where X says something (not None/False) and the help does not already."""
 

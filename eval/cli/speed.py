@@ -6,22 +6,24 @@ import argparse
 import sys
 
 from eval import speed
-from eval.cli.common import HelpFormatter
+from eval.cli.common import TRUST_NOTE, HelpFormatter, param_default
 from eval.errors import EvalError
 from eval.output.files import atomic_write_json, check_out, make_out, resolve_out
 from mobman_env.validation import integer
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--steps", type=int, default=4000, help="control steps per timed block")
-    p.add_argument("--repeats", type=int, default=3, help="repeats per timed block (the best is reported)")
-    p.add_argument("--episodes", type=int, default=8, help="20 s episodes per workers setting")
+    d = lambda name: param_default(speed.measure, name)
+    p.add_argument("--steps", type=int, default=d("steps"), help="control steps per timed block")
+    p.add_argument("--repeats", type=int, default=d("repeats"), help="repeats per timed block (the best is reported)")
+    p.add_argument("--episodes", type=int, default=d("episodes"), help="20 s episodes per workers setting")
     p.add_argument(
         "--policy",
         action="append",
         dest="policies",
         metavar="SPEC",
-        help="policies whose predict is timed (default: every built-in name)",
+        help=f"policies whose predict is timed (default: every built-in name); each is built first, an unknown "
+        f"one stops the benchmark before it starts. {TRUST_NOTE}",
     )
     p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")

@@ -16,7 +16,11 @@
   used as it is and left running. Otherwise the run connects to `address` (`"auto"` on a node of a cluster
   started with `ray start --head`; `"HOST:6379"`; `"ray://HOST:10001"` for Ray Client) or, without an
   address, starts a local instance with `num_cpus = workers` (no dashboard, a 128 MiB object store, worker
-  output not forwarded: tracebacks are in the records), and shuts it down at the end. Each task asks for one
+  output not forwarded: tracebacks are in the records), and shuts it down at the end. That instance's
+  servers listen on all network interfaces while it runs (Ray 2.60: its GCS, raylet and worker gRPC ports
+  bind `*`, and `ray.init(_node_ip_address="127.0.0.1")` is rewritten to the node's address by Ray
+  itself, so it cannot be confined to the loopback interface from here): on a machine reachable from an
+  untrusted network, use `--backend local` or a firewall. Each task asks for one
   CPU; Ray sets `OMP_NUM_THREADS=1` in its workers.
 * **Policy objects** given to `eval.run(config, policies={name: obj})` travel to the workers pickled (with
   Ray's cloudpickle, so classes defined in a script or a function work too); an object that cannot be pickled
@@ -24,7 +28,9 @@
   built in the workers: on a cluster, mobman, the user's modules and model files must be available on every
   node (installed, or shipped with a Ray `runtime_env` given to your own `ray.init`).
 
-Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`.
+Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`; an
+`--address HOST:PORT` (or `ray://HOST:PORT`) that refuses a TCP connection, or does not take one within
+`CONNECT_TIMEOUT_S` (10 s), is refused before any rollout too (Ray's own connection attempts retry for minutes).
 """
 
 from __future__ import annotations
@@ -48,9 +54,6 @@ MAX_RETRIES = 1
 #: Object store of a Ray instance started for a run: records and per-step arrays are small (0.3 MB for the
 #: arrays of a 20 s episode), and Ray spills to disk beyond it.
 OBJECT_STORE_BYTES = 128 * 2**20
-
-#: The address a Ray instance started for a run binds to.
-LOOPBACK = "127.0.0.1"
 
 #: How long the driver waits for finished tasks before it looks again (progress latency), s.
 POLL_S = 0.2
@@ -181,7 +184,6 @@ def init_kwargs(config: EvalConfig) -> dict[str, Any]:
         "include_dashboard": False,
         "object_store_memory": OBJECT_STORE_BYTES,
         "runtime_env": local_runtime_env(),
-        "_node_ip_address": LOOPBACK,  # the instance of one run serves this machine only: no open ports
         **common,
     }
 
