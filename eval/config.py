@@ -35,7 +35,7 @@ class EvalConfig:
     seed: int = 10_000
     """Seed of episode 0 (reported results use seeds >= 10,000; tune on 0-999)."""
     out: str | None = None
-    """Output directory; None: runs/<command>-<UTC timestamp>."""
+    """Output directory; None: `runs/<command>-<UTC timestamp>`."""
     overwrite: bool = False
     """Write into an existing non-empty `out` (files of the same name are replaced atomically)."""
     workers: int = 1

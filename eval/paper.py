@@ -7,6 +7,7 @@ dynamics modes (kinematic = the paper's ideal model, physics = PyBullet contact 
 (10,000 ...) by default, each a different "worn" true robot (model_error 0.05).
 
 Writes, beside the usual run files (results.json, summary.md, plots/ ...):
+
 * `fig2a_<dynamics>.png` (NNBC's path and platform trace), `fig2b_<dynamics>.png` (NNBC's error per axis),
   `fig3_<dynamics>.png` (NNBC vs JMPI), all of seed 10,000 — the paper's Fig. 2a, 2b and 3;
 * `paper.md`: each claim of the paper beside what was measured, and where and why they differ.

@@ -1,6 +1,7 @@
 """`run(config, policies=None)`: check everything, run every episode (in this process or N workers), report.
 
 Order of work, so that mistakes cost nothing:
+
 1. the config, the output directory (an existing non-empty one needs `overwrite`), every env id and env
    argument (each env is built once) and every policy spec (each is built once with `policies.make`) are
    checked before the first rollout; problems raise `EvalError` listing what is available;

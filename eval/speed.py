@@ -66,8 +66,7 @@ def time_bare_steps(sim, actions: np.ndarray, action_scale: np.ndarray, n_subste
     import pybullet
 
     client, body, ids = sim.client, sim.body, sim.act_ids
-    p = sim.params
-    forces = [*p.arm_torque_limit, p.wheel_torque_limit, p.wheel_torque_limit]
+    forces = sim.torque_limits
     targets = (actions.astype(float) * action_scale).tolist()
     control, step, mode = client.setJointMotorControlArray, client.stepSimulation, pybullet.VELOCITY_CONTROL
     t0 = time.perf_counter()

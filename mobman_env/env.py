@@ -1,17 +1,25 @@
-"""`WheeledPumaEnv`: end-effector path tracking with a PUMA 560 on a two-wheel differential-drive platform."""
+"""`WheeledPumaEnv`: end-effector path tracking with a PUMA 560 on a two-wheel differential-drive platform.
+
+Joins the robot (`params`), the simulation (`sim`), the task (`paths`) and the sensor model (`sensors`). Imports
+gymnasium, numpy and those `mobman_env` modules only.
+"""
 
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+import warnings
+from collections.abc import Mapping
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from mobman_env.params import RobotParams
-from mobman_env.paths import path_from_spec, validate_spec
-from mobman_env.sim import DYNAMICS_MODES, Sim
+from mobman_env.params import MAX_REL_STD, RobotParams
+from mobman_env.paths import Path, path_from_spec, validate_spec
+from mobman_env.sensors import SENSOR_KEYS, Sensors
+from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
+from mobman_env.validation import integer, number, vector
 
 #: theta(0) of the paper's section IV, rad.
 PAPER_ARM_JOINT_POS = (0.0, math.pi / 4, 0.0, 2 * math.pi / 3, -math.pi / 4, 0.0)
@@ -22,35 +30,38 @@ PAPER_CIRCLE = {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": mat
 DEFAULT_REWARD_WEIGHTS = {"tracking": 1.0, "effort": 1e-3}
 TIP_ANGLE = math.radians(30.0)  # rad, roll or pitch beyond which the platform counts as tipped over
 
-OBS_KEYS = (
-    "ee_pos",
-    "ee_vel",
-    "arm_base_pos",
-    "arm_base_vel",
-    "base_yaw",
-    "joint_pos",
-    "joint_vel",
-    "target_pos",
-    "target_vel",
-    "time",
-)
+#: observation keys in order: the sensor readings (delayed by `obs_delay`) first, then the task's reference
+OBS_KEYS = (*SENSOR_KEYS, "target_pos", "target_vel", "time")
+MAX_CONTROL_FREQ = 10_000.0  # Hz
+MAX_SUBSTEPS = 1000
+MAX_OBS_DELAY = 10_000  # control steps (100 s at 100 Hz): the delay buffer holds this many observations
+MAX_WEAR_RATE = 0.1  # 1/s: 10% length change per second; each episode also needs |wear_rate| * duration < 1
+#: per-episode conditions: constructor arguments that a reset option of the same name overrides for one episode
+CONDITIONS = ("model_error", "obs_noise", "obs_noise_vel", "obs_noise_joint_vel", "obs_delay", "wear_rate")
+RESET_OPTIONS = ("path", "arm_joint_pos", "base_pose", *CONDITIONS)
+_CLOSED = "the env is closed; make a new one with gym.make(...) (or WheeledPumaEnv(...))"
 
 
-def _check_nonneg(value: Any, name: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number >= 0, got {value!r}") from None
-    if not (v >= 0.0 and math.isfinite(v)):
-        raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-    return v
+def _condition(name: str, value: Any) -> float | int:
+    """Validate one per-episode condition (constructor argument or reset option)."""
+    if name == "model_error":
+        hint = "the worn robot's lengths are multiplied by factors in [1 - 3 model_error, 1 + 3 model_error]"
+        return number(name, value, low=0.0, high=MAX_REL_STD, open_high=True, hint=hint + "; at 1/3 one can reach 0")
+    if name == "obs_delay":
+        return integer(name, value, low=0, high=MAX_OBS_DELAY, hint="control steps")
+    if name == "wear_rate":
+        return number(name, value, low=-MAX_WEAR_RATE, high=MAX_WEAR_RATE, hint="relative length change per second")
+    unit = {"obs_noise": "m", "obs_noise_vel": "m/s", "obs_noise_joint_vel": "rad/s"}[name]
+    return number(name, value, low=0.0, hint=f"standard deviation, {unit}")
 
 
-def _vector(value: Any, n: int, name: str, example: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float) if value is not None else None
-    if arr is None or arr.shape != (n,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be {n} finite numbers (e.g. {example}), got {value!r}")
-    return arr
+def _duration(spec: dict) -> float:
+    """A validated spec's duration, s (every path type's default is 20 s)."""
+    return float(spec.get("duration", 20.0))
+
+
+def _base_pose(value: Any) -> np.ndarray:
+    return vector("base_pose", value, sizes=(3,), hint="x, y of P_0 in m and yaw in rad, e.g. [0, 0, 3.1416]")
 
 
 class WheeledPumaEnv(gym.Env):
@@ -90,10 +101,29 @@ class WheeledPumaEnv(gym.Env):
     | arm_base_vel | (2,) | p_c velocity (+ `obs_noise_vel`) | m/s |
     | base_yaw | (1,) | platform heading phi, continuous (not wrapped) | rad |
     | joint_pos | (8,) | 6 arm joint angles, left and right wheel angles | rad |
-    | joint_vel | (8,) | their speeds | rad/s |
+    | joint_vel | (8,) | their speeds (+ `obs_noise_joint_vel`) | rad/s |
     | target_pos | (3,) | desired position r_d(t) | m |
     | target_vel | (3,) | desired velocity r_d_dot(t) | m/s |
     | time | (1,) | time since reset t | s |
+
+    Sensor model (`mobman_env.sensors`): independent Gaussian noise of the stds above, drawn from the env's
+    `np_random` each step (nothing is drawn for a std of 0). With `obs_delay` = k the seven sensor keys (ee_pos
+    to joint_vel) are the noisy readings of k control steps ago (the reset reading until k steps have passed);
+    target_pos, target_vel and time are the task's reference at the current time (a controller knows its own
+    clock; delaying it too would only shift the task in time). `info["ee_pos_true"]` and
+    `info["tracking_error"]` are always noise-free, undelayed and of the current (worn) robot.
+
+    ## Robot wear
+    Each reset draws the episode's true robot (`model_error`). With `wear_rate` = w != 0 its lengths (a2, a3,
+    d3, d4, tool, wheel radius, half track, mount offset) then drift linearly during the episode:
+    length(t) = length(0) (1 + w t), updated once per control step (the robot of time t_k acts during the step
+    from t_k to t_k+1; the state at t is the forward kinematics of the robot of t). Kinematic mode only: a loaded
+    PyBullet body cannot change its link lengths. Re-creating it mid-episode costs about 8.5 ms (a fresh world
+    and URDF load, CPU time measured) against 0.24 ms per physics step, i.e. 35x slower if done every step; done
+    every second instead, the lengths would jump by w per reload (5 mm at 1 m for w = 0.005 1/s) and contacts
+    would be teleported. So physics mode refuses w != 0. An episode needs |w| * duration < 1 (no length reaches
+    zero). `true_params` is the robot of the current time; `info["true_params_hash"]` stays that of the
+    episode's robot at t = 0. Cost in kinematic mode: about 20 us per step (88 -> 108 us, measured).
 
     ## Rewards
     Named terms, reported in `info["reward_terms"]` and summed exactly:
@@ -103,9 +133,11 @@ class WheeledPumaEnv(gym.Env):
     ## Starting State
     Arm at `arm_joint_pos` (default the paper's theta(0) = [0, pi/4, 0, 2pi/3, -pi/4, 0] rad), wheels at 0 rad,
     platform at `base_pose` (x, y of P_0 in m, yaw in rad; default [0, 0, pi]), at rest. The path starts at the
-    end-effector. Reset options `"path"` (spec dict), `"arm_joint_pos"` (6 or 8 numbers) and `"base_pose"` (3
-    numbers) override the constructor for one episode. `info["task"]` echoes the path spec, its start, the joint
-    vector and the base pose; `info["true_params_hash"]` identifies the true robot.
+    end-effector. Reset options override the constructor argument of the same name for one episode: `"path"`
+    (spec dict), `"arm_joint_pos"` (6 or 8 numbers), `"base_pose"` (3 numbers) and the conditions
+    `"model_error"`, `"obs_noise"`, `"obs_noise_vel"`, `"obs_noise_joint_vel"`, `"obs_delay"`, `"wear_rate"`
+    (validated as in the constructor). `info["task"]` echoes the path spec, its start, the joint vector and the
+    base pose; `info["true_params_hash"]` identifies the true robot.
 
     ## Episode End
     Truncated when t reaches the path's duration (no `max_episode_steps`: 2000 steps for 20 s at 100 Hz).
@@ -121,18 +153,45 @@ class WheeledPumaEnv(gym.Env):
     | dynamics | "physics" | "physics" (PyBullet contact dynamics) or "kinematic" (the paper's ideal model) |
     | control_freq | 100.0 | control steps per second, Hz |
     | n_substeps | 2 | PyBullet steps per control step (physics mode) |
-    | model_error | 0.05 | relative std of the true robot's kinematic lengths vs the nominal ones |
+    | model_error | 0.05 | relative std of the true robot's kinematic lengths vs the nominal ones, in [0, 1/3) |
     | obs_noise | 0.0 | std of the Gaussian noise on ee_pos and arm_base_pos, m |
     | obs_noise_vel | 0.0 | std of the Gaussian noise on ee_vel and arm_base_vel, m/s |
+    | obs_noise_joint_vel | 0.0 | std of the Gaussian noise on joint_vel, rad/s |
+    | obs_delay | 0 | age of the sensor readings in the observation, control steps, in [0, 10000] |
+    | wear_rate | 0.0 | relative change per second of the true robot's lengths, 1/s, in [-0.1, 0.1]; kinematic mode |
     | reward_weights | None | dict with keys "tracking", "effort"; None: {"tracking": 1.0, "effort": 1e-3} |
     | error_bound | None | terminate when the tracking error exceeds this, m; None: never |
-    | render_mode | None | None, "rgb_array" (headless TinyRenderer) or "human" (needs a display) |
+    | render_mode | None | None, "rgb_array" (headless TinyRenderer) or "human" (window; see Rendering) |
+
+    Numbers are checked by `mobman_env.validation`: bools, strings and complex numbers are refused. Also
+    `control_freq` in (0, 10000] Hz and `n_substeps` in [1, 1000]; path specs have documented ranges
+    (`mobman_env.paths.validate_spec`).
+
+    ## Rendering
+    `metadata["render_fps"]` is the env's control frequency (per instance), so one frame per step plays in real
+    time, e.g. through `gymnasium.wrappers.RecordVideo`. `"rgb_array"` works headless (TinyRenderer). `"human"`
+    opens PyBullet's window; without a display (neither DISPLAY nor WAYLAND_DISPLAY set) a GUI connection would
+    kill the process, so the env warns (naming `"rgb_array"`), runs headless with no window, and `render()`
+    returns None and draws nothing (so `gymnasium.utils.env_checker.check_env` with its defaults passes
+    headless). In kinematic mode with `wear_rate` != 0 every rendered frame reloads the body of the current
+    robot (about 8.5 ms per frame), so the picture is the true robot of that time.
+
+    ## Privileged attributes
+    `nominal_params` (the catalogue robot: what a model-based method may know) and `true_params` (the current
+    true robot: for oracles and tests only) are the documented doors to robot models. `sim` also holds the true
+    robot (the PyBullet body, the kinematic state), so reading it goes through `true_params` too: a guard that
+    makes `true_params` raise covers it. The generated URDF is deleted as soon as PyBullet has loaded it. Names
+    with a leading underscore are not an interface.
 
     ## Version History
-    * v0: initial release.
+    * v0: initial release. Release 0.2 (same ids, bit-identical at the default options): `obs_noise_joint_vel`,
+      `obs_delay`, `wear_rate`; conditions as reset options; `model_error` < 1/3; path ranges; render_fps =
+      control frequency; headless "human" warns instead of raising; step/reset after close() raise.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"], "render_fps": 25}
+    # render_fps: the default control frequency; each instance assigns its own dict (its control frequency), the
+    # class dict is never mutated. Not a ClassVar: gymnasium.Env declares `metadata` as an instance attribute.
+    metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 100.0}  # noqa: RUF012
 
     def __init__(
         self,
@@ -145,6 +204,9 @@ class WheeledPumaEnv(gym.Env):
         model_error: float = 0.05,
         obs_noise: float = 0.0,
         obs_noise_vel: float = 0.0,
+        obs_noise_joint_vel: float = 0.0,
+        obs_delay: int = 0,
+        wear_rate: float = 0.0,
         reward_weights: dict | None = None,
         error_bound: float | None = None,
         render_mode: str | None = None,
@@ -153,51 +215,76 @@ class WheeledPumaEnv(gym.Env):
             raise ValueError(f"unknown dynamics mode {dynamics!r}; accepted: {', '.join(DYNAMICS_MODES)}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"unknown render_mode {render_mode!r}; accepted: None, 'rgb_array', 'human'")
-        try:
-            control_freq = float(control_freq)
-        except (TypeError, ValueError):
-            raise ValueError(f"control_freq must be a number > 0 (Hz), got {control_freq!r}") from None
-        if not (control_freq > 0 and math.isfinite(control_freq)):
-            raise ValueError(f"control_freq must be a finite number > 0 (Hz), got {control_freq!r}")
-        if isinstance(n_substeps, bool) or not isinstance(n_substeps, (int, np.integer)) or n_substeps < 1:
-            raise ValueError(f"n_substeps must be an integer >= 1, got {n_substeps!r}")
-        self.model_error = _check_nonneg(model_error, "model_error")
-        self.obs_noise = _check_nonneg(obs_noise, "obs_noise")
-        self.obs_noise_vel = _check_nonneg(obs_noise_vel, "obs_noise_vel")
+        control_freq = number("control_freq", control_freq, low=0.0, high=MAX_CONTROL_FREQ, open_low=True, hint="Hz")
+        n_substeps = integer("n_substeps", n_substeps, low=1, high=MAX_SUBSTEPS)
+        conditions = {
+            "model_error": model_error,
+            "obs_noise": obs_noise,
+            "obs_noise_vel": obs_noise_vel,
+            "obs_noise_joint_vel": obs_noise_joint_vel,
+            "obs_delay": obs_delay,
+            "wear_rate": wear_rate,
+        }
+        self._conditions = {k: _condition(k, v) for k, v in conditions.items()}
+        self.model_error = self._conditions["model_error"]
+        self.obs_noise = self._conditions["obs_noise"]
+        self.obs_noise_vel = self._conditions["obs_noise_vel"]
+        self.obs_noise_joint_vel = self._conditions["obs_noise_joint_vel"]
+        self.obs_delay = self._conditions["obs_delay"]
+        self.wear_rate = self._conditions["wear_rate"]
         if error_bound is not None:
-            error_bound = _check_nonneg(error_bound, "error_bound")
+            error_bound = number("error_bound", error_bound, low=0.0, hint="m; None: never terminate on the error")
         weights = dict(DEFAULT_REWARD_WEIGHTS)
         if reward_weights is not None:
             if not isinstance(reward_weights, dict) or set(reward_weights) - set(DEFAULT_REWARD_WEIGHTS):
                 raise ValueError(
                     f"reward_weights must be a dict with keys from {sorted(DEFAULT_REWARD_WEIGHTS)}, got {reward_weights!r}"
                 )
-            weights.update({k: _check_nonneg(v, f"reward_weights[{k!r}]") for k, v in reward_weights.items()})
+            weights.update({k: number(f"reward_weights[{k!r}]", v, low=0.0) for k, v in reward_weights.items()})
         self.reward_weights = weights
         self.error_bound = error_bound
         self.path_spec = validate_spec(PAPER_CIRCLE if path is None else path)
+        self._check_wear(dynamics, self.wear_rate, _duration(self.path_spec))
         self.arm_joint_pos = self._joint_vector(PAPER_ARM_JOINT_POS if arm_joint_pos is None else arm_joint_pos)
-        self.base_pose = _vector(PAPER_BASE_POSE if base_pose is None else base_pose, 3, "base_pose", "[0, 0, 3.1416]")
+        self.base_pose = _base_pose(PAPER_BASE_POSE if base_pose is None else base_pose)
         self.dynamics = dynamics
         self.control_freq = control_freq
         self.dt = 1.0 / control_freq
-        self.n_substeps = int(n_substeps)
+        self.n_substeps = n_substeps
         self.render_mode = render_mode
+        # per instance, the class dict untouched: one frame per control step plays in real time
+        self.metadata = {**type(self).metadata, "render_fps": control_freq}
 
-        self.nominal_params = RobotParams.nominal()
-        self.true_params = self.nominal_params
-        self.action_scale = self.nominal_params.action_scale
+        self._nominal_params = RobotParams.nominal()
+        self._true_params = self._nominal_params
+        self._params0 = self._true_params  # the episode's true robot at t = 0 (wear drifts from it)
+        self.action_scale = self._nominal_params.action_scale
         self.action_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
         self.observation_space = self._make_observation_space()
         # one flat float32 vector per step, clipped once and handed out as views, in OBS_KEYS order
-        sizes = [self.observation_space[k].shape[0] for k in OBS_KEYS]
+        boxes = [cast(spaces.Box, self.observation_space[k]) for k in OBS_KEYS]
+        sizes = [b.shape[0] for b in boxes]
         ends = np.cumsum(sizes)
         self._obs_slices = [(k, slice(e - n, e)) for k, n, e in zip(OBS_KEYS, sizes, ends)]
-        self._obs_low = np.concatenate([self.observation_space[k].low for k in OBS_KEYS])
-        self._obs_high = np.concatenate([self.observation_space[k].high for k in OBS_KEYS])
+        self._obs_low = np.concatenate([b.low for b in boxes])
+        self._obs_high = np.concatenate([b.high for b in boxes])
 
-        self._sim = Sim(dynamics, self.dt, self.n_substeps, gui=(render_mode == "human"))
-        self._path = None
+        window = render_mode == "human" and display_available()
+        if render_mode == "human" and not window:
+            warnings.warn(
+                "render_mode='human' needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set; PyBullet's GUI "
+                "would kill the process): running headless with no window, render() returns None; use "
+                "render_mode='rgb_array' for frames without a display",
+                UserWarning,
+                stacklevel=2,
+            )
+        # the path is drawn (as markers) only where it can be seen
+        self._draws = render_mode == "rgb_array" or window
+        self._sim = Sim(dynamics, self.dt, self.n_substeps, gui=window)
+        self._sensors = Sensors()
+        self._closed = False
+        self._path: Path | None = None
+        self._wear = 0.0
         self._step_count = 0
         self._n_steps = 0
         self._n_clipped = 0
@@ -205,21 +292,35 @@ class WheeledPumaEnv(gym.Env):
         self._task: dict = {}
 
     # --- construction helpers --------------------------------------------------------------------------
-    def _joint_vector(self, value: Any) -> np.ndarray:
-        arr = np.asarray(value, dtype=float) if value is not None else None
-        if arr is None or arr.shape not in ((6,), (8,)) or not np.all(np.isfinite(arr)):
+    @staticmethod
+    def _check_wear(dynamics: str, wear_rate: float, duration: float) -> None:
+        if wear_rate != 0.0 and dynamics != "kinematic":
             raise ValueError(
-                f"arm_joint_pos must be 6 arm angles or 8 (arm + left, right wheel) finite numbers in rad, "
-                f"e.g. {list(np.round(PAPER_ARM_JOINT_POS, 4))}, got {value!r}"
+                f"wear_rate={wear_rate!r} needs dynamics='kinematic': a loaded PyBullet body cannot change its link "
+                "lengths (use wear_rate=0.0 in physics mode)"
             )
+        if abs(wear_rate) * duration >= 1.0:
+            raise ValueError(
+                f"wear_rate={wear_rate!r} over a {duration:g} s path would take a length to zero or below: "
+                f"|wear_rate| * duration must stay below 1 (here |wear_rate| < {1.0 / duration:.4g} 1/s)"
+            )
+
+    def _joint_vector(self, value: Any) -> np.ndarray:
+        arr = vector(
+            "arm_joint_pos",
+            value,
+            sizes=(6, 8),
+            hint="6 arm angles or 8 (arm + left, right wheel) in rad, e.g. "
+            f"{np.round(PAPER_ARM_JOINT_POS, 4).tolist()}",
+        )
         if arr.shape == (6,):
             arr = np.concatenate([arr, [0.0, 0.0]])
         p = RobotParams.nominal()
         lo, hi = np.array(p.joint_lower), np.array(p.joint_upper)
         if np.any(arr[:6] < lo) or np.any(arr[:6] > hi):
             raise ValueError(
-                f"arm_joint_pos {list(arr[:6])} is outside the joint limits: lower {list(np.round(lo, 4))}, "
-                f"upper {list(np.round(hi, 4))} (rad)"
+                f"arm_joint_pos {arr[:6].tolist()} is outside the joint limits: lower {np.round(lo, 4).tolist()}, "
+                f"upper {np.round(hi, 4).tolist()} (rad)"
             )
         return arr
 
@@ -246,43 +347,58 @@ class WheeledPumaEnv(gym.Env):
             }
         )
 
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError(_CLOSED)
+
     # --- gym API ---------------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self._check_open()
+        if isinstance(seed, bool):  # gymnasium would take True as seed 1
+            raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
         super().reset(seed=seed)
+        if options is not None and not isinstance(options, Mapping):
+            raise ValueError(
+                f"reset options must be a dict such as {{'path': {{'type': 'circle', 'radius': 0.2}}}}, "
+                f"got {options!r}; accepted keys: {', '.join(map(repr, RESET_OPTIONS))}"
+            )
         options = dict(options or {})
-        unknown = sorted(set(options) - {"path", "arm_joint_pos", "base_pose"})
+        unknown = sorted(set(options) - set(RESET_OPTIONS), key=str)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; accepted: 'path', 'arm_joint_pos', 'base_pose'")
+            raise ValueError(f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, RESET_OPTIONS))}")
         spec = validate_spec(options["path"]) if "path" in options else self.path_spec
         q0 = self._joint_vector(options["arm_joint_pos"]) if "arm_joint_pos" in options else self.arm_joint_pos
-        pose = (
-            _vector(options["base_pose"], 3, "base_pose", "[0, 0, 3.1416]")
-            if "base_pose" in options
-            else self.base_pose
+        pose = _base_pose(options["base_pose"]) if "base_pose" in options else self.base_pose
+        cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
+        self._check_wear(self.dynamics, cond["wear_rate"], _duration(spec))
+        self._sensors = Sensors(
+            cond["obs_noise"], cond["obs_noise_vel"], cond["obs_noise_joint_vel"], int(cond["obs_delay"])
         )
+        self._wear = cond["wear_rate"]
         # one RNG stream, in a fixed order: true robot, then the path's own seed, then sensor noise
-        self.true_params = self.nominal_params.perturbed(self.np_random, self.model_error)
-        self._sim.reset(self.true_params, q0, pose)
+        self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
+        self._sim.reset(self._true_params, q0, pose)
         state = self._sim.state()
-        self._path = path_from_spec(spec, state.ee_pos, self.np_random)
-        self._n_steps = max(1, int(round(self._path.duration * self.control_freq)))
+        self._path = path = path_from_spec(spec, state.ee_pos, self.np_random)
+        self._n_steps = max(1, int(round(path.duration * self.control_freq)))
         self._step_count = 0
         self._n_clipped = 0
         self._limit_hits = 0
         self._task = {
-            "path": self._path.to_spec(),
+            "path": path.to_spec(),
             "start": [float(v) for v in state.ee_pos],
             "arm_joint_pos": [float(v) for v in q0],
             "base_pose": [float(v) for v in pose],
-            "duration": float(self._path.duration),
+            "duration": float(path.duration),
             "n_steps": self._n_steps,
         }
-        self._params_hash = self.true_params.hash()
-        if self.render_mode is not None:
-            ts = np.linspace(0.0, self._path.duration, 60)
-            self._path_points = np.array([self._path.position(t) for t in ts])
+        self._params_hash = self._true_params.hash()
+        if self._draws:
+            ts = np.linspace(0.0, path.duration, 60)
+            self._path_points = np.array([path.position(t) for t in ts])
             self._sim.draw_path(self._path_points)
-        obs = self._observation(state, 0.0, *self._path.position_velocity(0.0))
+        r_d, v_d = path.position_velocity(0.0)
+        obs = self._observation(state, 0.0, r_d, v_d, start=True)
         info = {
             "task": self._task,
             "true_params_hash": self._params_hash,
@@ -294,9 +410,17 @@ class WheeledPumaEnv(gym.Env):
         return obs, info
 
     def step(self, action):
-        if self._path is None:
+        self._check_open()
+        path = self._path
+        if path is None:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(action, dtype=np.float64)
+        a = np.asarray(action)
+        if a.dtype.kind not in "fiu":
+            raise ValueError(
+                f"action must be real numbers (a float array of shape (8,)), got dtype {a.dtype} "
+                f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
+            )
+        a = a.astype(np.float64, copy=False)
         if a.shape != (8,):
             raise ValueError(
                 f"action must have shape (8,) (6 arm joints, left wheel, right wheel), got shape {a.shape}"
@@ -312,8 +436,12 @@ class WheeledPumaEnv(gym.Env):
         self._limit_hits += self._sim.step(a * self.action_scale)
         self._step_count += 1
         t = self._step_count * self.dt
+        if self._wear != 0.0:
+            # the robot of time t: its lengths drift linearly from the episode's robot at t = 0
+            self._true_params = self._params0.scaled(1.0 + self._wear * t)
+            self._sim.set_params(self._true_params)
         state = self._sim.state()
-        r_d, v_d = self._path.position_velocity(t)
+        r_d, v_d = path.position_velocity(t)
         err = float(np.linalg.norm(r_d - state.ee_pos))
         terms = {
             "tracking": -self.reward_weights["tracking"] * err,
@@ -336,27 +464,25 @@ class WheeledPumaEnv(gym.Env):
         }
         return obs, reward, terminated, truncated, info
 
-    def _observation(self, state, t: float, r_d: np.ndarray, v_d: np.ndarray) -> dict:
-        ee_pos, pc = state.ee_pos, state.arm_base_pos
-        ee_vel, pc_vel = state.ee_vel, state.arm_base_vel
-        if self.obs_noise > 0.0:
-            ee_pos = ee_pos + self.obs_noise * self.np_random.standard_normal(3)
-            pc = pc + self.obs_noise * self.np_random.standard_normal(2)
-        if self.obs_noise_vel > 0.0:
-            ee_vel = ee_vel + self.obs_noise_vel * self.np_random.standard_normal(3)
-            pc_vel = pc_vel + self.obs_noise_vel * self.np_random.standard_normal(2)
-        flat = np.concatenate(
-            [ee_pos, ee_vel, pc, pc_vel, state.base_pose[2:], state.joint_pos, state.joint_vel, r_d, v_d, (t,)]
-        ).astype(np.float32)
+    def _observation(self, state, t: float, r_d: np.ndarray, v_d: np.ndarray, start: bool = False) -> dict:
+        readings = self._sensors.read(state, self.np_random)
+        flat = np.concatenate([*readings, r_d, v_d, (t,)]).astype(np.float32)
         np.clip(flat, self._obs_low, self._obs_high, out=flat)
+        if start:
+            self._sensors.start(flat)
+        else:
+            self._sensors.delay(flat)
         return {k: flat[sl] for k, sl in self._obs_slices}
 
     def render(self):
+        self._check_open()
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; make the env with render_mode='rgb_array'")
             return None
         if self._path is None:
             raise RuntimeError("call reset() before render()")
+        if not self._draws:  # "human" without a display: nothing to draw into
+            return None
         # look at the middle of the box holding the path and the platform
         base = self._sim.state().base_pose
         pts = np.vstack([self._path_points, [base[0], base[1], 0.3], [base[0], base[1], 1.0]])
@@ -368,16 +494,34 @@ class WheeledPumaEnv(gym.Env):
         return None
 
     def close(self):
+        """Disconnect the simulation and delete its temporary files; safe to call twice. `reset`, `step` and
+        `render` raise `RuntimeError` afterwards."""
+        self._closed = True
         sim = getattr(self, "_sim", None)
         if sim is not None:
             sim.close()
 
+    # --- the documented doors to robot models ----------------------------------------------------------
+    @property
+    def nominal_params(self) -> RobotParams:
+        """The catalogue robot (`RobotParams.nominal()`): what a model-based controller may know."""
+        return self._nominal_params
+
+    @property
+    def true_params(self) -> RobotParams:
+        """The true robot at the current time of the episode (the one drawn at reset, drifted by `wear_rate`;
+        the nominal robot before the first reset). For oracles and tests only; it never appears in `info`."""
+        return self._true_params
+
     # --- read-only conveniences ------------------------------------------------------------------------
     @property
-    def path(self):
+    def path(self) -> Path | None:
         """The current episode's path object (None before the first reset)."""
         return self._path
 
     @property
     def sim(self) -> Sim:
+        """The simulation (PyBullet client and body, kinematic state). It holds the true robot, so it is reached
+        through `true_params`: a guard on `true_params` covers it. For tests and the speed benchmark."""
+        self.true_params  # noqa: B018 - the one door to the true robot, so that a guard on it sees this access
         return self._sim

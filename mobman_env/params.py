@@ -2,7 +2,8 @@
 
 `RobotParams.nominal()` is the catalogue robot a model-based method may know. `RobotParams.perturbed(rng,
 rel_std)` draws a "worn" robot whose kinematic lengths differ from the catalogue (the paper's unknown is
-kinematic, so masses are left alone).
+kinematic, so masses are left alone); `RobotParams.scaled(factor)` multiplies the same lengths by one factor
+(the env's `wear_rate` drift). Imports numpy and `mobman_env.validation` only.
 """
 
 from __future__ import annotations
@@ -13,13 +14,21 @@ import hashlib
 import json
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from mobman_env.validation import number
+
 DEG = math.pi / 180.0
 
-#: The lengths that `perturbed()` changes: the kinematic unknowns of the paper.
+#: The lengths that `perturbed()` and `scaled()` change: the kinematic unknowns of the paper.
 PERTURBED_FIELDS = ("a2", "a3", "d3", "d4", "tool", "wheel_radius", "half_track", "mount_offset")
+#: `perturbed()` clips each factor to 1 +- CLIP * rel_std (CLIP standard deviations).
+CLIP = 3.0
+#: rel_std must stay below this (1 / CLIP = 1/3): at 1/3 a factor 1 - CLIP * rel_std reaches 0, i.e. a length
+#: (a link, the wheel radius, the half track) could become zero or, beyond, negative.
+MAX_REL_STD = 1.0 / CLIP
 
 
 @dataclass(frozen=True)
@@ -92,14 +101,31 @@ class RobotParams:
         """A "worn" robot: each of a2, a3, d3, d4, tool, r, b and d multiplied by (1 + rel_std N(0, 1)),
         the factor clipped to 1 +- 3 rel_std, independently. Masses and limits are unchanged.
 
-        `rel_std = 0` returns an equal copy and draws nothing from `rng`.
+        `rel_std` must be in [0, 1/3): the smallest factor, 1 - 3 rel_std, must stay above 0 so that no length
+        can reach zero (0.3 is allowed: factors in [0.1, 1.9]). `rel_std = 0` returns an equal copy and draws
+        nothing from `rng`.
         """
-        if not (rel_std >= 0.0 and math.isfinite(rel_std)):
-            raise ValueError(f"rel_std must be a finite number >= 0, got {rel_std!r}")
+        rel_std = number(
+            "rel_std",
+            rel_std,
+            low=0.0,
+            high=MAX_REL_STD,
+            open_high=True,
+            hint="lengths are multiplied by factors in [1 - 3 rel_std, 1 + 3 rel_std]; at 1/3 a length can reach 0",
+        )
         if rel_std == 0.0:
             return dataclasses.replace(self)
-        z = np.clip(rng.standard_normal(len(PERTURBED_FIELDS)), -3.0, 3.0)
-        changes = {name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)}
+        z = np.clip(rng.standard_normal(len(PERTURBED_FIELDS)), -CLIP, CLIP)
+        changes: dict[str, Any] = {
+            name: float(getattr(self, name) * (1.0 + rel_std * zi)) for name, zi in zip(PERTURBED_FIELDS, z)
+        }
+        return dataclasses.replace(self, **changes)
+
+    def scaled(self, factor: float) -> RobotParams:
+        """This robot with each of a2, a3, d3, d4, tool, r, b and d multiplied by `factor` (> 0), e.g. the
+        linear wear drift 1 + wear_rate * t of the env. `factor = 1` returns an equal copy."""
+        factor = number("factor", factor, low=0.0, open_low=True)
+        changes: dict[str, Any] = {name: getattr(self, name) * factor for name in PERTURBED_FIELDS}
         return dataclasses.replace(self, **changes)
 
     # --- derived ---------------------------------------------------------------------------------------

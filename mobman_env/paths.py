@@ -19,6 +19,10 @@ Specs (all lengths m, angles rad, durations s):
 * `{"type": "random", "seed": 7, "size": 0.3, "n_terms": 3, "duration": 20.0}` -- per axis a sum of
   `n_terms` sinusoids of the phase 2 pi s with random amplitudes and phases from `seed`, scaled so each axis
   moves at most `size` (m) from end to end of its range. A spec without `seed` gets one from the env's RNG.
+
+Every field has an accepted range (`FIELD_RANGES`, listed in `validate_spec`): sizes up to 20 m, a line up to
+50 m, durations from 0.01 s to one hour, at most 20 sinusoids per axis. Imports numpy and
+`mobman_env.validation` only.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
 
 import numpy as np
+
+from mobman_env.validation import integer, number, vector
 
 PATH_TYPES = ("circle", "line", "lemniscate", "random")
 
@@ -95,30 +101,7 @@ class _PhasePath:
 
 
 def _vec3(value: Any, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=float)
-    if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be 3 finite numbers, got {value!r}")
-    return arr
-
-
-def _positive(value: Any, name: str, kind: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{kind} path: {name} must be a number > 0, got {value!r}") from None
-    if not (v > 0 and math.isfinite(v)):
-        raise ValueError(f"{kind} path: {name} must be a finite number > 0, got {value!r}")
-    return v
-
-
-def _finite(value: Any, name: str, kind: str) -> float:
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{kind} path: {name} must be a number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{kind} path: {name} must be finite, got {value!r}")
-    return v
+    return vector(name, value, sizes=(3,))
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,48 +230,86 @@ class RandomPath(_PhasePath):
         }
 
 
-_FIELDS = {
-    "circle": {"radius": _positive, "tilt": _finite, "yaw": _finite, "duration": _positive},
-    "line": {"length": _positive, "direction": None, "duration": _positive},
-    "lemniscate": {"width": _positive, "height": _positive, "tilt": _finite, "yaw": _finite, "duration": _positive},
-    "random": {"seed": None, "size": _positive, "n_terms": None, "duration": _positive},
+@dataclass(frozen=True)
+class _Range:
+    """The accepted values of one spec field: a real number (or an integer) in [low, high] (low open if
+    `open_low`), in `unit`."""
+
+    low: float
+    high: float
+    unit: str
+    open_low: bool = False
+    integer: bool = False
+
+
+MAX_LENGTH = 50.0  # m: a line may leave the arm's reach (the platform drives at <= 2 m/s); 50 m is 25 s of that
+MAX_SIZE = 20.0  # m: circle radius, lemniscate width / height, random size (the arm reaches about 1 m)
+MAX_DURATION = 3600.0  # s: one hour, 360,000 control steps at 100 Hz
+MIN_DURATION = 0.01  # s: one control step at 100 Hz (the timing law divides by the duration)
+MAX_ANGLE = 2 * math.pi  # rad: tilt and yaw in [-2 pi, 2 pi]; every angle has a representative there
+MAX_TERMS = 20  # sinusoids per axis of a random path (the amplitudes fall as 1/k: term 20 is 5% of term 1)
+MAX_DIRECTION = 1e6  # per component of a line's direction (only the direction counts: it is normalised)
+
+_DURATION = _Range(MIN_DURATION, MAX_DURATION, "s")
+_SIZE = _Range(0.0, MAX_SIZE, "m", open_low=True)
+_ANGLE = _Range(-MAX_ANGLE, MAX_ANGLE, "rad, i.e. [-2 pi, 2 pi]")
+#: every field of every path type with its accepted range (`direction` is checked on its own)
+FIELD_RANGES: dict[str, dict[str, _Range | None]] = {
+    "circle": {"radius": _SIZE, "tilt": _ANGLE, "yaw": _ANGLE, "duration": _DURATION},
+    "line": {"length": _Range(0.0, MAX_LENGTH, "m", open_low=True), "direction": None, "duration": _DURATION},
+    "lemniscate": {"width": _SIZE, "height": _SIZE, "tilt": _ANGLE, "yaw": _ANGLE, "duration": _DURATION},
+    "random": {
+        "seed": _Range(0, 2**63 - 1, "", integer=True),
+        "size": _SIZE,
+        "n_terms": _Range(1, MAX_TERMS, "", integer=True),
+        "duration": _DURATION,
+    },
 }
 _CLASSES = {"circle": CirclePath, "line": LinePath, "lemniscate": LemniscatePath, "random": RandomPath}
 
 
 def validate_spec(spec: Any) -> dict:
     """Check a path spec and return a normalised copy (floats, known keys only). Raises `ValueError` naming the
-    bad key or value and the accepted ones."""
+    bad key or value and the accepted ones. Accepted ranges (`FIELD_RANGES`):
+
+    | field | paths | accepted |
+    |---|---|---|
+    | radius, width, height, size | circle, lemniscate, random | (0, 20] m |
+    | length | line | (0, 50] m |
+    | tilt, yaw | circle, lemniscate | [-2 pi, 2 pi] rad |
+    | duration | all | [0.01, 3600] s |
+    | direction | line | 3 finite numbers in [-1e6, 1e6], not all zero (normalised) |
+    | seed | random | integer in [0, 2**63 - 1] |
+    | n_terms | random | integer in [1, 20] |
+
+    Bools, strings and complex numbers are refused, also where they would convert (`"0.4"`, `True`).
+    """
     if not isinstance(spec, dict):
         raise ValueError(f"a path spec must be a dict such as {{'type': 'circle', 'radius': 0.4}}, got {spec!r}")
     kind = spec.get("type")
-    if kind not in _FIELDS:
+    if kind not in FIELD_RANGES:
         raise ValueError(f"unknown path type {kind!r}; known: {', '.join(PATH_TYPES)}")
-    allowed = _FIELDS[kind]
+    allowed = FIELD_RANGES[kind]
     unknown = sorted(set(spec) - set(allowed) - {"type"})
     if unknown:
         raise ValueError(f"{kind} path: unknown key(s) {unknown}; accepted: {sorted(allowed)}")
     out: dict[str, Any] = {"type": kind}
-    for key, check in allowed.items():
+    for key, accepted in allowed.items():
         if key not in spec:
             continue
         value = spec[key]
-        if key == "direction":
-            d = _vec3(value, "line path: direction")
+        name = f"{kind} path: {key}"
+        if accepted is None:  # the line's direction
+            d = vector(name, value, sizes=(3,), low=-MAX_DIRECTION, high=MAX_DIRECTION, hint="e.g. [-1, 0, 0]")
             if np.linalg.norm(d) < 1e-9:
-                raise ValueError(f"line path: direction must be non-zero, got {value!r}")
+                raise ValueError(f"{name} must be non-zero, got {[float(v) for v in d]}")
             out[key] = [float(v) for v in d]
-        elif key in ("seed", "n_terms"):
-            if (
-                isinstance(value, bool)
-                or not isinstance(value, (int, np.integer))
-                or value < (0 if key == "seed" else 1)
-            ):
-                lo = 0 if key == "seed" else 1
-                raise ValueError(f"random path: {key} must be an integer >= {lo}, got {value!r}")
-            out[key] = int(value)
+        elif accepted.integer:
+            out[key] = integer(name, value, low=int(accepted.low), high=int(accepted.high))
         else:
-            out[key] = check(value, key, kind)
+            out[key] = number(
+                name, value, low=accepted.low, high=accepted.high, open_low=accepted.open_low, hint=accepted.unit
+            )
     return out
 
 

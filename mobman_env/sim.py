@@ -10,6 +10,17 @@ Joint limits are enforced in both modes: a command that would push a joint past 
 that joint (kinematic mode also clamps the angle to the limit), and each such event is counted.
 
 Every PyBullet call goes through `self.client`; `close()` is safe to call twice.
+
+Bodies and files. The robot body changes only when the robot does (a new true robot per seed): the world is
+then rebuilt with `resetSimulation()` (removing a body alone leaves about 8 KiB of PyBullet memory behind per
+load, and PyBullet's file cache another 8 KiB per URDF path: measured; it is off for generated files), so
+nothing accumulates over any number of resets (under 0.1 KiB per reload, measured). A perturbed robot's URDF is written to
+`<tmp>/mobman-urdf-pid<PID>-<random>/robot.urdf`, loaded and deleted at once (PyBullet keeps no reference to
+it), so the folder is empty between loads and the file is never there for a policy to read; the folder goes on
+`close()`. Folders left by killed processes (SIGKILL runs no cleanup) are removed when a new one is made: those
+of this user whose PID is no longer running (POSIX only; on Windows they are left alone).
+
+The true robot is kept under the private name `_params`; the env's `true_params` is its one documented door.
 """
 
 from __future__ import annotations
@@ -17,6 +28,7 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import re
 import shutil
 import sys
 import tempfile
@@ -32,6 +44,9 @@ from mobman_env.params import RobotParams
 
 DYNAMICS_MODES = ("physics", "kinematic")
 GRAVITY = 9.81  # m/s^2
+#: temporary URDF folders are named `<URDF_DIR_PREFIX><pid>-<random>` in the system's temporary directory
+URDF_DIR_PREFIX = "mobman-urdf-pid"
+_URDF_DIR_RE = re.compile(re.escape(URDF_DIR_PREFIX) + r"(\d+)-")
 
 
 def _libc_fflush() -> None:
@@ -69,6 +84,44 @@ with _quiet_stdout():
     from pybullet_utils import bullet_client
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # e.g. PermissionError: it exists, owned by someone else
+        return True
+    return True
+
+
+def remove_stale_urdf_dirs(tmp: str | None = None) -> list[str]:
+    """Remove the temporary URDF folders (`URDF_DIR_PREFIX<pid>-...`) of this user whose process is gone, e.g.
+    after a SIGKILL; returns the removed paths. POSIX only (on Windows `os.kill(pid, 0)` would end the process):
+    returns [] there. A folder of a live process in another PID namespace may be removed too: harmless, `Sim`
+    recreates its folder before every write."""
+    if os.name != "posix":
+        return []
+    tmp = tmp or tempfile.gettempdir()
+    removed = []
+    try:
+        entries = list(os.scandir(tmp))
+    except OSError:
+        return []
+    for entry in entries:
+        m = _URDF_DIR_RE.match(entry.name)
+        if not m or int(m.group(1)) == os.getpid():
+            continue
+        try:
+            if not entry.is_dir(follow_symlinks=False) or entry.stat(follow_symlinks=False).st_uid != os.getuid():
+                continue
+        except OSError:
+            continue
+        if not _pid_alive(int(m.group(1))):
+            shutil.rmtree(entry.path, ignore_errors=True)
+            removed.append(entry.path)
+    return removed
+
+
 @dataclass
 class RobotState:
     """What the sensors see (noise-free), world frame, SI units."""
@@ -101,22 +154,23 @@ class Sim:
         self.dynamics = dynamics
         self.dt = float(dt)
         self.n_substeps = int(n_substeps)
+        self.gui = bool(gui)
         self._tmpdir: str | None = None
         self._closed = False
         with _quiet_stdout():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self.client_id = self.client._client
         self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
-        self.client.setGravity(0, 0, -GRAVITY)
-        self.client.setTimeStep(self.dt / self.n_substeps)
-        # 100 solver iterations (default 50): the zero-command creep of the velocity motors drops ~3x (measured)
-        self.client.setPhysicsEngineParameter(numSubSteps=0, numSolverIterations=100, deterministicOverlappingPairs=1)
-        self.plane = self.client.loadURDF("plane.urdf")
-        self.client.changeDynamics(self.plane, -1, lateralFriction=1.0)
         self.body: int | None = None
         self._body_hash: str | None = None
         self._markers: list[int] = []
-        self.params: RobotParams | None = None
+        self._marker_points = np.empty((0, 3))
+        self._marker_shape: int | None = None
+        self._params = RobotParams.nominal()  # replaced by reset(); no body exists before it
+        self._has_robot = False
+        #: torque limits of the 8 actuators (6 arm joints, left, right wheel), N m: the same for every robot
+        self.torque_limits: list[float] = []
+        self._build_world()
         # kinematic-mode state
         self._q = np.zeros(8)
         self._pose = np.zeros(3)
@@ -124,22 +178,66 @@ class Sim:
         self._yaw = 0.0  # continuous yaw tracked in physics mode
         self._synced = False
 
-    # --- body ------------------------------------------------------------------------------------------
+    @property
+    def params(self) -> RobotParams:
+        raise AttributeError(
+            "Sim.params is not public: the true robot is read through the env's documented door, "
+            "env.unwrapped.true_params (for oracles and tests only)"
+        )
+
+    # --- world and body --------------------------------------------------------------------------------
+    def _build_world(self) -> None:
+        """Gravity, time step, solver settings and the ground plane of an empty world (a fresh client's, or
+        after `resetSimulation()`, which clears all of them)."""
+        c = self.client
+        c.setGravity(0, 0, -GRAVITY)
+        c.setTimeStep(self.dt / self.n_substeps)
+        # 100 solver iterations (default 50): the zero-command creep of the velocity motors drops ~3x (measured)
+        c.setPhysicsEngineParameter(numSubSteps=0, numSolverIterations=100, deterministicOverlappingPairs=1)
+        self.plane = self._load_urdf("plane.urdf", [0, 0, 0], cache=True)
+        c.changeDynamics(self.plane, -1, lateralFriction=1.0)
+
+    def _load_urdf(self, path: str, position: list, cache: bool, flags: int = 0) -> int:
+        """loadURDF with PyBullet's file cache on only for files that never change (the plane, the shipped
+        nominal robot: their meshes are then read once, 5 ms -> 0.4 ms for the plane, measured). A generated
+        URDF is read uncached: the cache would keep every file's text for the life of the client (8 KiB per
+        reset) and serve a stale robot when a path is rewritten (measured: 25-38 mm of end-effector error from
+        the previous episode's robot)."""
+        self.client.setPhysicsEngineParameter(enableFileCaching=int(cache))
+        return self.client.loadURDF(path, position, flags=flags)
+
+    def _urdf_dir(self) -> Path:
+        """This sim's temporary folder (made on first use, stale ones of dead processes removed then; made again
+        if something deleted it)."""
+        if self._tmpdir is None:
+            remove_stale_urdf_dirs()
+            self._tmpdir = tempfile.mkdtemp(prefix=f"{URDF_DIR_PREFIX}{os.getpid()}-")
+        os.makedirs(self._tmpdir, exist_ok=True)
+        return Path(self._tmpdir)
+
     def _load_body(self, params: RobotParams) -> None:
         h = params.hash()
         if self.body is not None and self._body_hash == h:
             return
         if self.body is not None:
-            self.client.removeBody(self.body)
-        if params == RobotParams.nominal() and urdf.NOMINAL_URDF.exists():
-            path = urdf.NOMINAL_URDF
-        else:
-            if self._tmpdir is None:
-                self._tmpdir = tempfile.mkdtemp(prefix="mobman-urdf-")
-            path = urdf.write_urdf(params, Path(self._tmpdir) / f"robot-{h}.urdf")
+            # a fresh world instead of removeBody(): nothing of the old body stays in PyBullet's memory
+            self.client.resetSimulation()
+            self.body = None
+            self._markers, self._marker_shape = [], None
+            self._build_world()
         flags = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_MAINTAIN_LINK_ORDER
-        self.body = self.client.loadURDF(str(path), [0, 0, params.wheel_radius], flags=flags)
+        at = [0, 0, params.wheel_radius]
+        if params == RobotParams.nominal() and urdf.NOMINAL_URDF.exists():
+            self.body = self._load_urdf(str(urdf.NOMINAL_URDF), at, cache=True, flags=flags)
+        else:
+            path = urdf.write_urdf(params, self._urdf_dir() / "robot.urdf")
+            try:
+                self.body = self._load_urdf(str(path), at, cache=False, flags=flags)
+            finally:
+                path.unlink(missing_ok=True)
         self._body_hash = h
+        if len(self._marker_points) and not self._markers:
+            self.draw_path(self._marker_points)
         names = {}
         for j in range(self.client.getNumJoints(self.body)):
             info = self.client.getJointInfo(self.body, j)
@@ -164,7 +262,7 @@ class Sim:
 
     def set_state(self, q: np.ndarray, base_pose: np.ndarray) -> None:
         """Put the body at joint angles `q` (8) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
-        p = self.params
+        p = self._params
         quat = self.client.getQuaternionFromEuler([0.0, 0.0, float(base_pose[2])])
         self.client.resetBasePositionAndOrientation(
             self.body, [float(base_pose[0]), float(base_pose[1]), p.wheel_radius], quat
@@ -175,7 +273,9 @@ class Sim:
 
     def reset(self, params: RobotParams, q0: np.ndarray, base_pose: np.ndarray) -> None:
         """Start an episode with the robot `params` at joint angles `q0` (8) and platform pose (3)."""
-        self.params = params
+        self._params = params
+        self._has_robot = True
+        self.torque_limits = [*params.arm_torque_limit, params.wheel_torque_limit, params.wheel_torque_limit]
         self._lower = np.array(params.joint_lower)
         self._upper = np.array(params.joint_upper)
         self._q = np.asarray(q0, dtype=float).copy()
@@ -187,6 +287,14 @@ class Sim:
             self._load_body(params)
             self.set_state(self._q, self._pose)
             self._synced = True
+
+    def set_params(self, params: RobotParams) -> None:
+        """Kinematic mode: change the robot's lengths mid-episode (the env's `wear_rate`); the state is kept and
+        the next `state()` is the FK of the new robot. Physics mode cannot: a loaded body's links are fixed."""
+        if self.dynamics != "kinematic":
+            raise RuntimeError("set_params needs dynamics='kinematic': a loaded PyBullet body's lengths are fixed")
+        self._params = params
+        self._synced = False
 
     # --- stepping --------------------------------------------------------------------------------------
     def _limit(self, q_arm: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, int]:
@@ -214,7 +322,7 @@ class Sim:
             # the joint reached its limit inside the step: it stops there
             u[:6][over] = 0.0
             hits += int(over.sum())
-        self._pose = K.integrate_unicycle(self.params, self._pose, u[6:], self.dt)
+        self._pose = K.integrate_unicycle(self._params, self._pose, u[6:], self.dt)
         self._q = q
         self._u = u
         self._synced = False
@@ -224,9 +332,8 @@ class Sim:
         c = self.client
         q_arm = np.array([s[0] for s in c.getJointStates(self.body, self.arm_ids)])
         u, hits = self._limit(q_arm, u)
-        forces = [*self.params.arm_torque_limit, self.params.wheel_torque_limit, self.params.wheel_torque_limit]
         c.setJointMotorControlArray(
-            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=u.tolist(), forces=forces
+            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=u.tolist(), forces=self.torque_limits
         )
         for _ in range(self.n_substeps):
             c.stepSimulation()
@@ -239,7 +346,7 @@ class Sim:
         return self._state_physics()
 
     def _state_kinematic(self) -> RobotState:
-        p, q, pose, u = self.params, self._q, self._pose, self._u
+        p, q, pose, u = self._params, self._q, self._pose, self._u
         ee_pos, J, J_pc = K.ee_and_jacobian(p, q[:6], pose)
         return RobotState(
             ee_pos=ee_pos,
@@ -253,7 +360,7 @@ class Sim:
         )
 
     def _state_physics(self) -> RobotState:
-        c, p = self.client, self.params
+        c, p = self.client, self._params
         js = c.getJointStates(self.body, self.act_ids)
         q = np.array([s[0] for s in js])
         qd = np.array([s[1] for s in js])
@@ -280,19 +387,25 @@ class Sim:
     # --- rendering -------------------------------------------------------------------------------------
     def sync_bodies(self) -> None:
         """Kinematic mode: put the PyBullet body where the integrated state is (only needed to render)."""
-        if self.dynamics == "kinematic" and not self._synced and self.params is not None:
-            self._load_body(self.params)
+        if self.dynamics == "kinematic" and not self._synced and self._has_robot:
+            self._load_body(self._params)
             self.set_state(self._q, self._pose)
             self._synced = True
 
     def draw_path(self, points: np.ndarray) -> None:
-        """Show the desired path as small visual-only spheres (debug lines do not show headless)."""
+        """Show the desired path as small visual-only spheres (debug lines do not show headless); kept across
+        a rebuilt world. One visual shape per world, shared by all markers."""
         for m in self._markers:
             self.client.removeBody(m)
         self._markers = []
+        self._marker_points = np.array(points, dtype=float).reshape(-1, 3)
         if len(points) == 0:
             return
-        shape = self.client.createVisualShape(pybullet.GEOM_SPHERE, radius=0.012, rgbaColor=[0.1, 0.8, 0.2, 1])
+        if self._marker_shape is None:
+            self._marker_shape = self.client.createVisualShape(
+                pybullet.GEOM_SPHERE, radius=0.012, rgbaColor=[0.1, 0.8, 0.2, 1]
+            )
+        shape = self._marker_shape
         for pt in points:
             self._markers.append(
                 self.client.createMultiBody(baseMass=0, baseVisualShapeIndex=shape, basePosition=[float(v) for v in pt])

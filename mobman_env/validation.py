@@ -8,30 +8,48 @@ Rules (the same everywhere, so the messages read alike):
 * Bounds are inclusive unless named in `open_low` / `open_high`; the message names the value, the accepted
   range and, where given, how to fix it.
 
-`number()` returns a `float`, `integer()` an `int`. Both raise `ValueError` (or the `error` class given, which
-must accept one message argument: eval passes its `EvalError`).
+`number()` returns a `float`, `integer()` an `int`, `vector()` a float64 array of real numbers under the same
+rules. All raise `ValueError` (or the `error` class given, which must accept one message argument: eval passes
+its `EvalError`).
 """
 
 from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["integer", "number"]
+import numpy as np
+
+__all__ = ["integer", "number", "vector"]
 
 
 def _range_text(low: float | None, high: float | None, open_low: bool, open_high: bool) -> str:
+    def shown(v: float) -> str:
+        return str(v) if isinstance(v, int) else f"{v:g}"
+
     parts = []
     if low is not None:
-        parts.append(f"{'>' if open_low else '>='} {low:g}")
+        parts.append(f"{'>' if open_low else '>='} {shown(low)}")
     if high is not None:
-        parts.append(f"{'<' if open_high else '<='} {high:g}")
+        parts.append(f"{'<' if open_high else '<='} {shown(high)}")
     return " and ".join(parts)
 
 
+def _plain(value: Any) -> Any:
+    """numpy scalars and arrays as plain Python values, so messages never read `np.float64(...)`."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if hasattr(value, "item") and hasattr(value, "dtype"):
+        return value.item()
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    return value
+
+
 def _fail(error: type[Exception], name: str, what: str, value: Any, hint: str) -> Exception:
-    shown = repr(value.item()) if hasattr(value, "item") and hasattr(value, "dtype") else repr(value)
+    shown = repr(_plain(value))
     return error(f"{name} must be {what}, got {shown}" + (f" ({hint})" if hint else ""))
 
 
@@ -79,3 +97,38 @@ def integer(
     if (low is not None and v < low) or (high is not None and v > high):
         raise _fail(error, name, what, value, hint)
     return v
+
+
+def _in_range(v: Any, low: float | None, high: float | None) -> bool:
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        return False
+    x = float(v)
+    return math.isfinite(x) and (low is None or x >= low) and (high is None or x <= high)
+
+
+def vector(
+    name: str,
+    value: Any,
+    *,
+    sizes: Sequence[int],
+    low: float | None = None,
+    high: float | None = None,
+    hint: str = "",
+    error: type[Exception] = ValueError,
+) -> np.ndarray:
+    """Return `value` as a float64 array if it is a flat list, tuple or 1-D array whose length is one of `sizes`
+    and whose every entry is a finite real number within the (inclusive) bounds; else raise `error`.
+
+    Entries follow `number()`'s rules: bools, strings and complex numbers are refused, also inside numpy arrays.
+    """
+    bounds = _range_text(low, high, False, False)
+    what = f"{' or '.join(str(n) for n in sizes)} finite numbers" + (f" {bounds}" if bounds else "")
+    if isinstance(value, np.ndarray):
+        items = value.tolist() if value.ndim == 1 and value.dtype.kind in "iuf" else None
+    elif isinstance(value, (list, tuple)):
+        items = list(value)
+    else:
+        items = None
+    if items is None or len(items) not in sizes or not all(_in_range(v, low, high) for v in items):
+        raise _fail(error, name, what, value, hint)
+    return np.array(items, dtype=float)

@@ -180,11 +180,37 @@ def test_reset_options_override_for_one_episode(make_env):
         ({"n_substeps": 0}, "n_substeps must be an integer >= 1"),
         ({"path": {"type": "spiral"}}, "unknown path type 'spiral'; known: circle, line, lemniscate, random"),
         ({"path": {"type": "circle", "radius": 0}}, "radius must be a finite number > 0"),
-        ({"arm_joint_pos": [0, 1, 2]}, "arm_joint_pos must be 6 arm angles or 8"),
+        ({"arm_joint_pos": [0, 1, 2]}, "arm_joint_pos must be 6 or 8 finite numbers"),
         ({"arm_joint_pos": [0, 4.5, 0, 0, 0, 0]}, "outside the joint limits"),
         ({"base_pose": [0, 0]}, "base_pose must be 3 finite numbers"),
         ({"reward_weights": {"speed": 1.0}}, "reward_weights must be a dict with keys from"),
         ({"render_mode": "video"}, "unknown render_mode 'video'; accepted"),
+        # bools, numeric strings and complex numbers are not numbers (obs_noise=True would be 1 m of noise)
+        ({"obs_noise": True}, "obs_noise must be a finite number >= 0, got True"),
+        ({"obs_noise_vel": "0.1"}, "obs_noise_vel must be a finite number >= 0, got '0.1'"),
+        (
+            {"obs_noise_joint_vel": 1j},
+            r"obs_noise_joint_vel must be a finite number >= 0, got 1j \(standard deviation, rad/s\)",
+        ),
+        ({"control_freq": True}, "control_freq must be a finite number > 0 and <= 10000, got True"),
+        ({"n_substeps": 2.0}, "n_substeps must be an integer >= 1 and <= 1000, got 2.0"),
+        ({"error_bound": False}, "error_bound must be a finite number >= 0, got False"),
+        ({"reward_weights": {"effort": True}}, r"reward_weights\['effort'\] must be a finite number >= 0, got True"),
+        ({"base_pose": [0, 0, "3"]}, r"base_pose must be 3 finite numbers, got \[0, 0, '3'\]"),
+        ({"arm_joint_pos": [0, True, 0, 0, 0, 0]}, "arm_joint_pos must be 6 or 8 finite numbers"),
+        # model_error: lengths are scaled by factors in [1 - 3 model_error, 1 + 3 model_error]
+        ({"model_error": 1 / 3}, r"model_error must be a finite number >= 0 and < 0.333333, got 0.333.*at 1/3"),
+        ({"model_error": 5.0}, "model_error must be a finite number >= 0 and < 0.333333, got 5.0"),
+        # the release-0.2 options
+        ({"obs_delay": -1}, r"obs_delay must be an integer >= 0 and <= 10000, got -1 \(control steps\)"),
+        ({"obs_delay": 1.0}, "obs_delay must be an integer >= 0 and <= 10000, got 1.0"),
+        ({"obs_delay": True}, "obs_delay must be an integer"),
+        ({"wear_rate": 0.2, "dynamics": "kinematic"}, "wear_rate must be a finite number >= -0.1 and <= 0.1, got 0.2"),
+        ({"wear_rate": 0.01}, "wear_rate=0.01 needs dynamics='kinematic': a loaded PyBullet body cannot change"),
+        (
+            {"wear_rate": -0.05, "dynamics": "kinematic"},
+            r"over a 20 s path .*\|wear_rate\| \* duration must stay below 1",
+        ),
     ],
 )
 def test_bad_constructor_arguments(kwargs, match):
@@ -192,15 +218,54 @@ def test_bad_constructor_arguments(kwargs, match):
         WheeledPumaEnv(**kwargs)
 
 
+def test_joint_limit_message_prints_plain_numbers():
+    with pytest.raises(ValueError, match=r"arm_joint_pos \[0.0, 4.5, 0.0, 0.0, 0.0, 0.0\] is outside") as exc:
+        WheeledPumaEnv(arm_joint_pos=np.array([0, 4.5, 0, 0, 0, 0]))
+    assert "np.float64" not in str(exc.value) and "upper [2.7925, 3.927, " in str(exc.value)
+
+
+@pytest.mark.parametrize("dynamics", ["kinematic", "physics"])
+def test_model_error_0_3_keeps_every_length_positive(make_env, dynamics):
+    """0.3 is the largest condition of the benchmark protocol: factors stay in [0.1, 1.9]."""
+    from mobman_env.params import PERTURBED_FIELDS
+
+    env = make_env(dynamics=dynamics, model_error=0.3, path=SHORT_CIRCLE)
+    for seed in range(20):
+        env.reset(seed=seed)
+        for name in PERTURBED_FIELDS:
+            ratio = getattr(env.true_params, name) / getattr(env.nominal_params, name)
+            assert 0.1 - 1e-12 <= ratio <= 1.9 + 1e-12, (seed, name, ratio)
+    env.step(np.zeros(8))
+
+
+@pytest.mark.parametrize("dynamics", ["kinematic", "physics"])
+def test_closed_env_refuses_reset_step_render_alike(dynamics):
+    env = WheeledPumaEnv(dynamics=dynamics, path=SHORT_CIRCLE, render_mode="rgb_array")
+    env.reset(seed=0)
+    env.close()
+    env.close()  # safe twice
+    for call in (lambda: env.step(np.zeros(8)), lambda: env.reset(seed=0), env.render):
+        with pytest.raises(RuntimeError, match=r"the env is closed; make a new one with gym.make\(\.\.\.\)"):
+            call()
+
+
 def test_bad_reset_options_and_actions(make_env):
     env = make_env(dynamics="kinematic")
     with pytest.raises(RuntimeError, match="reset"):
         env.step(np.zeros(8))
-    with pytest.raises(ValueError, match="unknown reset option"):
+    with pytest.raises(ValueError, match=r"unknown reset option\(s\) \['start'\]; accepted: 'path', 'arm_joint_pos'"):
         env.reset(options={"start": [0, 0, 0]})
+    with pytest.raises(ValueError, match=r"reset options must be a dict .*, got 'abc'; accepted keys: 'path'"):
+        env.reset(options="abc")
+    with pytest.raises(ValueError, match="obs_noise must be a finite number >= 0, got True"):
+        env.reset(options={"obs_noise": True})
+    with pytest.raises(ValueError, match="seed must be None or an integer >= 0, got True"):
+        env.reset(seed=True)
+    with pytest.raises(ValueError, match="line path: direction must be 3 finite numbers .*, got 'x'"):
+        env.reset(options={"path": {"type": "line", "direction": "x"}})
     with pytest.raises(ValueError, match="unknown path type"):
         env.reset(options={"path": {"type": "square"}})
-    with pytest.raises(ValueError, match="arm_joint_pos must be 6 arm angles or 8"):
+    with pytest.raises(ValueError, match="arm_joint_pos must be 6 or 8 finite numbers"):
         env.reset(options={"arm_joint_pos": [0.0] * 7})
     env.reset(seed=0)
     with pytest.raises(ValueError, match=r"shape \(8,\)"):
@@ -209,6 +274,13 @@ def test_bad_reset_options_and_actions(make_env):
         env.step(np.array([0, 0, np.nan, 0, 0, 0, 0, 0]))
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([0, 0, 0, 0, 0, 0, np.inf, 0]))
+    with pytest.raises(ValueError, match="action must be real numbers .*complex: the imaginary part would be lost"):
+        env.step(np.zeros(8) + 0.1j)
+    with pytest.raises(ValueError, match="action must be real numbers"):
+        env.step(["0.1"] * 8)
+    with pytest.raises(ValueError, match="action must be real numbers"):
+        env.step(np.ones(8, dtype=bool))
+    env.step(np.zeros(8, dtype=np.int64))  # integers are real numbers
 
 
 def test_registration_twice_is_harmless_and_silent():
@@ -283,3 +355,56 @@ def test_episode_does_not_depend_on_earlier_episodes(make_env, model_error):
     for x, y in zip(fresh, again):
         for k in x:
             assert np.array_equal(x[k], y[k]), k
+
+
+def test_gymnasium_default_check_env_passes_headless(monkeypatch):
+    """`check_env` with its defaults also builds a `render_mode="human"` env through the spec: without a display
+    that env warns (the only warning allowed) and runs without a window instead of raising."""
+    from gymnasium.utils.env_checker import check_env
+
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            check_env(env.unwrapped)
+        messages = [str(w.message) for w in caught]
+        assert any("render_mode='human' needs a display" in m for m in messages)
+        assert all("render_mode='human' needs a display" in m for m in messages), messages
+    finally:
+        env.close()
+
+
+def test_render_fps_is_the_control_frequency_and_record_video_plays_in_real_time(tmp_path):
+    """gymnasium's RecordVideo writes one frame per step at `metadata["render_fps"]`: the file's frame rate is
+    the env's control frequency (per instance; the class dict is untouched), so the video lasts as long as the
+    episode."""
+    pytest.importorskip("moviepy")
+    imageio = pytest.importorskip("imageio.v2")
+    from gymnasium.wrappers import RecordVideo
+
+    class_fps = WheeledPumaEnv.metadata["render_fps"]
+    env = gym.make(
+        "WheeledPuma-Circle-v0", dynamics="kinematic", control_freq=20.0, path=SHORT_CIRCLE, render_mode="rgb_array"
+    )
+    assert env.metadata["render_fps"] == 20.0 and WheeledPumaEnv.metadata["render_fps"] == class_fps
+    env = RecordVideo(env, str(tmp_path / "videos"), episode_trigger=lambda k: True, name_prefix="circle")
+    try:
+        env.reset(seed=0)
+        steps = 0
+        while True:
+            steps += 1
+            *_, term, trunc, _ = env.step(np.zeros(8, np.float32))
+            if term or trunc:
+                break
+    finally:
+        env.close()
+    (video,) = (tmp_path / "videos").glob("circle*.mp4")
+    reader = imageio.get_reader(video)
+    try:
+        fps, n_frames = reader.get_meta_data()["fps"], reader.count_frames()
+    finally:
+        reader.close()
+    assert fps == pytest.approx(20.0) and steps == 20
+    assert n_frames == steps + 1  # the reset frame and one per step: 1.05 s of video for 1 s of episode

@@ -101,6 +101,31 @@ def test_perturbed_rule():
     assert NOMINAL.hash() != draws[0].hash() and NOMINAL.hash() == RobotParams().hash()
 
 
+def test_perturbed_refuses_rel_std_at_which_a_length_can_reach_zero():
+    """Factors are clipped to 1 +- 3 rel_std: at 1/3 the smallest is 0, so rel_std must stay below 1/3; at 0.3
+    every factor of 1000 draws stays in [0.1, 1.9] (the extremes are reached: the clip is active)."""
+    rng = np.random.default_rng(1)
+    for bad in (1 / 3, 0.5, 5.0, True, "0.1"):
+        with pytest.raises(ValueError, match=r"rel_std must be a finite number >= 0 and < 0.333333.*reach 0"):
+            NOMINAL.perturbed(rng, bad)
+    ratios = np.array(
+        [
+            [getattr(p, n) / getattr(NOMINAL, n) for n in PERTURBED_FIELDS]
+            for p in (NOMINAL.perturbed(rng, 0.3) for _ in range(1000))
+        ]
+    )
+    assert ratios.min() == pytest.approx(0.1) and ratios.max() == pytest.approx(1.9)
+
+
+def test_scaled_multiplies_every_perturbed_length():
+    p = NOMINAL.scaled(1.25)
+    for f in dataclasses.fields(RobotParams):
+        expected = getattr(NOMINAL, f.name) * (1.25 if f.name in PERTURBED_FIELDS else 1)
+        assert getattr(p, f.name) == expected, f.name
+    with pytest.raises(ValueError, match="factor must be a finite number > 0"):
+        NOMINAL.scaled(0.0)
+
+
 def test_initial_geometry_of_the_paper_task():
     """theta(0) puts the tool point 0.675 m above the shoulder and slightly behind it; facing the circle
     (heading pi), the far side of the 0.4 m circle stays inside the arm's reach."""

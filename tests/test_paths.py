@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from mobman_env import TASKS
-from mobman_env.paths import PATH_TYPES, path_from_spec, validate_spec
+from mobman_env.paths import FIELD_RANGES, PATH_TYPES, path_from_spec, validate_spec
 
 START = np.array([0.1, -0.2, 1.2])
 SPECS = [dict(s, seed=5) if s["type"] == "random" else s for s in TASKS.values()] + [
@@ -76,12 +76,31 @@ def test_lemniscate_and_random_sizes():
     [
         ({"type": "spiral"}, "unknown path type 'spiral'; known: circle, line, lemniscate, random"),
         ({"type": "circle", "radius": -1}, "radius must be a finite number > 0"),
-        ({"type": "circle", "radius": "big"}, "radius must be a number"),
+        ({"type": "circle", "radius": "big"}, "radius must be a finite number > 0 and <= 20, got 'big'"),
+        ({"type": "circle", "radius": "0.4"}, "radius must be a finite number > 0 and <= 20, got '0.4'"),
+        ({"type": "circle", "radius": True}, "radius must be a finite number > 0 and <= 20, got True"),
+        (
+            {"type": "circle", "tilt": 0.5 + 1j},
+            r"tilt must be a finite number >= -6.28319 and <= 6.28319, got \(0.5\+1j\)",
+        ),
+        (
+            {"type": "line", "length": 1e308},
+            r"line path: length must be a finite number > 0 and <= 50, got 1e\+308 \(m\)",
+        ),
+        ({"type": "line", "direction": "x"}, "line path: direction must be 3 finite numbers .*, got 'x'"),
+        ({"type": "line", "direction": [1, True, 0]}, "line path: direction must be 3 finite numbers"),
+        ({"type": "random", "n_terms": 10**7}, "random path: n_terms must be an integer >= 1 and <= 20, got 10000000"),
+        ({"type": "random", "n_terms": 3.0}, "random path: n_terms must be an integer >= 1 and <= 20, got 3.0"),
+        ({"type": "random", "seed": True}, "random path: seed must be an integer >= 0"),
         ({"type": "circle", "raduis": 0.3}, r"unknown key\(s\) \['raduis'\]; accepted"),
         ({"type": "line", "direction": [0, 0, 0]}, "direction must be non-zero"),
         ({"type": "line", "direction": [1, 0]}, "direction must be 3 finite numbers"),
         ({"type": "random", "seed": -3}, "seed must be an integer >= 0"),
-        ({"type": "circle", "duration": float("nan")}, "duration must be a finite number > 0"),
+        (
+            {"type": "circle", "duration": float("nan")},
+            r"duration must be a finite number >= 0.01 and <= 3600, got nan \(s\)",
+        ),
+        ({"type": "circle", "duration": 3600.5}, r"duration must be a finite number >= 0.01 and <= 3600, got 3600.5"),
         ("circle", "must be a dict"),
     ],
 )
@@ -94,3 +113,24 @@ def test_random_spec_without_seed_needs_rng():
     with pytest.raises(ValueError, match="no 'seed'"):
         path_from_spec({"type": "random"}, START)
     assert set(PATH_TYPES) == {"circle", "line", "lemniscate", "random"}
+
+
+@pytest.mark.parametrize("kind", PATH_TYPES)
+def test_every_field_has_a_range_inclusive_at_its_ends(kind):
+    """Each numeric field accepts its documented ends (the low end when closed) and refuses just beyond them,
+    naming the range; the end values build a path whose positions are finite."""
+    for key, accepted in FIELD_RANGES[kind].items():
+        if accepted is None:  # the line's direction: 3 numbers, checked above
+            continue
+        step = 1 if accepted.integer else 1e-6 * max(1.0, abs(accepted.high))
+        ends = [accepted.high] + ([] if accepted.open_low else [accepted.low])
+        for v in ends:
+            spec = {"type": kind, key: int(v) if accepted.integer else float(v)}
+            if kind == "random":
+                spec.setdefault("seed", 1)
+            path = path_from_spec(spec, START)
+            assert np.all(np.isfinite(path.position(0.5 * path.duration))), (key, v)
+        beyond = [accepted.high + step, accepted.low if accepted.open_low else accepted.low - step]
+        for v in beyond:
+            with pytest.raises(ValueError, match=f"{kind} path: {key} must be "):
+                validate_spec({"type": kind, key: int(v) if accepted.integer else float(v)})

@@ -3,7 +3,12 @@
 from __future__ import annotations
 
 import gc
+import os
 import resource
+import signal
+import subprocess
+import sys
+import tempfile
 
 import numpy as np
 import pybullet
@@ -12,6 +17,7 @@ from conftest import SHORT_CIRCLE
 
 from mobman_env import WheeledPumaEnv
 from mobman_env import kinematics as K
+from mobman_env.sim import URDF_DIR_PREFIX, Sim, remove_stale_urdf_dirs
 
 
 def _rss_mb() -> float:
@@ -43,11 +49,85 @@ def test_many_envs_leave_no_client_and_no_memory_growth():
     assert growth < 30.0, f"RSS grew by {growth:.1f} MB over 200 envs"
 
 
-def test_human_render_without_display_raises(monkeypatch):
+def test_human_render_without_display_warns_and_runs_headless(monkeypatch):
+    """No display: a GUI connection would kill the process, so "human" warns (naming rgb_array), connects
+    DIRECT (no window) and render() returns None; the Sim itself still refuses a GUI without a display."""
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.warns(UserWarning, match=r"no window.*render_mode='rgb_array'"):
+        env = WheeledPumaEnv(render_mode="human", dynamics="kinematic", path=SHORT_CIRCLE)
+    try:
+        assert env.render_mode == "human" and not env.sim.gui
+        info = pybullet.getConnectionInfo(physicsClientId=env.sim.client_id)
+        assert info["isConnected"] and info["connectionMethod"] == pybullet.DIRECT
+        env.reset(seed=0)
+        env.step(np.zeros(8))
+        assert env.render() is None
+    finally:
+        env.close()
     with pytest.raises(RuntimeError, match="rgb_array"):
-        WheeledPumaEnv(render_mode="human")
+        Sim("kinematic", 0.01, 2, gui=True)
+
+
+def _rss_after_resets(env, seeds) -> float:
+    for s in seeds:
+        env.reset(seed=s)
+        assert not os.listdir(env.sim._tmpdir), "a URDF file stayed on disk after loading"
+        assert env.sim.client.getNumBodies() == 2  # the plane and the robot, nothing left behind
+    gc.collect()
+    return _rss_mb()
+
+
+def test_physics_resets_with_new_robots_do_not_accumulate(make_env):
+    """Every reset with a new seed loads a new robot: no file stays on disk and PyBullet's memory does not grow
+    (release 0.1: one 7.5 KiB file and about 18 KiB of RSS per reset; now under 0.1 KiB per reset, measured)."""
+    env = make_env(dynamics="physics", path=SHORT_CIRCLE)
+    before = _rss_after_resets(env, range(100))
+    after = _rss_after_resets(env, range(100, 300))
+    assert after - before < 1.5, f"RSS grew by {after - before:.2f} MiB over 200 resets"
+
+
+def test_reloaded_robots_are_the_true_ones(make_env):
+    """The body loaded at each reset is that episode's robot, not a cached earlier one (PyBullet caches files
+    by path unless told not to): PyBullet's end-effector equals the numpy FK of `true_params`."""
+    env = make_env(dynamics="physics", path=SHORT_CIRCLE)
+    for seed in (1, 2, 3, 2):
+        _, info = env.reset(seed=seed)
+        fk = K.ee_position(env.true_params, env.arm_joint_pos[:6], env.base_pose)
+        np.testing.assert_allclose(info["ee_pos_true"], fk, atol=1e-6)
+
+
+def test_stale_urdf_folder_of_a_killed_process_is_removed(tmp_path, monkeypatch):
+    """A process killed by SIGKILL leaves its URDF folder; the next Sim that makes one removes it. Folders of
+    live processes and other names stay."""
+    code = (
+        "import os, signal\n"
+        "from mobman_env import WheeledPumaEnv\n"
+        "env = WheeledPumaEnv(path={'type': 'circle', 'radius': 0.1, 'duration': 0.2})\n"
+        "env.reset(seed=1)\n"
+        "print(env.unwrapped.sim._tmpdir, flush=True)\n"
+        "os.kill(os.getpid(), signal.SIGKILL)\n"
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", code], env={**os.environ, "TMPDIR": str(tmp_path)}, capture_output=True, text=True
+    )
+    assert run.returncode == -signal.SIGKILL, run.stderr
+    stale = run.stdout.strip().splitlines()[-1]
+    assert os.path.isdir(stale) and os.path.basename(stale).startswith(URDF_DIR_PREFIX)
+    live = tmp_path / f"{URDF_DIR_PREFIX}{os.getppid()}-live"
+    other = tmp_path / "mobman-urdf-other"
+    live.mkdir()
+    other.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    env = WheeledPumaEnv(dynamics="physics", path=SHORT_CIRCLE)
+    try:
+        env.reset(seed=2)  # a perturbed robot: this sim makes its folder and sweeps stale ones
+        assert not os.path.exists(stale)
+        mine = env.sim._tmpdir
+        assert live.is_dir() and other.is_dir() and os.path.isdir(mine)
+    finally:
+        env.close()
+    assert not os.path.exists(mine) and remove_stale_urdf_dirs(str(tmp_path)) == []
 
 
 @pytest.mark.parametrize("dynamics", ["kinematic", "physics"])

@@ -21,7 +21,7 @@ def versions() -> dict[str, str | None]:
 
 
 def git_rev() -> str:
-    """The commit of the source tree the eval package runs from ("<sha>" or "<sha>-dirty"), or "unknown"."""
+    """The commit of the source tree the eval package runs from (`"<sha>"` or `"<sha>-dirty"`), or `"unknown"`."""
     here = Path(__file__).resolve().parent
     try:
         sha = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True, timeout=5)

@@ -1,0 +1,69 @@
+"""The env's sensor model: Gaussian noise on the readings and a fixed delay of whole control steps.
+
+What a controller observes of the robot is `SENSOR_KEYS`, in this order; the env appends the task's reference
+(target position and velocity, time), which is neither noisy nor delayed. Noise is drawn from the generator the
+env passes (its `np_random`) in a fixed order - ee_pos (3), arm_base_pos (2), ee_vel (3), arm_base_vel (2),
+joint_vel (8) - and only for a std > 0, so that with every std at 0 nothing is drawn. A delay of k steps hands
+out the reading taken k control steps earlier (the reset reading until then): noise belongs to the moment of the
+reading, so a delayed reading keeps its own noise. Imports numpy only.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Any
+
+import numpy as np
+
+#: the sensor readings of an observation, in order (all in the world frame, SI units)
+SENSOR_KEYS = ("ee_pos", "ee_vel", "arm_base_pos", "arm_base_vel", "base_yaw", "joint_pos", "joint_vel")
+#: number of entries of the readings, flattened in `SENSOR_KEYS` order (3 + 3 + 2 + 2 + 1 + 8 + 8)
+N_SENSOR = 27
+
+
+class Sensors:
+    """One episode's sensor settings and delay buffer.
+
+    Args:
+        obs_noise: std of the noise on ee_pos and arm_base_pos, m.
+        obs_noise_vel: std of the noise on ee_vel and arm_base_vel, m/s.
+        obs_noise_joint_vel: std of the noise on joint_vel (arm joints and wheels), rad/s.
+        obs_delay: age of the readings handed out, control steps (0: current).
+    """
+
+    def __init__(
+        self, obs_noise: float = 0.0, obs_noise_vel: float = 0.0, obs_noise_joint_vel: float = 0.0, obs_delay: int = 0
+    ):
+        self.obs_noise = obs_noise
+        self.obs_noise_vel = obs_noise_vel
+        self.obs_noise_joint_vel = obs_noise_joint_vel
+        self.obs_delay = obs_delay
+        self._buffer: deque[np.ndarray] = deque(maxlen=max(obs_delay, 1))
+
+    def read(self, state: Any, rng: np.random.Generator) -> list[np.ndarray]:
+        """The noisy readings of a `sim.RobotState`, as arrays in `SENSOR_KEYS` order (float64)."""
+        ee_pos, pc = state.ee_pos, state.arm_base_pos
+        ee_vel, pc_vel = state.ee_vel, state.arm_base_vel
+        joint_vel = state.joint_vel
+        if self.obs_noise > 0.0:
+            ee_pos = ee_pos + self.obs_noise * rng.standard_normal(3)
+            pc = pc + self.obs_noise * rng.standard_normal(2)
+        if self.obs_noise_vel > 0.0:
+            ee_vel = ee_vel + self.obs_noise_vel * rng.standard_normal(3)
+            pc_vel = pc_vel + self.obs_noise_vel * rng.standard_normal(2)
+        if self.obs_noise_joint_vel > 0.0:
+            joint_vel = joint_vel + self.obs_noise_joint_vel * rng.standard_normal(joint_vel.shape[0])
+        return [ee_pos, ee_vel, pc, pc_vel, state.base_pose[2:], state.joint_pos, joint_vel]
+
+    def start(self, flat: np.ndarray) -> None:
+        """At reset: fill the delay buffer with the reset reading (the first `N_SENSOR` entries of `flat`)."""
+        if self.obs_delay > 0:
+            self._buffer.clear()
+            self._buffer.extend(flat[:N_SENSOR].copy() for _ in range(self.obs_delay))
+
+    def delay(self, flat: np.ndarray) -> None:
+        """After a step: store this reading and put the one of `obs_delay` steps ago into `flat` (in place)."""
+        if self.obs_delay > 0:
+            now = flat[:N_SENSOR].copy()
+            flat[:N_SENSOR] = self._buffer.popleft()
+            self._buffer.append(now)
