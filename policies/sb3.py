@@ -111,7 +111,7 @@ def require_sb3() -> None:
         ) from None
 
 
-def _algo_classes() -> dict[str, type]:
+def _algo_classes() -> dict[str, Any]:
     import stable_baselines3 as sb3
 
     return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "a2c": sb3.A2C, "ddpg": sb3.DDPG}
@@ -189,17 +189,18 @@ class SB3Policy:
         classes = _algo_classes()
         data = read_zip_data(self.path)
         algo = self.config.get("algo")
+        key: str | None
         if algo is not None:
             key = str(algo).lower()
             if key not in classes:
                 raise ValueError(f"{self.run_dir / 'config.json'}: unknown algo {algo!r}; accepted: {', '.join(ALGOS)}")
         else:
             key = _algo_from_zip(data)
-            if key is None:
-                raise ValueError(
-                    f"{self.path}: its policy class names no known algorithm ({', '.join(ALGOS)}); add "
-                    f'"algo" to {self.run_dir / "config.json"}'
-                )
+        if key is None:
+            raise ValueError(
+                f"{self.path}: its policy class names no known algorithm ({', '.join(ALGOS)}); add "
+                f'"algo" to {self.run_dir / "config.json"}'
+            )
         objects = safe_custom_objects(data, self.path)
         try:
             model = classes[key].load(self.path, device=device, custom_objects=objects)
