@@ -455,3 +455,14 @@ def test_a_shadowing_eval_py_is_named_when_train_is_imported(tmp_path):
     proc = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=_env(), capture_output=True, text=True)
     assert proc.returncode != 0 and not (tmp_path / "r").exists()
     assert f"ImportError: `import eval` found {tmp_path / 'eval.py'}, not mobman's eval package" in proc.stderr
+
+
+def test_format_json_through_a_pipe_is_only_json(tmp_path):
+    """A real command line: stdout holds the JSON alone (native libraries' output goes to stderr)."""
+    out = tmp_path / "o"
+    cmd = [sys.executable, "-m", "eval", "run", "--policy", "zero", "--episodes", "1", "--dynamics", "kinematic"]
+    cmd += ["--env-kwargs", K, "--no-plots", "--format", "json", "--out", str(out)]
+    proc = subprocess.run(cmd, env=_env(), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout) == json.loads((out / "results.json").read_text())
+    assert f"results in {out}" in proc.stderr

@@ -21,7 +21,7 @@ import argparse
 import sys
 
 from eval.cli import paper, run, speed, sweep
-from eval.cli.common import check_own_packages, working_directory_importable
+from eval.cli.common import check_own_packages, reserve_stdout, working_directory_importable
 from eval.errors import EvalError, RunInterrupted
 from mobman_env import __version__
 
@@ -43,6 +43,8 @@ def main(argv: list[str] | None = None) -> int:
     interrupted by Ctrl-C (what finished is written)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None and getattr(args, "stdout_format", "table") != "table" and not getattr(args, "quiet", False):
+        reserve_stdout()  # a command line piping data: native output (PyBullet, Ray) goes to stderr
     try:
         check_own_packages()
         working_directory_importable()

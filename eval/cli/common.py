@@ -36,6 +36,16 @@ def check_own_packages(names: tuple[str, ...] = OWN_PACKAGES) -> None:
             )
 
 
+def reserve_stdout() -> None:
+    """Keep stdout for this process's results: Python's `sys.stdout` gets its own copy of file descriptor 1,
+    and descriptor 1 itself is pointed at stderr, so whatever native code writes there (PyBullet's build-time
+    banner, Ray) cannot end up inside piped JSON or CSV."""
+    sys.stdout.flush()
+    fd = os.dup(1)
+    os.dup2(2, 1)
+    sys.stdout = open(fd, "w", encoding=sys.stdout.encoding or "utf-8", closefd=True)  # noqa: SIM115
+
+
 def working_directory_importable() -> None:
     """Put the working directory at the end of `sys.path`, so `--policy mymod:MyCtrl` imports the `mymod.py`
     of the folder the command runs in (console scripts do not put it on sys.path; `python -m eval` does). At the

@@ -4,7 +4,13 @@ from __future__ import annotations
 
 import sys
 
-from eval.cli.common import HelpFormatter, add_backend_arguments, default, env_kwargs_arg, policy_help
+from eval.cli.common import (
+    HelpFormatter,
+    add_backend_arguments,
+    default,
+    env_kwargs_arg,
+    policy_help,
+)
 from eval.config import DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, STDOUT_FORMATS, EvalConfig
 from eval.runner import run
 
