@@ -25,7 +25,7 @@ leaves a half-written file and never destroys the previous version of a file bef
  "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
    {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
     "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
-    "status": "ok" | "failed", "error": traceback | null,
+    "status": "ok" | "failed" | "interrupted" (Ctrl-C: never finished), "error": traceback | null,
     "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
     "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
     "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success",
