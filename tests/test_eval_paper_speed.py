@@ -106,9 +106,9 @@ def test_speed_writes_speed_json(tmp_path):
 
 
 def test_speed_refuses_an_unknown_policy_before_measuring(tmp_path, capsys, monkeypatch):
-    from eval import speed
-
     import functools
+
+    from eval import speed
 
     fail = functools.wraps(speed.measure)(lambda *a, **k: pytest.fail("the benchmark ran"))
     monkeypatch.setattr(speed, "measure", fail)
