@@ -37,7 +37,32 @@ SB3; `run` does.
 * Torch runs with one thread (`torch_threads`).
 """
 
-from train.config import TrainConfig
+from pathlib import Path as _Path
+
+
+def _check_shadowing(names: tuple[str, ...] = ("mobman_env", "policies", "eval")) -> None:
+    """ImportError naming the file if one of mobman's packages would be imported from elsewhere than beside
+    `train` (a user's `eval.py` next to their script comes first on sys.path and hides mobman's `eval`)."""
+    from importlib.util import find_spec
+
+    root = _Path(__file__).resolve().parents[1]
+    for name in names:
+        try:
+            spec = find_spec(name)
+        except (ImportError, ValueError):
+            spec = None
+        origin = spec.origin if spec is not None else None
+        if origin is None or _Path(origin).resolve().parent.parent != root:
+            raise ImportError(
+                f"`import {name}` found {origin or 'nothing'}, not mobman's {name} package in {root}: a file or "
+                f"folder named {name!r} in the working directory or on sys.path hides it; rename it (and delete "
+                f"its __pycache__)"
+            )
+
+
+_check_shadowing()
+
+from train.config import TrainConfig  # noqa: E402
 
 __all__ = ["TrainConfig", "resume", "run"]
 

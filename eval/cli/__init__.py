@@ -21,7 +21,8 @@ import argparse
 import sys
 
 from eval.cli import paper, run, speed, sweep
-from eval.errors import EvalError
+from eval.cli.common import check_own_packages, reserve_stdout, working_directory_importable
+from eval.errors import EvalError, RunInterrupted
 from mobman_env import __version__
 
 SUBCOMMANDS = {"run": run, "sweep": sweep, "paper": paper, "speed": speed}
@@ -38,13 +39,25 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Parse `argv` and run the subcommand. Exit codes: 0 done, 2 bad input (before any rollout), 130
+    interrupted by Ctrl-C (what finished is written)."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None and getattr(args, "stdout_format", "table") != "table" and not getattr(args, "quiet", False):
+        reserve_stdout()  # a command line piping data: native output (PyBullet, Ray) goes to stderr
     try:
+        check_own_packages()
+        working_directory_importable()
         return SUBCOMMANDS[args.command].main(args)
     except EvalError as exc:
         print(f"mobman-eval {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RunInterrupted as exc:
+        print(f"\nmobman-eval {args.command}: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"\nmobman-eval {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover
