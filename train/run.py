@@ -281,6 +281,9 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
     torch.set_num_threads(config.torch_threads)
     venv = VecMonitor(make_vec_env(config, seed_offset=ckpt["steps"]), str(out / f"monitor_{ckpt['steps']}.csv"))
     model = load_checkpoint(config, ckpt, out, venv)
+    # SB3's load() re-seeds the env with the run's own seed (set_random_seed(seed) -> env.seed(seed)), which
+    # would replay the first session's episodes: seed the resumed session with seed + steps done instead
+    model.set_random_seed(config.seed + ckpt["steps"])
     truncate_curve(out / "learning_curve.csv", ckpt["steps"])
     log.info("resuming %s at %d steps, up to %d", out, ckpt["steps"], config.timesteps)
     return _train(config, model, out, wall_offset=_wall_so_far(out))
