@@ -37,30 +37,10 @@ SB3; `run` does.
 * Torch runs with one thread (`torch_threads`).
 """
 
-from pathlib import Path as _Path
+from mobman_env.packages import check_not_shadowed
 
-
-def _check_shadowing(names: tuple[str, ...] = ("mobman_env", "policies", "eval")) -> None:
-    """ImportError naming the file if one of mobman's packages would be imported from elsewhere than beside
-    `train` (a user's `eval.py` next to their script comes first on sys.path and hides mobman's `eval`)."""
-    from importlib.util import find_spec
-
-    root = _Path(__file__).resolve().parents[1]
-    for name in names:
-        try:
-            spec = find_spec(name)
-        except (ImportError, ValueError):
-            spec = None
-        origin = spec.origin if spec is not None else None
-        if origin is None or _Path(origin).resolve().parent.parent != root:
-            raise ImportError(
-                f"`import {name}` found {origin or 'nothing'}, not mobman's {name} package in {root}: a file or "
-                f"folder named {name!r} in the working directory or on sys.path hides it; rename it (and delete "
-                f"its __pycache__)"
-            )
-
-
-_check_shadowing()
+# a user's eval.py or policies.py beside their script would hide mobman's: say so before importing them
+check_not_shadowed(("policies", "eval"))
 
 from train.config import TrainConfig  # noqa: E402
 

@@ -8,32 +8,9 @@ import dataclasses
 import json
 import os
 import sys
-from pathlib import Path
 from typing import Any
 
 from eval.config import BACKEND_CHOICES, EvalConfig
-from eval.errors import EvalError
-
-#: mobman's top-level packages that eval uses; a file or folder of the same name earlier on sys.path (e.g. a
-#: user's `policies.py` beside their script) would be imported instead.
-OWN_PACKAGES = ("mobman_env", "policies", "eval")
-
-
-def check_own_packages(names: tuple[str, ...] = OWN_PACKAGES) -> None:
-    """Raise `EvalError` if one of mobman's packages was imported from somewhere else than beside this `eval`
-    package (a file of the same name shadows it), naming the file and the fix."""
-    import importlib
-
-    root = Path(__file__).resolve().parents[2]  # the folder holding mobman's packages
-    for name in names:
-        module = importlib.import_module(name)
-        origin = getattr(module, "__file__", None)
-        if origin is None or Path(origin).resolve().parent.parent != root:
-            raise EvalError(
-                f"`import {name}` found {origin or 'a namespace package'}, not mobman's {name} package in {root}: "
-                f"a file or folder named {name!r} in the working directory or on sys.path hides it; rename it "
-                f"(and delete its __pycache__)"
-            )
 
 
 def reserve_stdout() -> None:
