@@ -28,8 +28,27 @@ every module and fails on a cycle or an upward import):
 Across packages: `mobman_env` <- `policies` <- `eval` <- `train`; eval never imports `train`.
 """
 
-from eval.config import EvalConfig
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
 from eval.errors import EvalError
-from eval.runner import RunResult, run
+
+if TYPE_CHECKING:
+    from eval.config import EvalConfig
+    from eval.runner import RunResult, run
 
 __all__ = ["EvalConfig", "EvalError", "RunResult", "run"]
+
+
+def __getattr__(name: str) -> Any:
+    """`EvalConfig`, `RunResult` and `run` are imported on first use, after checking that no file of the user's
+    hides `policies` or `mobman_env` (so `mobman-eval` can say so before anything imports them)."""
+    if name in ("EvalConfig", "RunResult", "run"):
+        from mobman_env.packages import check_not_shadowed
+
+        check_not_shadowed(("mobman_env", "policies"))
+        from eval import config, runner
+
+        return {"EvalConfig": config.EvalConfig, "RunResult": runner.RunResult, "run": runner.run}[name]
+    raise AttributeError(f"module 'eval' has no attribute {name!r}")

@@ -6,7 +6,7 @@ import pickle
 
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.execution.ray_backend import require_ray
+from eval.execution.ray_backend import check_address, require_ray, serialize_policies
 from eval.rollout import make_env, make_policy
 
 
@@ -50,6 +50,8 @@ def check_all(config: EvalConfig, user: dict) -> None:
     """Build every env (per dynamics mode) and every spec policy once; raise EvalError on any problem."""
     if config.backend == "ray":
         require_ray()
+        check_address(config.address)
+        serialize_policies(user)  # policy objects Ray cannot pickle are refused here, naming them
     for env_id in config.envs:
         check_env_id(env_id)
     for env_id in config.envs:

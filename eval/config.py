@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -11,11 +10,12 @@ from eval.errors import EvalError
 from eval.metrics import DEFAULT_SETTLE_TIME, DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
 from mobman_env.sim import DYNAMICS_MODES
-from mobman_env.validation import number
+from mobman_env.validation import integer, number
 
 #: the env's dynamics modes (one home: mobman_env.sim)
 DYNAMICS_CHOICES = DYNAMICS_MODES
 SAVE_ARRAYS_CHOICES = ("all", "first", "none")
+STDOUT_FORMATS = ("table", "markdown", "json", "csv")
 BACKEND_CHOICES = ("local", "ray")
 
 
@@ -69,7 +69,11 @@ class EvalConfig:
     """Per-step arrays in episodes.npz: episode 0 of each condition ("first"), "all" episodes (kept in memory
     until the end of the run: about 0.3 MB per 20 s episode), or "none"."""
     progress: bool = True
-    """Show a progress bar (stderr) and the final table (stdout)."""
+    """Show a progress bar (stderr) and the results (stdout, in `stdout_format`)."""
+    stdout_format: str = "table"
+    """What is printed on stdout at the end: "table" (a compact console table), or the content of one of
+    the files, "markdown" (summary.md), "json" (results.json), "csv" (results.csv), so a run can be piped.
+    The files are written whatever the format; progress and messages go to stderr."""
     command: str = "run"
     """Name used for the default output directory."""
 
@@ -85,12 +89,9 @@ class EvalConfig:
         """Raise `EvalError` naming the bad value, the accepted ones and the fix."""
         if not self.envs:
             raise EvalError("no env given; pass at least one --env, e.g. --env WheeledPuma-Circle-v0")
-        if isinstance(self.episodes, bool) or not isinstance(self.episodes, int) or self.episodes < 1:
-            raise EvalError(f"episodes must be an integer >= 1, got {self.episodes!r}")
-        if isinstance(self.seed, bool) or not isinstance(self.seed, int) or self.seed < 0:
-            raise EvalError(f"seed must be an integer >= 0, got {self.seed!r}")
-        if isinstance(self.workers, bool) or not isinstance(self.workers, int) or self.workers < 1:
-            raise EvalError(f"workers must be an integer >= 1, got {self.workers!r}")
+        integer("episodes", self.episodes, low=1, hint="e.g. --episodes 5", error=EvalError)
+        integer("seed", self.seed, low=0, hint="reported seeds start at 10000", error=EvalError)
+        integer("workers", self.workers, low=1, hint="e.g. --workers 2", error=EvalError)
         self.validate_backend()
         for name in ("envs", "policies"):
             values = getattr(self, name)
@@ -104,8 +105,9 @@ class EvalConfig:
                 raise EvalError(f"unknown dynamics mode {d!r}; accepted: {', '.join(DYNAMICS_CHOICES)}")
         if len(set(self.dynamics)) != len(self.dynamics):
             raise EvalError(f"dynamics modes repeated: {list(self.dynamics)}")
-        if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance) and self.tolerance > 0):
-            raise EvalError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
+        number("tolerance", self.tolerance, low=0, open_low=True, hint="m, e.g. 0.006", error=EvalError)
+        if self.stdout_format not in STDOUT_FORMATS:
+            raise EvalError(f"stdout_format must be one of {', '.join(STDOUT_FORMATS)}, got {self.stdout_format!r}")
         number("settle_time", self.settle_time, low=0.0, hint="s, e.g. 0.5 (0: the whole episode)", error=EvalError)
         if self.save_arrays not in SAVE_ARRAYS_CHOICES:
             raise EvalError(f"save_arrays must be one of {', '.join(SAVE_ARRAYS_CHOICES)}, got {self.save_arrays!r}")

@@ -1,4 +1,5 @@
-"""`EvalError`: the one exception eval raises for a bad configuration. A leaf module: it imports nothing."""
+"""`EvalError`: the one exception eval raises for a bad configuration, and `RunInterrupted` (Ctrl-C after the
+finished episodes were written). A leaf module: it imports nothing."""
 
 
 class EvalError(ValueError):
@@ -6,3 +7,8 @@ class EvalError(ValueError):
 
     The CLIs print it as `mobman-eval <command>: error: <message>` and exit with code 2; the message names the bad
     value, what is accepted and the fix."""
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a run after its finished episodes were written (the unfinished ones are marked
+    "interrupted"); the CLIs print the message and exit with code 130."""

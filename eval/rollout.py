@@ -280,7 +280,9 @@ def rollout(
             quality = jac.finish(k)
             arrays.update(quality.pop("arrays"))
             rec.update(quality)
-    except Exception:
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # SystemExit from a user's policy too: a failed episode, not a stopped evaluation
         rec["status"] = "failed"
         rec["error"] = traceback.format_exc()
         rec["n_steps"] = k
@@ -325,8 +327,10 @@ def make_policy(spec: str, env, seed: int | None):
         return policies.make(spec, env, seed=seed)
     except FileNotFoundError as exc:
         raise EvalError(f"policy {spec!r}: model file not found: {exc}") from None
-    except Exception as exc:
-        msg = str(exc)
+    except KeyboardInterrupt:
+        raise
+    except BaseException as exc:  # SystemExit from a user's constructor too: named, not a silent exit
+        msg = str(exc) if isinstance(exc, Exception) else f"{type(exc).__name__}({exc}) raised while building it"
         if "known" not in msg:
             msg += f" ({_known_policies_text()})"
         raise EvalError(f"policy {spec!r}: {msg}") from None

@@ -18,7 +18,6 @@ timing fields (`wall_s`, `predict_us_*`) and `pid`.
 
 from __future__ import annotations
 
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,13 +26,13 @@ from typing import Any
 from eval import metrics as M
 from eval.checks import check_all, check_user_policies
 from eval.config import EvalConfig
-from eval.errors import EvalError
+from eval.errors import EvalError, RunInterrupted
 from eval.execution.dispatch import execute
-from eval.execution.tasks import make_tasks
-from eval.output.files import check_out, resolve_out
-from eval.output.results import ResultsView, arrays_key, build_results, write_run
-from eval.output.tables import print_table
-from eval.output.video import write_videos
+from eval.execution.tasks import ExecutionInterrupted, interrupted_record, make_tasks
+from eval.output.files import check_out, make_out, remove_stale, resolve_out, sigint_deferred
+from eval.output.progress import progress_bar
+from eval.output.results import RUN_OUTPUTS, ResultsView, arrays_key, build_results, print_results, write_run
+from eval.output.video import video_format, write_videos
 from eval.rollout import RECORD_KEYS, _known_policies_text
 
 
@@ -56,6 +55,10 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     Every (env, dynamics, policy) faces the same `config.episodes` episodes (seeds S .. S + episodes - 1).
     Writes the report files into the output directory and returns a `RunResult`. With `workers > 1` the
     workers are spawned processes: a script calling this needs the usual `if __name__ == "__main__":` guard.
+
+    Ctrl-C (KeyboardInterrupt) while episodes run stops the workers, writes the report with the finished
+    episodes (the others have status "interrupted" and are left out of the aggregate) and raises
+    `RunInterrupted`.
     """
     user = dict(policies or {})
     config.validate()
@@ -66,40 +69,14 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     out = resolve_out(config.out, config.command)
     check_out(out, config.overwrite)
     check_all(config, user)
+    if config.video:
+        video_format()  # the encoder is there (or a clear message) before any episode runs
+    out = make_out(out, exclusive=not config.out)
 
     names = list(config.policies) + list(user)
     tasks = make_tasks(config, names)
-    bar = None
-    if config.progress:
-        from tqdm import tqdm
-
-        tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
-        bar = tqdm(
-            total=len(tasks),
-            desc="episodes",
-            unit="ep",
-            file=sys.stderr,
-            dynamic_ncols=True,
-            mininterval=0.1 if tty else 5.0,
-        )  # a log file gets a line every 5 s, not every episode
-
-    def on_result(rec):
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix_str(
-                f"{rec['policy']} seed {rec['seed']}: "
-                + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None else rec["status"]),
-                refresh=False,
-            )
-
-    t0 = time.perf_counter()
-    try:
-        rec_by_index, arrays = execute(config, user, tasks, user_bytes, on_result)
-    finally:
-        if bar is not None:
-            bar.close()
-    wall = time.perf_counter() - t0
-    records = [rec_by_index[t.index] for t in tasks]
+    rec_by_index, arrays, wall, interrupted = _execute_with_progress(config, user, tasks, user_bytes)
+    records = [rec_by_index.get(t.index) or interrupted_record(t) for t in tasks]
     for t, rec in zip(tasks, records):
         for key in RECORD_KEYS:  # records of episodes that never ran (dead worker) get every field too
             rec.setdefault(key, False if key in ("success", "tipped_over", "terminated") else None)
@@ -116,11 +93,47 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     cfg = config.to_dict()
     cfg["out"] = str(out)
     cfg["policy_objects"] = {name: type(obj).__name__ for name, obj in user.items()}
-    results = build_results(cfg, records, M.aggregate(records), wall_s=wall)
+    finished = [r for r in records if r["status"] != "interrupted"]
+    results = build_results(cfg, records, M.aggregate(finished), wall_s=wall)
     result = RunResult(out=out, results=results, arrays=arrays)
-    write_run(result, config)
+    with sigint_deferred(reraise=not interrupted):  # a Ctrl-C now does not cut the report short
+        written = write_run(result, config)
+    if interrupted:
+        raise RunInterrupted(
+            f"interrupted: {len(finished)} of {len(records)} episodes finished; results written to {out} "
+            f'(the others have status "interrupted")'
+        )
     if config.video:
-        write_videos(result, config, user)
+        written += write_videos(result, config, user)
+    if config.overwrite:
+        remove_stale(out, RUN_OUTPUTS, set(written))
     if config.progress:
-        print_table(results, out)
+        print_results(results, out, config.stdout_format)
     return result
+
+
+def _execute_with_progress(
+    config: EvalConfig, user: dict, tasks: list, user_bytes: bytes | None
+) -> tuple[dict[int, dict], dict[int, dict], float, bool]:
+    """Run the tasks with a progress bar: (records by index, arrays by index, wall time in s, interrupted)."""
+    bar = progress_bar(len(tasks), "episodes", "ep", config.progress)
+
+    def on_result(rec):
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(
+                f"{rec['policy']} seed {rec['seed']}: "
+                + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None else rec["status"]),
+                refresh=False,
+            )
+
+    t0 = time.perf_counter()
+    interrupted = False
+    try:
+        rec_by_index, arrays = execute(config, user, tasks, user_bytes, on_result)
+    except ExecutionInterrupted as exc:
+        rec_by_index, arrays, interrupted = exc.records, exc.arrays, True
+    finally:
+        if bar is not None:
+            bar.close()
+    return rec_by_index, arrays, time.perf_counter() - t0, interrupted

@@ -115,6 +115,21 @@ def env_vs_bare(dynamics: str, n_substeps: int, steps: int, repeats: int, seed: 
     }
 
 
+def check_policies(specs: list[str] | None) -> None:
+    """Build every spec once on a kinematic env, so an unknown or broken policy stops the benchmark before it
+    starts (`EvalError`) instead of being skipped at the end."""
+    from eval.rollout import make_policy
+
+    if not specs:
+        return
+    env = _env("kinematic")
+    try:
+        for spec in specs:
+            make_policy(spec, env, 0)
+    finally:
+        env.close()
+
+
 def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     """Median and p99 of the whole predict call of each policy over one kinematic episode (the eval loop)."""
     from eval.rollout import make_policy, rollout

@@ -294,7 +294,8 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
         if exc.name is not None and (module_name == exc.name or module_name.startswith(exc.name + ".")):
             raise ValueError(
                 f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
-                f"module; known: {_known_text()}"
+                f"module ({exc}: put {module_name.split('.')[0]}.py in the working directory or on PYTHONPATH); "
+                f"known: {_known_text()}"
             ) from None
         raise
     obj: Any = module

@@ -4,8 +4,10 @@
 folder written by `mobman-train`:
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
-  recorded in the zip; failing that, PPO, SAC, TD3, A2C and DDPG are tried in turn.
-* `vecnormalize.pkl` (optional) - the `VecNormalize` statistics of training. Observations are normalised
+  recorded in the zip (a file naming none is refused: add "algo" to config.json). SB3 loads it with every
+  pickled entry supplied by `policies.sb3_files.safe_custom_objects`, so nothing in it is unpickled by SB3.
+* `vecnormalize.pkl` (optional) - the `VecNormalize` statistics of training, read without unpickling code
+  (`policies.sb3_files.load_vecnormalize_stats`). Observations are normalised
   exactly as `VecNormalize.normalize_obs` does: `clip((obs - mean) / sqrt(var + epsilon), -clip_obs,
   clip_obs)` cast to float32, with the saved `obs_rms`, `epsilon` and `clip_obs`, only for the keys in its
   `norm_obs_keys` (and only if `norm_obs` was on). The statistics are frozen: evaluation never updates them.
@@ -19,6 +21,11 @@ folder written by `mobman-train`:
   observation space are used. The kept keys are cast to float32 (the dtype the agent saw through the VecEnv's
   buffers) before normalisation.
 
+**Only load agents you trust.** SB3's files hold pickles, which can run code; `policies.sb3_files` reads
+them with a restricted unpickler (numpy data, SB3 policy classes, gymnasium spaces, torch layers only) and
+SB3 reads the weights with `torch.load(weights_only=True)`, which narrows what a crafted file can do, but a
+model file is still a program's input and not a sandboxed one.
+
 The agent is stateless between steps (no recurrent policies), so `reset` does nothing and `predict` accepts an
 unbatched observation, a batch of one, or a longer batch (one action per env). torch and Stable-Baselines3 are
 imported only when an `SB3Policy` is built; by default torch is set to one thread (`torch_threads`), which
@@ -28,15 +35,19 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 from __future__ import annotations
 
 import json
-import pickle
-import zipfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-#: Aliases of models shipped as package data: name -> path inside this package (policies/models/).
+from policies.sb3_files import load_vecnormalize_stats, read_zip_data, safe_custom_objects
+
+#: Aliases of models shipped as package data: name -> path inside this package (`policies/models/`), found
+#: through this file's own location, so a user's `train.py` or `policies.py` beside their script cannot hide it.
 ALIASES = {"sac-circle": "models/sac-circle/model.zip"}
+
+#: What `sb3:` policies need, and how to install it.
+INSTALL_HINT = 'pip install "mobman[rl]"'
 
 ALGOS = ("ppo", "sac", "td3", "a2c", "ddpg")
 
@@ -68,13 +79,11 @@ def resolve_model_path(text: str) -> Path:
     """`sac-circle` -> the packaged model; a folder -> its `model.zip`; else the path itself (must exist)."""
     text = text.strip()
     if text in ALIASES:
-        # found through this package's own folder, never by importing a package by name: a user's `train.py`
-        # or `policies.py` beside their script cannot hide the shipped models
         path = Path(__file__).resolve().parent / ALIASES[text]
         if not path.is_file():
             raise FileNotFoundError(
-                f"sb3:{text}: the packaged model {path} is missing (it ships with mobman's policies "
-                f"package); reinstall mobman, or train one with mobman-train and use sb3:DIR/model.zip"
+                f"sb3:{text}: the packaged model {path} is missing (it ships with mobman's policies package); "
+                f"reinstall mobman, or train one with mobman-train and use sb3:DIR/model.zip"
             )
         return path
     if not text:
@@ -90,24 +99,50 @@ def resolve_model_path(text: str) -> Path:
     return path
 
 
-def _algo_classes() -> dict[str, type]:
+def require_sb3() -> None:
+    """Import torch and Stable-Baselines3, or raise ImportError naming the extra to install."""
+    try:
+        import stable_baselines3  # noqa: F401
+        import torch  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(
+            f"sb3: policies need Stable-Baselines3 and torch, which are not installed here ({exc}); install "
+            f"them with {INSTALL_HINT}"
+        ) from None
+
+
+def _algo_classes() -> dict[str, Any]:
     import stable_baselines3 as sb3
 
     return {"ppo": sb3.PPO, "sac": sb3.SAC, "td3": sb3.TD3, "a2c": sb3.A2C, "ddpg": sb3.DDPG}
 
 
-def _algo_from_zip(path: Path) -> str | None:
+def _algo_from_zip(data: dict) -> str | None:
     """The algorithm recorded in the zip: the module of its policy class (e.g. stable_baselines3.sac.policies)."""
     try:
-        with zipfile.ZipFile(path) as zf:
-            data = json.loads(zf.read("data"))
         module = data["policy_class"]["__module__"]
-    except (KeyError, ValueError, zipfile.BadZipFile, TypeError):
+    except (KeyError, TypeError):
         return None
     for algo in ALGOS:
-        if f".{algo}." in module:
+        if f".{algo}." in str(module):
             return algo
     return None
+
+
+def _read_config(path: Path) -> dict:
+    """The run folder's config.json ({} without one); ValueError naming the file when it is not JSON."""
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text())
+    except (ValueError, OSError) as exc:
+        raise ValueError(
+            f"{path} is not a readable JSON file ({type(exc).__name__}: {exc}); copy it again from the training "
+            f"run, or delete it to load model.zip on its own"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} must hold a JSON object (the run's config), got {type(data).__name__}")
+    return data
 
 
 def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
@@ -134,10 +169,10 @@ class SB3Policy:
     name = "sb3"
 
     def __init__(self, model_path: str | Path, *, device: str = "cpu", torch_threads: int | None = 1):
+        require_sb3()
         self.path = resolve_model_path(str(model_path))
         self.run_dir = self.path.parent
-        cfg_file = self.run_dir / "config.json"
-        self.config: dict = json.loads(cfg_file.read_text()) if cfg_file.is_file() else {}
+        self.config: dict = _read_config(self.run_dir / "config.json")
         if torch_threads is not None:
             import torch
 
@@ -149,32 +184,32 @@ class SB3Policy:
 
     # --- loading ---------------------------------------------------------------------------------------
     def _load_model(self, device: str) -> Any:
+        """Load model.zip once with the algorithm of config.json's "algo" (else the one its policy class
+        names); SB3 unpickles nothing (`safe_custom_objects`)."""
         classes = _algo_classes()
+        data = read_zip_data(self.path)
         algo = self.config.get("algo")
+        key: str | None
         if algo is not None:
             key = str(algo).lower()
             if key not in classes:
                 raise ValueError(f"{self.run_dir / 'config.json'}: unknown algo {algo!r}; accepted: {', '.join(ALGOS)}")
-            self.algo = key
-            return classes[key].load(self.path, device=device)
-        order = list(ALGOS)
-        guess = _algo_from_zip(self.path)
-        if guess:
-            order.remove(guess)
-            order.insert(0, guess)
-        errors = []
-        for key in order:
-            try:
-                model = classes[key].load(self.path, device=device)
-            except Exception as exc:  # a zip of another algorithm fails somewhere inside load
-                errors.append(f"{key}: {type(exc).__name__}: {exc}")
-                continue
-            self.algo = key
-            return model
-        raise ValueError(
-            f'could not load {self.path} with any of {", ".join(ALGOS)}; add "algo" to '
-            f"{self.run_dir / 'config.json'}. Errors: " + "; ".join(errors)
-        )
+        else:
+            key = _algo_from_zip(data)
+        if key is None:
+            raise ValueError(
+                f"{self.path}: its policy class names no known algorithm ({', '.join(ALGOS)}); add "
+                f'"algo" to {self.run_dir / "config.json"}'
+            )
+        objects = safe_custom_objects(data, self.path)
+        try:
+            model = classes[key].load(self.path, device=device, custom_objects=objects)
+        except Exception as exc:
+            raise ValueError(
+                f"{self.path}: cannot load it as a {key.upper()} model ({type(exc).__name__}: {exc})"
+            ) from None
+        self.algo = key
+        return model
 
     def _observation_keys(self) -> tuple[str, ...] | None:
         """The Dict keys the agent sees, in order (None: the agent takes the observation unchanged)."""
@@ -191,22 +226,24 @@ class SB3Policy:
         return keys
 
     def _load_normalisation(self) -> None:
-        self._norm = None
+        self._norm: Any = None
         pkl = self.run_dir / "vecnormalize.pkl"
         if not pkl.is_file():
             return
-        with open(pkl, "rb") as f:
-            vn = pickle.load(f)  # a VecNormalize without its venv (its __setstate__ drops it)
-        if not getattr(vn, "norm_obs", False):
+        stats = load_vecnormalize_stats(pkl)
+        if not stats["norm_obs"]:
             return
-        rms = vn.obs_rms
+        rms = stats["obs_rms"]
         if isinstance(rms, dict):
-            keys = list(vn.norm_obs_keys) if vn.norm_obs_keys is not None else list(rms)
-            self._norm = {k: (rms[k].mean, rms[k].var) for k in keys}
+            keys = stats["norm_obs_keys"] if stats["norm_obs_keys"] is not None else list(rms)
+            missing = [k for k in keys if k not in rms]
+            if missing:
+                raise ValueError(f"{pkl}: norm_obs_keys {missing} have no statistics; copy it again from training")
+            self._norm = {k: rms[k] for k in keys}
         else:
-            self._norm = (rms.mean, rms.var)
-        self._eps = float(vn.epsilon)
-        self._clip = float(vn.clip_obs)
+            self._norm = rms
+        self._eps = stats["epsilon"]
+        self._clip = stats["clip_obs"]
 
     # --- checks ----------------------------------------------------------------------------------------
     def required_keys(self) -> list[str]:

@@ -107,3 +107,46 @@ class ExitOnOddSeed(HoldStill):
 
             os._exit(3)
         return super().predict(observation, state, episode_start, deterministic)
+
+
+class ExitInConstructor:
+    """`sys.exit(3)` while being built (a user's script-style module): a failure with a message, not a silent
+    exit of the CLI."""
+
+    def __init__(self, env=None):
+        raise SystemExit(3)
+
+
+class ExitInPredict(HoldStill):
+    """`sys.exit(4)` inside predict at step 3 of every episode: a failed episode, with its traceback."""
+
+    def reset(self, obs, info=None, *, seed=None):
+        super().reset(obs, info, seed=seed)
+        self.k = 0
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        self.k += 1
+        if self.k == 3:
+            raise SystemExit(4)
+        return super().predict(observation, state, episode_start, deterministic)
+
+
+class SlowMarked(HoldStill):
+    """Sleeps 5 ms per predict (a 1 s episode takes about 0.5 s) and, as an episode ends (its last step),
+    touches `$MOBMAN_TEST_MARKS/<seed>`, so a test knows how many episodes have finished."""
+
+    def reset(self, obs, info=None, *, seed=None):
+        super().reset(obs, info, seed=seed)
+        self.seed = seed
+        self.k = 0
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        import os
+        import time
+        from pathlib import Path
+
+        self.k += 1
+        time.sleep(0.005)
+        if self.k == 100 and os.environ.get("MOBMAN_TEST_MARKS"):
+            (Path(os.environ["MOBMAN_TEST_MARKS"]) / str(self.seed)).touch()
+        return super().predict(observation, state, episode_start, deterministic)

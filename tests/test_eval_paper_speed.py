@@ -90,8 +90,6 @@ def test_speed_writes_speed_json(tmp_path):
             "2",
             "--policy",
             "zero",
-            "--policy",
-            "no-such-policy",
             "--out",
             str(out),
             "--quiet",
@@ -109,8 +107,20 @@ def test_speed_writes_speed_json(tmp_path):
     pred = {r["policy"]: r for r in res["predict"]}
     assert pred["zero"]["status"] == "ok" and pred["zero"]["calls"] == 2000
     assert pred["zero"]["predict_us_p99"] >= pred["zero"]["predict_us_median"] > 0
-    assert pred["no-such-policy"]["status"].startswith("skipped")
     assert [(e["workers"], e["processes"]) for e in res["episodes"]] == [(1, 1), (2, 2)]
+
+
+def test_speed_refuses_an_unknown_policy_before_measuring(tmp_path, capsys, monkeypatch):
+    import functools
+
+    from eval import speed
+
+    fail = functools.wraps(speed.measure)(lambda *a, **k: pytest.fail("the benchmark ran"))
+    monkeypatch.setattr(speed, "measure", fail)
+    out = tmp_path / "speed"
+    assert main(["speed", "--policy", "zero", "--policy", "bogus", "--out", str(out), "--quiet"]) == 2
+    assert "policy 'bogus': unknown policy 'bogus'" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_speed_refuses_existing_out(tmp_path, capsys):

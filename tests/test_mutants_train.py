@@ -64,12 +64,6 @@ def test_a_failing_checkpoint_write_keeps_the_previous_latest_json(tmp_path):
     assert latest_checkpoint(tmp_path)["steps"] == 300
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="source bug (report of issue 10): SB3's load() re-seeds the loaded model's env with the run's own "
-    "seed (_setup_model -> set_random_seed(seed) -> env.seed(seed)), overriding make_vec_env's "
-    "seed + steps; train.run.resume must re-seed after load (e.g. model.set_random_seed(seed + steps))",
-)
 def test_resume_seeds_the_training_envs_with_seed_plus_steps_done(tmp_path, monkeypatch):
     from train.run import resume, run
 

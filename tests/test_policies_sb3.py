@@ -175,3 +175,107 @@ def test_sb3_policy_refuses_what_it_cannot_reproduce(run_dir, tmp_path, env):
     (d / "config.json").write_text(json.dumps({**cfg, "algo": "dqn"}))
     with pytest.raises(ValueError, match="unknown algo 'dqn'; accepted: ppo, sac, td3"):
         policies.make(f"sb3:{d / 'model.zip'}", env)
+
+
+# --- files that are corrupt, crafted or missing their extras -------------------------------------------------
+def _copy_run(run_dir, dest):
+    import shutil
+
+    shutil.copytree(run_dir, dest)
+    return dest
+
+
+class _System:
+    """Pickles as a call of os.system (what a crafted vecnormalize.pkl or model.zip entry can do)."""
+
+    def __init__(self, command):
+        self.command = command
+
+    def __reduce__(self):
+        import os
+
+        return (os.system, (self.command,))
+
+
+def test_crafted_vecnormalize_pickle_is_refused_not_run(run_dir, tmp_path, env):
+    import pickle
+
+    d = _copy_run(run_dir, tmp_path / "crafted")
+    marker = tmp_path / "pwned"
+    (d / "vecnormalize.pkl").write_bytes(pickle.dumps(_System(f"touch {marker}")))
+    with pytest.raises(ValueError, match=r"vecnormalize.pkl: refused to load (posix|os)\.system.*trust"):
+        policies.make(f"sb3:{d}", env)
+    assert not marker.exists()
+
+
+def test_crafted_model_zip_entry_is_refused_not_run(run_dir, tmp_path, env):
+    import base64
+    import pickle
+    import zipfile
+
+    d = _copy_run(run_dir, tmp_path / "crafted")
+    marker = tmp_path / "pwned"
+    with zipfile.ZipFile(run_dir / "model.zip") as zf:
+        entries = {name: zf.read(name) for name in zf.namelist()}
+    data = json.loads(entries["data"])
+    data["observation_space"][":serialized:"] = base64.b64encode(pickle.dumps(_System(f"touch {marker}"))).decode()
+    entries["data"] = json.dumps(data).encode()
+    with zipfile.ZipFile(d / "model.zip", "w") as zf:
+        for name, blob in entries.items():
+            zf.writestr(name, blob)
+    with pytest.raises(ValueError, match=r"entry 'observation_space': refused to load (posix|os)\.system"):
+        policies.make(f"sb3:{d}", env)
+    assert not marker.exists()
+
+
+def _pos_error_view(obs, keys):
+    obs = {**obs, "pos_error": obs["target_pos"] - obs["ee_pos"]}
+    return {k: obs[k] for k in keys}
+
+
+def test_shipped_agent_loads_with_the_restricted_unpickler(env):
+    """The packaged baseline reads through the restricted paths and acts exactly as SB3's own loaders."""
+    import pickle
+
+    from stable_baselines3 import SAC
+
+    policy = policies.make("sb3:sac-circle", env)
+    with open(policy.run_dir / "vecnormalize.pkl", "rb") as f:
+        vn = pickle.load(f)  # trusted here: the reference
+    obs, _ = env.reset(seed=10_002)
+    view = {k: np.asarray(v, dtype=np.float32) for k, v in _pos_error_view(obs, policy.obs_keys).items()}
+    ref = SAC.load(policy.path, device="cpu").predict(vn.normalize_obs(view), deterministic=True)
+    np.testing.assert_array_equal(policy.predict(obs)[0], ref[0])
+
+
+@pytest.mark.parametrize(
+    "name, content, match",
+    [
+        ("model.zip", b"not a zip", r"model.zip is not a Stable-Baselines3 model file"),
+        ("vecnormalize.pkl", b"\x80\x04garbage", r"vecnormalize.pkl is not a readable VecNormalize file"),
+        ("config.json", b"{not json", r"config.json is not a readable JSON file"),
+    ],
+)
+def test_corrupt_files_are_named_once(run_dir, tmp_path, env, name, content, match):
+    d = _copy_run(run_dir, tmp_path / "corrupt")
+    (d / name).write_bytes(content)
+    with pytest.raises(ValueError, match=match) as exc:
+        policies.make(f"sb3:{d}", env)
+    text = str(exc.value)
+    assert text.count("wasn't a zip") <= 1 and 'add "algo"' not in text
+
+
+def test_sb3_without_torch_names_the_extra(tmp_path):
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; sys.modules['torch'] = None\n"  # torch hidden: its import fails
+        "import gymnasium as gym, policies\n"
+        "env = gym.make('WheeledPuma-Circle-v0', dynamics='kinematic')\n"
+        "try:\n    policies.make('sb3:sac-circle', env)\n"
+        "except ImportError as exc:\n    print(exc)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert "need Stable-Baselines3 and torch, which are not installed here" in out.stdout, out.stderr
+    assert 'install them with pip install "mobman[rl]"' in out.stdout

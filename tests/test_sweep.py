@@ -116,7 +116,7 @@ def test_seed_forms_scalars_and_defaults(tmp_path):
         ("policies: []", ["policies is empty"]),
         ("env_kwargs: {model_error: 0.1}", ["env_kwargs sets ['model_error']", "sweep keys"]),
         ("env_kwargs: [1, 2]", ["env_kwargs must be a mapping"]),
-        ("tolerance: 0", ["tolerance must be a number > 0"]),
+        ("tolerance: 0", ["tolerance must be a finite number > 0"]),
         ("envs: [WheeledPuma-Circle-v0\n", ["not valid YAML"]),
     ],
 )

@@ -170,6 +170,86 @@ def test_cli_refuses_non_empty_out_and_bad_resume(tmp_path, capsys):
     assert "is not a run folder" in capsys.readouterr().err
 
 
+def test_hyperparameter_that_fails_in_sb3_is_refused_before_the_run_folder(tmp_path, capsys):
+    out = tmp_path / "run"
+    hp = tmp_path / "hp.json"
+    hp.write_text(json.dumps({"n_steps": -1}))
+    argv = [
+        "--algo",
+        "ppo",
+        "--out",
+        str(out),
+        "--hyperparams",
+        str(hp),
+        "--env-kwargs",
+        json.dumps({"path": SHORT_PATH}),
+    ]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "mobman-train: error: the hyperparameters of ppo" in err and "n_steps=-1" in err, err
+    assert "Traceback" not in err
+    assert not out.exists()  # so a corrected rerun is not refused
+
+
+def _fake_run_folder(tmp_path) -> Path:
+    from train.runfolder import CONFIG_SCHEMA
+
+    out = tmp_path / "run"
+    (out / "checkpoints").mkdir(parents=True)
+    cfg = TrainConfig(out=str(out), env_kwargs={**LEARNING_ENV_KWARGS, "path": SHORT_PATH})
+    (out / "config.json").write_text(json.dumps({"schema": CONFIG_SCHEMA, **cfg.to_dict()}))
+    entry = {"steps": 100, "model": "model_100_steps.zip", "vecnormalize": None, "replay_buffer": None}
+    (out / "checkpoints" / "latest.json").write_text(json.dumps(entry))
+    return out
+
+
+@pytest.mark.parametrize(
+    "damage, match",
+    [
+        ("config", r"config.json is not a readable JSON file"),
+        ("config_field", r"cannot resume from .*config.json: timesteps must be an integer >= 1"),
+        ("latest", r"checkpoints/latest.json is not a readable JSON file"),
+        ("latest_keys", r"checkpoints/latest.json is not a checkpoint index"),
+        ("checkpoint", r"names model file .*checkpoints/model_100_steps.zip, which is missing"),
+    ],
+)
+def test_resume_names_the_damaged_file(tmp_path, capsys, damage, match):
+    import re
+
+    out = _fake_run_folder(tmp_path)
+    if damage == "config":
+        (out / "config.json").write_text("{truncated")
+    elif damage == "config_field":
+        cfg = json.loads((out / "config.json").read_text())
+        (out / "config.json").write_text(json.dumps({**cfg, "timesteps": -5}))
+    elif damage == "latest":
+        (out / "checkpoints" / "latest.json").write_text("[1, 2")
+    elif damage == "latest_keys":
+        (out / "checkpoints" / "latest.json").write_text('{"steps": 100}')
+    assert main(["--resume", str(out), "--timesteps", "200"]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err), err
+    assert ".zip.zip" not in err and "Traceback" not in err
+
+
+def test_missing_stable_baselines3_names_the_extra(tmp_path):
+    code = "import sys; sys.modules['stable_baselines3'] = None\nimport train.cli\nsys.exit(train.cli.main(['--out', sys.argv[1]]))"
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "r")], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stderr
+    assert "mobman-train needs Stable-Baselines3 and torch" in out.stderr and 'pip install "mobman[rl]"' in out.stderr
+    assert "Traceback" not in out.stderr and not (tmp_path / "r").exists()
+
+
+def test_progress_bar_only_on_a_terminal(monkeypatch):
+    from train.cli import build_parser, config_from_args
+
+    parse = lambda *a: config_from_args(build_parser().parse_args(list(a)))
+    assert parse().progress_bar is False  # pytest's captured stderr is not a terminal
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    assert parse().progress_bar is True
+    assert parse("--no-progress").progress_bar is False and parse("--quiet").progress_bar is False
+
+
 def test_hyperparams_file_zoo_style(tmp_path):
     from train.cli import load_hyperparams
 

@@ -37,7 +37,12 @@ SB3; `run` does.
 * Torch runs with one thread (`torch_threads`).
 """
 
-from train.config import TrainConfig
+from mobman_env.packages import check_not_shadowed
+
+# a user's eval.py or policies.py beside their script would hide mobman's: say so before importing them
+check_not_shadowed(("policies", "eval"))
+
+from train.config import TrainConfig  # noqa: E402
 
 __all__ = ["TrainConfig", "resume", "run"]
 

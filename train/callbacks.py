@@ -5,13 +5,14 @@ from __future__ import annotations
 import csv
 import json
 import logging
-import os
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from stable_baselines3.common.callbacks import BaseCallback
+
+from eval.output.files import atomic_write_bytes, atomic_write_text
 
 log = logging.getLogger("train")
 
@@ -24,14 +25,6 @@ CURVE_FIELDS = (
     "max_max_error_m",
     "success_rate",
 )
-
-
-def atomic_write(path: Path, data: bytes | str) -> None:
-    """Write to a temporary name in the same folder, then rename (readers never see a half-written file)."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-    tmp.write_bytes(data.encode() if isinstance(data, str) else data)
-    os.replace(tmp, path)
 
 
 class CheckpointSaver(BaseCallback):
@@ -125,7 +118,7 @@ def read_curve(path: Path) -> list[dict]:
 def append_curve_row(path: Path, row: dict) -> None:
     rows = read_curve(path) + [row]
     lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
-    atomic_write(path, "\n".join(lines) + "\n")
+    atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def truncate_curve(path: Path, max_timesteps: int) -> None:
@@ -135,7 +128,7 @@ def truncate_curve(path: Path, max_timesteps: int) -> None:
     rows = [r for r in read_curve(path) if r["timesteps"] < max_timesteps]
     if Path(path).exists():
         lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
-        atomic_write(path, "\n".join(lines) + "\n")
+        atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def curve_figure(rows: list[dict], reference: dict | None = None, title: str = ""):
@@ -179,8 +172,9 @@ def write_curve_png(curve_csv: Path, png: Path, reference: dict | None, title: s
         return
     buf = io.BytesIO()
     curve_figure(rows, reference, title or Path(curve_csv).parent.name).savefig(buf, format="png")
-    atomic_write(png, buf.getvalue())
+    atomic_write_bytes(png, buf.getvalue())
 
 
 def write_json(path: Path, data: dict) -> None:
-    atomic_write(path, json.dumps(data, indent=2, sort_keys=True) + "\n")
+    """A run-folder JSON file (keys sorted), written atomically with eval's writer."""
+    atomic_write_text(path, json.dumps(data, indent=2, sort_keys=True) + "\n")

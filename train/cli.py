@@ -35,7 +35,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--algo", choices=algos.algo_names(), help=f"algorithm (default {d.algo})")
     p.add_argument("--env", dest="env_id", metavar="ID", help=f"env id (default {d.env_id})")
     p.add_argument("--timesteps", type=int, metavar="N", help=f"total env steps (default {d.timesteps})")
-    p.add_argument("--n-envs", type=int, metavar="K", help="parallel envs; SubprocVecEnv when > 1 (default 1)")
+    p.add_argument(
+        "--n-envs", type=int, metavar="K", help=f"parallel envs; SubprocVecEnv when > 1 (default {d.n_envs})"
+    )
     p.add_argument("--seed", type=int, metavar="S", help=f"training seed, a development seed 0-999 (default {d.seed})")
     p.add_argument("--out", metavar="DIR", help="run folder (default runs/train-<algo>-<task>-<timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out")
@@ -74,7 +76,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--torch-threads", type=int, metavar="T", help=f"torch threads (default {d.torch_threads})")
     p.add_argument("--device", help=f"torch device (default {d.device})")
     p.add_argument("--tensorboard", action="store_true", help="write TensorBoard logs to DIR/tensorboard")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-progress",
+        "--quiet",
+        action="store_true",
+        help="no progress bar (there is none either when stderr is not a terminal, e.g. in CI logs)",
+    )
     p.add_argument("--verbose", type=int, choices=(0, 1, 2), help="SB3 verbosity")
     p.add_argument("--resume", metavar="DIR", help="continue the run in DIR from its latest checkpoint")
     return p
@@ -130,7 +137,7 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             fields[name] = value
     fields["overwrite"] = args.overwrite
     fields["tensorboard"] = args.tensorboard
-    fields["progress_bar"] = not args.no_progress
+    fields["progress_bar"] = _progress(args)
     if args.env_kwargs is not None:
         try:
             extra = json.loads(args.env_kwargs)
@@ -147,9 +154,31 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
     return TrainConfig(**fields)
 
 
+def _progress(args: argparse.Namespace) -> bool:
+    """A progress bar unless --no-progress, and only on a terminal (a CI log would get one line per update)."""
+    return not args.no_progress and hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+
+
+def require_rl() -> None:
+    """Raise ValueError naming the extra to install when Stable-Baselines3 or torch is missing."""
+    try:
+        import stable_baselines3  # noqa: F401
+        import torch  # noqa: F401
+    except ImportError as exc:
+        raise ValueError(
+            f"mobman-train needs Stable-Baselines3 and torch, which are not installed here ({exc}); install "
+            f'them with pip install "mobman[rl]"'
+        ) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    try:
+        require_rl()
+    except ValueError as exc:
+        print(f"mobman-train: error: {exc}", file=sys.stderr)
+        return 2
     from train.run import TrainingInterrupted, resume, run
 
     try:
@@ -162,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
                     f"--resume takes its settings from the run's config.json; only --timesteps and "
                     f"--no-progress may be given with it, not {', '.join('--' + g.replace('_', '-') for g in given)}"
                 )
-            summary = resume(args.resume, timesteps=args.timesteps, progress_bar=False if args.no_progress else None)
+            summary = resume(args.resume, timesteps=args.timesteps, progress_bar=_progress(args))
         else:
             summary = run(config_from_args(args))
     except TrainingInterrupted as exc:

@@ -10,11 +10,11 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import json
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from eval.metrics import DEFAULT_TOLERANCE
+from mobman_env.validation import integer, number
 from train import algos
 from train.wrappers import check_wrappers
 
@@ -102,13 +102,14 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         algos.get(self.algo)
-        _check_int(self.timesteps, "timesteps", 1, "e.g. --timesteps 100000")
-        _check_int(self.n_envs, "n_envs", 1, "e.g. --n-envs 1")
-        _check_int(self.seed, "seed", 0, "use a development seed 0-999")
+        integer("timesteps", self.timesteps, low=1, hint="e.g. --timesteps 100000")
+        integer("n_envs", self.n_envs, low=1, hint="e.g. --n-envs 1")
+        integer("seed", self.seed, low=0, hint="use a development seed 0-999")
         for name in ("eval_freq", "eval_episodes", "final_eval_episodes", "checkpoint_freq", "final_eval_seed"):
-            _check_int(getattr(self, name), name, 0, "use 0 to disable")
-        _check_int(self.eval_seed, "eval_seed", 0, "use a development seed 0-999")
-        _check_int(self.torch_threads, "torch_threads", 1, "1 is best on a shared 2-core machine")
+            integer(name, getattr(self, name), low=0, hint="use 0 to disable")
+        integer("eval_seed", self.eval_seed, low=0, hint="use a development seed 0-999")
+        integer("torch_threads", self.torch_threads, low=1, hint="1 is best on a shared 2-core machine")
+        integer("verbose", self.verbose, low=0, high=2, hint="SB3 verbosity")
         if self.eval_freq and self.eval_seed + self.eval_episodes > DEV_SEED_END:
             raise ValueError(
                 f"periodic evaluation seeds {self.eval_seed}..{self.eval_seed + self.eval_episodes - 1} leave the "
@@ -126,12 +127,9 @@ class TrainConfig:
         if not isinstance(self.hyperparams, dict):
             raise ValueError(f"hyperparams must be a dict, got {self.hyperparams!r}")
         algos.resolve(self.algo, self.hyperparams)
-        if not (isinstance(self.alive_bonus, (int, float)) and math.isfinite(self.alive_bonus)):
-            raise ValueError(f"alive_bonus must be a finite number, got {self.alive_bonus!r}")
-        if not (isinstance(self.actor_out_scale, (int, float)) and self.actor_out_scale > 0):
-            raise ValueError(f"actor_out_scale must be a number > 0 (1: SB3's init), got {self.actor_out_scale!r}")
-        if not (isinstance(self.tolerance, (int, float)) and self.tolerance > 0):
-            raise ValueError(f"tolerance must be a number > 0 (m), got {self.tolerance!r}")
+        number("alive_bonus", self.alive_bonus, hint="reward per training step, e.g. 2.0")
+        number("actor_out_scale", self.actor_out_scale, low=0, open_low=True, hint="1: SB3's init")
+        number("tolerance", self.tolerance, low=0, open_low=True, hint="m, e.g. 0.006")
         object.__setattr__(self, "wrappers", tuple(self.wrappers))
         object.__setattr__(self, "obs_keys", tuple(self.obs_keys))
         check_wrappers(self.wrappers)
@@ -186,11 +184,6 @@ class TrainConfig:
 
     def replace(self, **changes: Any) -> TrainConfig:
         return dataclasses.replace(self, **changes)
-
-
-def _check_int(value: Any, name: str, minimum: int, hint: str) -> None:
-    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
-        raise ValueError(f"{name} must be an integer >= {minimum}, got {value!r} ({hint})")
 
 
 def _check_env_id(env_id: str) -> None:

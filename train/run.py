@@ -23,7 +23,6 @@ continues from the latest checkpoint up to `config.timesteps` (or a new total).
 from __future__ import annotations
 
 import functools
-import json
 import logging
 import signal
 import time
@@ -37,9 +36,11 @@ from train.callbacks import CheckpointSaver, PeriodicEval, read_curve, truncate_
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
 from train.runfolder import (
+    check_run_folder,
     latest_checkpoint,
     load_run_config,
-    prepare_out,
+    make_run_folder,
+    read_json_file,
     run_config_dict,
     save_checkpoint,
     save_final,
@@ -92,8 +93,11 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
     return venv
 
 
-def probe_envs(config: TrainConfig) -> None:
-    """Build the training and evaluation envs once and reset them, so bad env arguments fail before training."""
+def probe_envs(config: TrainConfig, build_model: bool = True) -> None:
+    """Build the training and evaluation envs once and reset them, and build the model once on the training
+    env, so bad env arguments and hyperparameters fail before anything is written."""
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
     for kwargs in (config.train_env_kwargs, config.eval_env_kwargs):
         try:
             env = _make_env(config.env_id, kwargs, config.wrappers, config.obs_keys, 0.0, False)
@@ -103,6 +107,21 @@ def probe_envs(config: TrainConfig) -> None:
             env.reset(seed=0)
         finally:
             env.close()
+    make = functools.partial(
+        _make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys, 0.0, False
+    )
+    if not build_model:
+        return
+    venv = DummyVecEnv([make] * config.n_envs)  # in this process: the model only reads the spaces and n_envs
+    try:
+        _build_model(config, _wrap_normalize(config, venv), None)
+    except Exception as exc:  # SB3 checks its arguments with asserts and TypeErrors deep inside the build
+        raise ValueError(
+            f"the hyperparameters of {config.algo} {config.resolved_hyperparams} do not build a model: "
+            f"{type(exc).__name__}: {exc}"
+        ) from None
+    finally:
+        venv.close()
 
 
 # --- evaluation hooks -------------------------------------------------------------------------------------
@@ -146,7 +165,7 @@ def final_evaluation(config: TrainConfig, out: Path) -> dict:
 
 
 # --- training ---------------------------------------------------------------------------------------------
-def _build_model(config: TrainConfig, venv: Any, out: Path) -> Any:
+def _build_model(config: TrainConfig, venv: Any, out: Path | None) -> Any:
     spec = algos.get(config.algo)
     kwargs = algos.build_kwargs(config.algo, config.resolved_hyperparams, venv.action_space.shape[0])
     model = spec.load_class()(
@@ -155,7 +174,7 @@ def _build_model(config: TrainConfig, venv: Any, out: Path) -> Any:
         seed=config.seed,
         device=config.device,
         verbose=config.verbose,
-        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+        tensorboard_log=str(out / "tensorboard") if config.tensorboard and out is not None else None,
         **kwargs,
     )
     if spec.off_policy and config.actor_out_scale != 1.0:
@@ -191,8 +210,9 @@ def _wrap_normalize(config: TrainConfig, venv: Any) -> Any:
     )
 
 
-def _prepare(config: TrainConfig) -> None:
-    """Every check that can fail before training: hyperparameter names, env arguments."""
+def _prepare(config: TrainConfig, build_model: bool = True) -> None:
+    """Every check that can fail before training: hyperparameter names, env arguments, and (new runs) that
+    the hyperparameters build a model."""
     algos.check_keys(config.algo, config.resolved_hyperparams)
     if config.tensorboard:
         import importlib.util
@@ -200,18 +220,22 @@ def _prepare(config: TrainConfig) -> None:
         if importlib.util.find_spec("tensorboard") is None:
             raise ValueError(
                 "--tensorboard needs the tensorboard package, which is not installed: "
-                "pip install tensorboard (or mobman[rl]), or drop --tensorboard"
+                'pip install tensorboard (or pip install "mobman[rl]"), or drop --tensorboard'
             )
-    probe_envs(config)
+    probe_envs(config, build_model=build_model)
 
 
 def run(config: TrainConfig) -> dict:
-    """Train `config.algo` on `config.env_id` into the run folder; return the summary (also `summary.json`)."""
+    """Train `config.algo` on `config.env_id` into the run folder; return the summary (also `summary.json`).
+
+    Everything that can be checked (arguments, envs, hyperparameters, a writable `out`) is checked before the
+    run folder is created."""
     import torch
     from stable_baselines3.common.vec_env import VecMonitor
 
+    out = check_run_folder(config)
     _prepare(config)
-    out = prepare_out(config)
+    out = make_run_folder(config, out)
     setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)
@@ -233,7 +257,7 @@ def run(config: TrainConfig) -> dict:
 def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool | None = None) -> dict:
     """Continue a run from its latest checkpoint up to `timesteps` (default: the run's own total)."""
     import torch
-    from stable_baselines3.common.vec_env import VecMonitor, VecNormalize
+    from stable_baselines3.common.vec_env import VecMonitor
 
     out = Path(run_dir)
     config = load_run_config(out)
@@ -251,38 +275,56 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
             f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
             f"--timesteps to train further"
         )
-    _prepare(config)
+    _prepare(config, build_model=False)
     setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)
     venv = VecMonitor(make_vec_env(config, seed_offset=ckpt["steps"]), str(out / f"monitor_{ckpt['steps']}.csv"))
+    model = load_checkpoint(config, ckpt, out, venv)
+    # SB3's load() re-seeds the env with the run's own seed (set_random_seed(seed) -> env.seed(seed)), which
+    # would replay the first session's episodes: seed the resumed session with seed + steps done instead
+    model.set_random_seed(config.seed + ckpt["steps"])
+    truncate_curve(out / "learning_curve.csv", ckpt["steps"])
+    log.info("resuming %s at %d steps, up to %d", out, ckpt["steps"], config.timesteps)
+    return _train(config, model, out, wall_offset=_wall_so_far(out))
+
+
+def load_checkpoint(config: TrainConfig, ckpt: dict, out: Path, venv: Any) -> Any:
+    """The model (with its normaliser and replay buffer) of checkpoint entry `ckpt` on `venv`."""
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    folder = out / "checkpoints"
     if ckpt["vecnormalize"]:
-        venv = VecNormalize.load(str(out / "checkpoints" / ckpt["vecnormalize"]), venv)
+        venv = VecNormalize.load(str(folder / ckpt["vecnormalize"]), venv)
         venv.training = True
-    spec = algos.get(config.algo)
-    model = spec.load_class().load(
-        out / "checkpoints" / ckpt["model"],
-        env=venv,
-        device=config.device,
-        tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+    model = (
+        algos.get(config.algo)
+        .load_class()
+        .load(
+            folder / ckpt["model"],
+            env=venv,
+            device=config.device,
+            tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+        )
     )
     if ckpt["replay_buffer"]:
-        model.load_replay_buffer(out / "checkpoints" / ckpt["replay_buffer"])
-    truncate_curve(out / "learning_curve.csv", ckpt["steps"])
-    # wall time so far: the last session's summary, or (if it never wrote one) the curve's last row
-    prev = json.loads((out / "summary.json").read_text()) if (out / "summary.json").exists() else {}
+        model.load_replay_buffer(folder / ckpt["replay_buffer"])
+    return model
+
+
+def _wall_so_far(out: Path) -> float:
+    """Wall time of the earlier sessions: the last session's summary, or (if it never wrote one) the
+    learning curve's last row."""
+    prev = read_json_file(out / "summary.json") if (out / "summary.json").exists() else {}
     curve = read_curve(out / "learning_curve.csv")
-    wall = float(prev.get("wall_s", curve[-1]["wall_s"] if curve else 0.0))
-    log.info("resuming %s at %d steps, up to %d", out, ckpt["steps"], config.timesteps)
-    return _train(config, model, out, wall_offset=wall)
+    return float(prev.get("wall_s", curve[-1]["wall_s"] if curve else 0.0))
 
 
 def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> dict:
-    from stable_baselines3.common.callbacks import CallbackList
-
+    """Learn up to `config.timesteps`, save, evaluate; the summary (also `summary.json`). Ctrl-C saves a
+    checkpoint and raises `TrainingInterrupted`."""
     from train.evaluation import evaluate
 
-    off_policy = algos.get(config.algo).off_policy
     reference = evaluate(
         config.env_id,
         config.eval_env_kwargs,
@@ -294,7 +336,32 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     )
     t0 = time.time()
     start_steps = int(model.num_timesteps)
-    callbacks = CallbackList(
+    status = _learn(config, model, out, _callbacks(config, out, reference, t0, wall_offset))
+    _save_after_learning(config, model, out, interrupted=(status == "interrupted"))
+    summary: dict[str, Any] = {
+        "status": status,
+        "timesteps": int(model.num_timesteps),
+        "wall_s": round(wall_offset + time.time() - t0, 1),
+        "run_dir": str(out),
+        "steps_per_s_this_session": round((model.num_timesteps - start_steps) / max(time.time() - t0, 1e-9), 1),
+    }
+    if status == "done":
+        if config.eval_freq:
+            _final_curve_point(config, out, model, reference, t0, wall_offset)
+        if config.final_eval_episodes:
+            summary.update(_final_evaluation_summary(config, out))
+    write_json(out / "summary.json", summary)
+    if status == "interrupted":
+        raise TrainingInterrupted(out, int(model.num_timesteps))
+    return summary
+
+
+def _callbacks(config: TrainConfig, out: Path, reference: dict, t0: float, wall_offset: float) -> Any:
+    """Checkpoints every `checkpoint_freq` steps and the periodic evaluation (learning curve, best model)."""
+    from stable_baselines3.common.callbacks import CallbackList
+
+    off_policy = algos.get(config.algo).off_policy
+    return CallbackList(
         [
             CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
             PeriodicEval(
@@ -309,12 +376,15 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
             ),
         ]
     )
+
+
+def _learn(config: TrainConfig, model: Any, out: Path, callbacks: Any) -> str:
+    """`model.learn` up to `config.timesteps`: "done", or "interrupted" after Ctrl-C."""
     if not config.tensorboard:
         # SB3 would otherwise create an empty /tmp/SB3-<date> folder for its logger on every learn()
         from stable_baselines3.common.logger import configure
 
         model.set_logger(configure(str(out), ["stdout", "csv"] if config.verbose else ["csv"]))
-    status = "done"
     try:
         model.learn(
             total_timesteps=config.timesteps - model.num_timesteps,
@@ -324,82 +394,73 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
             tb_log_name=config.algo,
         )
     except KeyboardInterrupt:
-        status = "interrupted"
         log.info("Ctrl-C at %d steps: saving", model.num_timesteps)
+        return "interrupted"
+    return "done"
+
+
+def _save_after_learning(config: TrainConfig, model: Any, out: Path, interrupted: bool) -> None:
+    """A checkpoint at the last step (unless there is one) and the final model; then close the envs."""
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not corrupt the save
     try:
         latest = latest_checkpoint(out)
         if latest is None or latest["steps"] != model.num_timesteps:
-            save_checkpoint(model, out, off_policy)
+            save_checkpoint(model, out, algos.get(config.algo).off_policy)
         save_final(model, out)
     finally:
         signal.signal(signal.SIGINT, previous)
-        close_vec_env(model.get_env(), interrupted=(status == "interrupted"))
-    wall = wall_offset + time.time() - t0
-    summary: dict[str, Any] = {
-        "status": status,
-        "timesteps": int(model.num_timesteps),
-        "wall_s": round(wall, 1),
-        "run_dir": str(out),
-        "steps_per_s_this_session": round((model.num_timesteps - start_steps) / max(time.time() - t0, 1e-9), 1),
-    }
-    if status == "done":
-        if config.eval_freq:
-            _final_curve_point(config, out, model, reference, t0, wall_offset)
-        fe = None
-        if config.final_eval_episodes:
-            try:
-                fe = final_evaluation(config, out)
-            except Exception:  # the model is saved: report, do not lose the run
-                import traceback
+        close_vec_env(model.get_env(), interrupted=interrupted)
 
-                from train.evaluation import eval_command, eval_config
 
-                cmd = eval_command(
-                    eval_config(
-                        config.env_id,
-                        config.eval_env_kwargs,
-                        [out / "model.zip"],
-                        out / "final_eval",
-                        config.final_eval_seed,
-                        config.final_eval_episodes,
-                        config.tolerance,
-                    )
-                )
-                summary["final_eval_error"] = traceback.format_exc()
-                log.error(
-                    "final evaluation failed (the model is saved); rerun it with:\n  %s\n%s",
-                    cmd,
-                    summary["final_eval_error"],
-                )
-        if fe is not None:
-            summary["final_eval"] = {
-                **{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
-                "first_seed": fe["first_seed"],
-                "episodes": fe["episodes"],
-                "eval_command": fe["eval_command"],
-            }
-            log.info(
-                "final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, success %.0f%%",
-                fe["first_seed"],
-                fe["first_seed"] + fe["episodes"] - 1,
-                config.dynamics,
-                1e3 * fe["agent"]["median_rms_error_m"],
-                1e3 * fe["zero"]["median_rms_error_m"],
-                1e3 * fe["agent"]["median_max_error_m"],
-                100 * fe["agent"]["success_rate"],
+def _final_evaluation_summary(config: TrainConfig, out: Path) -> dict:
+    """Run the final evaluation; its summary entry, or "final_eval_error" (the model is saved: a failed
+    evaluation is reported with the command that reruns it, never loses the run)."""
+    try:
+        fe = final_evaluation(config, out)
+    except Exception:
+        import traceback
+
+        from train.evaluation import eval_command, eval_config
+
+        cmd = eval_command(
+            eval_config(
+                config.env_id,
+                config.eval_env_kwargs,
+                [out / "model.zip"],
+                out / "final_eval",
+                config.final_eval_seed,
+                config.final_eval_episodes,
+                config.tolerance,
             )
-            if "best" in fe:
-                log.info(
-                    "final eval of best/ (dev-seed selection): median RMS %.1f mm, median max %.1f mm, success %.0f%%",
-                    1e3 * fe["best"]["median_rms_error_m"],
-                    1e3 * fe["best"]["median_max_error_m"],
-                    100 * fe["best"]["success_rate"],
-                )
-    write_json(out / "summary.json", summary)
-    if status == "interrupted":
-        raise TrainingInterrupted(out, int(model.num_timesteps))
-    return summary
+        )
+        error = traceback.format_exc()
+        log.error("final evaluation failed (the model is saved); rerun it with:\n  %s\n%s", cmd, error)
+        return {"final_eval_error": error}
+    log.info(
+        "final eval (seeds %d..%d, %s): median RMS %.1f mm (zero %.1f mm), median max %.1f mm, success %.0f%%",
+        fe["first_seed"],
+        fe["first_seed"] + fe["episodes"] - 1,
+        config.dynamics,
+        1e3 * fe["agent"]["median_rms_error_m"],
+        1e3 * fe["zero"]["median_rms_error_m"],
+        1e3 * fe["agent"]["median_max_error_m"],
+        100 * fe["agent"]["success_rate"],
+    )
+    if "best" in fe:
+        log.info(
+            "final eval of best/ (dev-seed selection): median RMS %.1f mm, median max %.1f mm, success %.0f%%",
+            1e3 * fe["best"]["median_rms_error_m"],
+            1e3 * fe["best"]["median_max_error_m"],
+            100 * fe["best"]["success_rate"],
+        )
+    return {
+        "final_eval": {
+            **{k: _drop_episodes(fe[k]) for k in ("agent", "best", "zero") if k in fe},
+            "first_seed": fe["first_seed"],
+            "episodes": fe["episodes"],
+            "eval_command": fe["eval_command"],
+        }
+    }
 
 
 def close_vec_env(venv: Any, interrupted: bool) -> None:

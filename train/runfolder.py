@@ -6,12 +6,10 @@ import json
 import logging
 import os
 import sys
-from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
 
-import gymnasium as gym
-
+from eval.output.provenance import versions
 from train.callbacks import write_json
 from train.config import TrainConfig
 
@@ -19,37 +17,27 @@ log = logging.getLogger("train")
 CONFIG_SCHEMA = 1
 
 
-def default_out(config: TrainConfig) -> Path:
+def check_run_folder(config: TrainConfig) -> Path:
+    """The run folder `config.out` (or the default `runs/train-<algo>-<task>-<UTC date-time>`), checked before
+    anything is written: not a file, empty unless `overwrite`, writable (eval's `check_out`)."""
+    from eval.output.files import check_out, resolve_out
+
     task = config.env_id.split("-")[1].lower() if "-" in config.env_id else config.env_id
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
-    return Path("runs") / f"train-{config.algo}-{task}-{stamp}"
-
-
-def prepare_out(config: TrainConfig) -> Path:
-    out = Path(config.out) if config.out else default_out(config)
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out} exists and is not a folder; choose another --out")
+    out = resolve_out(config.out, f"train-{config.algo}-{task}")
     if out.is_dir() and any(out.iterdir()) and not config.overwrite:
         raise ValueError(
             f"--out {out} exists and is not empty; pass --overwrite, choose another --out, or "
             f"continue it with --resume {out}"
         )
-    out.mkdir(parents=True, exist_ok=True)
+    check_out(out, config.overwrite)
     return out
 
 
-def versions() -> dict:
-    import numpy
-    import stable_baselines3
-    import torch
+def make_run_folder(config: TrainConfig, out: Path) -> Path:
+    """Create the checked run folder; a default name is created exclusively (two runs never share one)."""
+    from eval.output.files import make_out
 
-    return {
-        "python": sys.version.split()[0],
-        "stable_baselines3": stable_baselines3.__version__,
-        "torch": torch.__version__,
-        "gymnasium": gym.__version__,
-        "numpy": numpy.__version__,
-    }
+    return make_out(out, exclusive=not config.out)
 
 
 def run_config_dict(config: TrainConfig) -> dict:
@@ -60,20 +48,55 @@ def run_config_dict(config: TrainConfig) -> dict:
         "hyperparams_resolved": config.resolved_hyperparams,
         "env_make_kwargs": config.train_env_kwargs,
         "eval_env_kwargs": config.eval_env_kwargs,
-        "versions": versions(),
+        "versions": versions(),  # eval's provenance: python, mobman, numpy, gymnasium, pybullet, SB3, torch
     }
 
 
+def read_json_file(path: Path) -> dict:
+    """A JSON object from a run folder's file; ValueError naming the file when it is not one."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} must hold a JSON object, got {type(data).__name__}")
+    return data
+
+
 def load_run_config(run_dir: Path | str) -> TrainConfig:
+    """The TrainConfig of a run folder's config.json (errors name the file)."""
     path = Path(run_dir) / "config.json"
     if not path.exists():
         raise ValueError(f"{run_dir} is not a run folder (no config.json); pass the --out folder of a mobman-train run")
-    return TrainConfig.from_dict(json.loads(path.read_text()), ignore_extra=True)
+    try:
+        return TrainConfig.from_dict(read_json_file(path), ignore_extra=True)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"cannot resume from {path}: {exc}") from None
+
+
+#: Keys of checkpoints/latest.json: step count and the file names (None: not saved) inside checkpoints/.
+CHECKPOINT_KEYS = ("steps", "model", "vecnormalize", "replay_buffer")
 
 
 def latest_checkpoint(run_dir: Path) -> dict | None:
-    path = Path(run_dir) / "checkpoints" / "latest.json"
-    return json.loads(path.read_text()) if path.exists() else None
+    """checkpoints/latest.json (None without one), checked: its keys, and that the files it names exist."""
+    folder = Path(run_dir) / "checkpoints"
+    path = folder / "latest.json"
+    if not path.exists():
+        return None
+    entry = read_json_file(path)
+    missing = [k for k in CHECKPOINT_KEYS if k not in entry]
+    if missing or isinstance(entry["steps"], bool) or not isinstance(entry["steps"], int):
+        raise ValueError(
+            f"{path} is not a checkpoint index (keys {list(CHECKPOINT_KEYS)}, an integer 'steps'); got {entry}"
+        )
+    for key in ("model", "vecnormalize", "replay_buffer"):
+        name = entry[key]
+        if name is not None and not (folder / str(name)).is_file():
+            raise ValueError(
+                f"{path} names {key} file {folder / str(name)}, which is missing; restore it, or start a new run"
+            )
+    return entry
 
 
 def setup_logging(out: Path, verbose: bool = True) -> None:

@@ -21,11 +21,19 @@ from __future__ import annotations
 import argparse
 import sys
 
-from eval.cli import bench, paper, run, speed, sweep
-from eval.errors import EvalError
+from eval.errors import EvalError, RunInterrupted
 from mobman_env import __version__
+from mobman_env.packages import shadowing_message
 
-SUBCOMMANDS = {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed}
+#: the subcommands, each a module of this package with add_parser(sub) and main(args)
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed")
+
+
+def _subcommands() -> dict:
+    """The subcommand modules, imported only after the shadowing check (they import policies)."""
+    from eval.cli import bench, paper, run, speed, sweep
+
+    return {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -33,19 +41,36 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="{" + ",".join(SUBCOMMANDS) + "}")
     sub.required = True
-    for module in SUBCOMMANDS.values():
+    for module in _subcommands().values():
         module.add_parser(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Parse `argv` and run the subcommand. Exit codes: 0 done, 2 bad input (before any rollout), 130
+    interrupted by Ctrl-C (what finished is written)."""
+    message = shadowing_message(("mobman_env", "policies", "eval"))
+    if message is not None:  # before anything imports the hidden package
+        print(f"mobman-eval: error: {message}", file=sys.stderr)
+        return 2
+    from eval.cli.common import reserve_stdout, working_directory_importable
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    if argv is None and getattr(args, "stdout_format", "table") != "table" and not getattr(args, "quiet", False):
+        reserve_stdout()  # a command line piping data: native output (PyBullet, Ray) goes to stderr
     try:
-        return SUBCOMMANDS[args.command].main(args)
+        working_directory_importable()
+        return _subcommands()[args.command].main(args)
     except EvalError as exc:
         print(f"mobman-eval {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except RunInterrupted as exc:
+        print(f"\nmobman-eval {args.command}: {exc}", file=sys.stderr)
+        return 130
+    except KeyboardInterrupt:
+        print(f"\nmobman-eval {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -6,9 +6,30 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import os
+import sys
 from typing import Any
 
 from eval.config import BACKEND_CHOICES, EvalConfig
+
+
+def reserve_stdout() -> None:
+    """Keep stdout for this process's results: Python's `sys.stdout` gets its own copy of file descriptor 1,
+    and descriptor 1 itself is pointed at stderr, so whatever native code writes there (PyBullet's build-time
+    banner, Ray) cannot end up inside piped JSON or CSV."""
+    sys.stdout.flush()
+    fd = os.dup(1)
+    os.dup2(2, 1)
+    sys.stdout = open(fd, "w", encoding=sys.stdout.encoding or "utf-8", closefd=True)  # noqa: SIM115
+
+
+def working_directory_importable() -> None:
+    """Put the working directory at the end of `sys.path`, so `--policy mymod:MyCtrl` imports the `mymod.py`
+    of the folder the command runs in (console scripts do not put it on sys.path; `python -m eval` does). At the
+    end, a file there never hides an installed package. Spawned workers inherit sys.path."""
+    cwd = os.getcwd()
+    if not any(os.path.realpath(p or os.curdir) == os.path.realpath(cwd) for p in sys.path):
+        sys.path.append(cwd)
 
 
 def default(cls: Any, name: str) -> Any:
@@ -19,6 +40,16 @@ def default(cls: Any, name: str) -> Any:
     if f.default_factory is not dataclasses.MISSING:
         return f.default_factory()
     raise KeyError(f"{cls.__name__}.{name} has no default")
+
+
+def param_default(func: Any, name: str) -> Any:
+    """The default of parameter `name` of `func` (for subcommands whose library entry is a function)."""
+    import inspect
+
+    value = inspect.signature(func).parameters[name].default
+    if value is inspect.Parameter.empty:
+        raise KeyError(f"{func.__name__}({name}) has no default")
+    return value
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -35,7 +66,15 @@ def policy_help() -> str:
     """Every policy spec the registry knows, with its one-line description (no list is written twice)."""
     from policies.registry import KNOWN_POLICIES, SPEC_FORMS
 
-    return "; ".join(f"{k}: {v}" for k, v in {**KNOWN_POLICIES, **SPEC_FORMS}.items())
+    return "; ".join(f"{k}: {v}" for k, v in {**KNOWN_POLICIES, **SPEC_FORMS}.items()) + f". {TRUST_NOTE}"
+
+
+#: The --help note on loading agents (model files hold pickles).
+TRUST_NOTE = (
+    "Load only agents you trust: sb3: model.zip and vecnormalize.pkl hold pickles (mobman reads them with a "
+    "restricted unpickler, which narrows but does not sandbox what a crafted file can do), and module:attr runs "
+    "the module's code"
+)
 
 
 def env_kwargs_arg(text: str) -> dict:

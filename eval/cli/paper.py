@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from eval import paper
-from eval.cli.common import HelpFormatter
+from eval.cli.common import HelpFormatter, param_default
 
 
 def add_parser(sub) -> None:
@@ -15,10 +15,18 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--out", default=None, help="output directory (default: runs/paper-<UTC timestamp>)")
     p.add_argument(
-        "--seeds", type=int, default=20, help=f"reported seeds ({paper.PAPER_SEED}, {paper.PAPER_SEED + 1}, ...)"
+        "--seeds",
+        type=int,
+        default=param_default(paper.reproduce, "seeds"),
+        help=f"reported seeds ({paper.PAPER_SEED}, {paper.PAPER_SEED + 1}, ...)",
     )
-    p.add_argument("--dynamics", choices=tuple(paper.DYNAMICS_ARG), default="both", help="dynamics mode(s)")
-    p.add_argument("--workers", type=int, default=2, help="worker processes")
+    p.add_argument(
+        "--dynamics",
+        choices=tuple(paper.DYNAMICS_ARG),
+        default=param_default(paper.reproduce, "dynamics"),
+        help="dynamics mode(s)",
+    )
+    p.add_argument("--workers", type=int, default=param_default(paper.reproduce, "workers"), help="worker processes")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     p.add_argument("--video", action="store_true", help="also write videos of seed 10000 (slow)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")

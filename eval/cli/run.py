@@ -4,8 +4,14 @@ from __future__ import annotations
 
 import sys
 
-from eval.cli.common import HelpFormatter, add_backend_arguments, default, env_kwargs_arg, policy_help
-from eval.config import DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, EvalConfig
+from eval.cli.common import (
+    HelpFormatter,
+    add_backend_arguments,
+    default,
+    env_kwargs_arg,
+    policy_help,
+)
+from eval.config import DYNAMICS_CHOICES, SAVE_ARRAYS_CHOICES, STDOUT_FORMATS, EvalConfig
 from eval.runner import run
 
 
@@ -85,7 +91,16 @@ def add_parser(sub) -> None:
         help="per-step arrays in episodes.npz: episode 0 of each condition (first), every episode (all: "
         "about 0.3 MB of memory per 20 s episode until the end of the run), or none",
     )
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
+    p.add_argument(
+        "--format",
+        dest="stdout_format",
+        choices=STDOUT_FORMATS,
+        default=default(EvalConfig, "stdout_format"),
+        help="what is printed on stdout at the end: a console table, or the content of summary.md (markdown), "
+        "results.json (json) or results.csv (csv), e.g. to pipe it; the files are written in any case and "
+        "progress goes to stderr",
+    )
+    p.add_argument("--quiet", action="store_true", help="no progress bar and nothing on stdout")
 
 
 def main(args) -> int:
@@ -109,6 +124,7 @@ def main(args) -> int:
         plots=not args.no_plots,
         save_arrays=args.save_arrays,
         progress=not args.quiet,
+        stdout_format=args.stdout_format,
     )
     result = run(config)
     n_failed = sum(r["status"] != "ok" for r in result.episodes)

@@ -4,25 +4,26 @@ from __future__ import annotations
 
 import argparse
 import sys
-from datetime import datetime, timezone
-from pathlib import Path
 
 from eval import speed
-from eval.cli.common import HelpFormatter
+from eval.cli.common import TRUST_NOTE, HelpFormatter, param_default
 from eval.errors import EvalError
-from eval.output.files import atomic_write_json, check_out
+from eval.output.files import atomic_write_json, check_out, make_out, resolve_out
+from mobman_env.validation import integer
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--steps", type=int, default=4000, help="control steps per timed block")
-    p.add_argument("--repeats", type=int, default=3, help="repeats per timed block (the best is reported)")
-    p.add_argument("--episodes", type=int, default=8, help="20 s episodes per workers setting")
+    d = lambda name: param_default(speed.measure, name)
+    p.add_argument("--steps", type=int, default=d("steps"), help="control steps per timed block")
+    p.add_argument("--repeats", type=int, default=d("repeats"), help="repeats per timed block (the best is reported)")
+    p.add_argument("--episodes", type=int, default=d("episodes"), help="20 s episodes per workers setting")
     p.add_argument(
         "--policy",
         action="append",
         dest="policies",
         metavar="SPEC",
-        help="policies whose predict is timed (default: every built-in name)",
+        help=f"policies whose predict is timed (default: every built-in name); each is built first, an unknown "
+        f"one stops the benchmark before it starts. {TRUST_NOTE}",
     )
     p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
@@ -41,10 +42,11 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     for name in ("steps", "repeats", "episodes"):
-        if getattr(args, name) < 1:
-            raise EvalError(f"--{name} must be an integer >= 1, got {getattr(args, name)}")
-    out = Path(args.out) if args.out else Path("runs") / f"speed-{datetime.now(timezone.utc):%Y%m%d-%H%M%S}"
+        integer(f"--{name}", getattr(args, name), low=1, error=EvalError)
+    out = resolve_out(args.out, "speed")
     check_out(out, args.overwrite)
+    speed.check_policies(args.policies)
+    out = make_out(out, exclusive=not args.out)
     say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     res = speed.measure(args.steps, args.repeats, args.episodes, args.policies, progress=say)
     atomic_write_json(out / "speed.json", res)

@@ -5,13 +5,16 @@ from __future__ import annotations
 
 import os
 import pickle
+import signal
+import threading
 
 from eval.config import EvalConfig
-from eval.execution.tasks import Executor, Task, failed_record, keep_arrays
+from eval.execution.tasks import ExecutionInterrupted, Executor, Task, failed_record, keep_arrays
 
 
 def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out) -> None:
     """Entry point of one worker process: run `tasks` in order, send each result through the pipe `out`."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent stops us
     user = pickle.loads(user_bytes) if user_bytes else {}
     ex = Executor(config, user)
     try:
@@ -45,9 +48,21 @@ def execute_local(
             for task in tasks:
                 rec, arr = ex.run(task)
                 take(task.index, rec, arr if keep_arrays(config, task) else None)
+        except KeyboardInterrupt:
+            raise ExecutionInterrupted(records, arrays) from None
         finally:
             ex.close()
         return records, arrays
+    _execute_workers(config, user_bytes, tasks, n_workers, records, arrays, take)
+    return records, arrays
+
+
+def _execute_workers(
+    config: EvalConfig, user_bytes, tasks: list[Task], n_workers: int, records: dict, arrays: dict, take
+) -> None:
+    """The tasks dealt round-robin to `n_workers` spawned processes. The workers ignore SIGINT (they are
+    spawned with it ignored): on Ctrl-C this process takes what they sent, terminates them and raises
+    `ExecutionInterrupted`."""
 
     import multiprocessing as mp
     from multiprocessing.connection import wait
@@ -56,7 +71,7 @@ def execute_local(
     ctx = mp.get_context("spawn")
     shares = [tasks[i::n_workers] for i in range(n_workers)]
     readers, procs = [], []
-    with _single_threaded_children():
+    with _single_threaded_children(), _sigint_ignored():
         for i in range(n_workers):
             r, w = ctx.Pipe(duplex=False)
             p = ctx.Process(
@@ -80,20 +95,23 @@ def execute_local(
                     _read_available(readers[i], take)
                     procs[i].join()
                     active.discard(i)
+                    message = (
+                        f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error is on "
+                        f"stderr; a script that calls eval.run with workers > 1 needs an "
+                        f"`if __name__ == '__main__':` guard)"
+                    )
                     for t in shares[i]:
                         if t.index not in records:
-                            take(
-                                t.index,
-                                failed_record(
-                                    t,
-                                    (
-                                        f"worker process {procs[i].pid} died with exit code {procs[i].exitcode} (its error "
-                                        f"is on stderr; a script that calls eval.run with workers > 1 needs an "
-                                        f"`if __name__ == '__main__':` guard)"
-                                    ),
-                                ),
-                                None,
-                            )
+                            take(t.index, failed_record(t, message), None)
+    except KeyboardInterrupt:
+        with _sigint_ignored():
+            for i in active:  # what was sent before Ctrl-C is kept
+                _read_available(readers[i], take)
+            for p in procs:
+                p.terminate()
+            for p in procs:
+                p.join(timeout=5)
+        raise ExecutionInterrupted(records, arrays) from None
     finally:
         for p in procs:
             p.join(timeout=10)
@@ -104,7 +122,6 @@ def execute_local(
     for t in tasks:  # a worker that stopped early (it reports its own error on stderr)
         if t.index not in records:
             take(t.index, failed_record(t, "the worker process stopped before running this episode"), None)
-    return records, arrays
 
 
 #: Thread-pool sizes for worker processes: one process per core is the parallelism; BLAS / OpenMP thread pools
@@ -126,6 +143,19 @@ class _single_threaded_children:
                 os.environ.pop(k, None)
             else:
                 os.environ[k] = v
+
+
+class _sigint_ignored:
+    """Ignore SIGINT inside the block (processes spawned in it start with SIGINT ignored); main thread only."""
+
+    def __enter__(self):
+        self._main = threading.current_thread() is threading.main_thread()
+        if self._main:
+            self._previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    def __exit__(self, *exc):
+        if self._main:
+            signal.signal(signal.SIGINT, self._previous)
 
 
 def _read_available(conn, take) -> bool:

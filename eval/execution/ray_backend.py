@@ -16,7 +16,11 @@
   used as it is and left running. Otherwise the run connects to `address` (`"auto"` on a node of a cluster
   started with `ray start --head`; `"HOST:6379"`; `"ray://HOST:10001"` for Ray Client) or, without an
   address, starts a local instance with `num_cpus = workers` (no dashboard, a 128 MiB object store, worker
-  output not forwarded: tracebacks are in the records), and shuts it down at the end. Each task asks for one
+  output not forwarded: tracebacks are in the records), and shuts it down at the end. That instance's
+  servers listen on all network interfaces while it runs (Ray 2.60: its GCS, raylet and worker gRPC ports
+  bind `*`, and `ray.init(_node_ip_address="127.0.0.1")` is rewritten to the node's address by Ray
+  itself, so it cannot be confined to the loopback interface from here): on a machine reachable from an
+  untrusted network, use `--backend local` or a firewall. Each task asks for one
   CPU; Ray sets `OMP_NUM_THREADS=1` in its workers.
 * **Policy objects** given to `eval.run(config, policies={name: obj})` travel to the workers pickled (with
   Ray's cloudpickle, so classes defined in a script or a function work too); an object that cannot be pickled
@@ -24,7 +28,9 @@
   built in the workers: on a cluster, mobman, the user's modules and model files must be available on every
   node (installed, or shipped with a Ray `runtime_env` given to your own `ray.init`).
 
-Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`.
+Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`; an
+`--address HOST:PORT` (or `ray://HOST:PORT`) that refuses a TCP connection, or does not take one within
+`CONNECT_TIMEOUT_S` (10 s), is refused before any rollout too (Ray's own connection attempts retry for minutes).
 """
 
 from __future__ import annotations
@@ -40,7 +46,7 @@ from typing import Any
 
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.execution.tasks import Executor, Task, failed_record, keep_arrays
+from eval.execution.tasks import ExecutionInterrupted, Executor, Task, failed_record, keep_arrays
 
 #: Ray re-runs a task once when its worker dies or it raises outside the episode; then it is recorded failed.
 MAX_RETRIES = 1
@@ -136,6 +142,36 @@ def local_runtime_env() -> dict[str, Any]:
     return {"env_vars": {"PYTHONPATH": os.pathsep.join(extra)}} if extra else {}
 
 
+#: How long a run waits for the TCP connection to a `--address HOST:PORT` before it gives up, s (a refused
+#: port fails at once; Ray itself would retry for minutes).
+CONNECT_TIMEOUT_S = 10.0
+
+
+def check_address(address: str | None, timeout: float = CONNECT_TIMEOUT_S) -> None:
+    """Raise `EvalError` within `timeout` s if `address` ("HOST:PORT" or "ray://HOST:PORT") takes no TCP
+    connection. "auto" and None are left to Ray (it reads the address of the cluster on this node)."""
+    if address is None or address == "auto":
+        return
+    text = address[len("ray://") :] if address.startswith("ray://") else address
+    host, sep, port_text = text.rpartition(":")
+    if not sep or not port_text.isdigit() or not host:
+        raise EvalError(
+            f"--address {address!r} is not HOST:PORT, ray://HOST:PORT or auto; e.g. --address 10.0.0.5:6379"
+        )
+    import socket
+
+    try:
+        with socket.create_connection((host.strip("[]"), int(port_text)), timeout=timeout):
+            pass
+    except OSError as exc:
+        reason = "no answer" if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise EvalError(
+            f"cannot reach the Ray cluster at --address {address!r} ({reason} within {timeout:g} s). Start it "
+            f"with `ray start --head` on the head node, check the host and port (the head prints them), or use "
+            f"--address auto on a node of the cluster, or drop --address for a local Ray instance"
+        ) from None
+
+
 def init_kwargs(config: EvalConfig) -> dict[str, Any]:
     """Arguments of `ray.init` for a run that starts (no address) or joins (address) Ray itself."""
     common = {"log_to_driver": False, "logging_level": logging.ERROR}
@@ -199,6 +235,14 @@ def execute_ray(
     arrays: dict[int, dict] = {}
     if not tasks:
         return records, arrays
+    try:
+        _run_on_ray(config, user_bytes, tasks, records, arrays, on_result)
+    except KeyboardInterrupt:  # the pending tasks are cancelled and the instance started for the run shut down
+        raise ExecutionInterrupted(records, arrays) from None
+    return records, arrays
+
+
+def _run_on_ray(config: EvalConfig, user_bytes, tasks: list[Task], records: dict, arrays: dict, on_result) -> None:
     with ray_session(config) as ray:
         remote = _remote_task()
         cfg_ref = ray.put(config)
@@ -222,4 +266,3 @@ def execute_ray(
             for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
                 with contextlib.suppress(Exception):
                     ray.cancel(ref, force=True)
-    return records, arrays

@@ -71,7 +71,9 @@ class Executor:
         try:
             env = self.env(task)
             pol = self.policy(task)
-        except Exception:
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # SystemExit from a user's constructor too: a failed episode, not a stopped run
             import traceback
 
             rec = {
@@ -106,8 +108,9 @@ def keep_arrays(config: EvalConfig, task: Task) -> bool:
     return task.episode == 0 or config.save_arrays == "all"
 
 
-def failed_record(task: Task, message: str) -> dict:
-    """The record of an episode that produced no result (its worker process died, its Ray task failed)."""
+def failed_record(task: Task, message: str, status: str = "failed") -> dict:
+    """The record of an episode that produced no result (its worker process died, its Ray task failed; with
+    status "interrupted": it never ran because the run was stopped)."""
     return {
         "env": task.env,
         "policy": task.policy,
@@ -116,12 +119,31 @@ def failed_record(task: Task, message: str) -> dict:
         "dynamics": task.dynamics,
         "model_error": task.model_error,
         "obs_noise": task.obs_noise,
-        "status": "failed",
+        "status": status,
         "error": message,
         "success": False,
         "wall_s": None,
         "pid": None,
     }
+
+
+#: The error text of an episode that did not finish because the run was interrupted.
+INTERRUPTED_TEXT = "not run: the run was interrupted (Ctrl-C) before this episode finished"
+
+
+def interrupted_record(task: Task) -> dict:
+    """The record of an episode cut short or never started by Ctrl-C (status "interrupted")."""
+    return failed_record(task, INTERRUPTED_TEXT, status="interrupted")
+
+
+class ExecutionInterrupted(KeyboardInterrupt):
+    """Ctrl-C while tasks ran; `records` and `arrays` ({index: ...}) hold the episodes that finished, and the
+    worker processes are already stopped."""
+
+    def __init__(self, records: dict[int, dict], arrays: dict[int, dict]):
+        super().__init__("interrupted")
+        self.records = records
+        self.arrays = arrays
 
 
 def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:

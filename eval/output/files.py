@@ -7,11 +7,14 @@ half-written file and never destroys the previous version of a file before the n
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import math
 import os
+import signal
 import tempfile
+import threading
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any
@@ -21,13 +24,30 @@ import numpy as np
 from eval.errors import EvalError
 
 
+def current_umask() -> int:
+    """The process's umask, read without changing it (Linux: /proc/self/status; elsewhere set and restored)."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write `data` to `path` through a temporary file in the same folder and `os.replace`; the file gets the
+    mode a plain `open(path, "w")` would give it (0666 minus the umask), not mkstemp's 0600."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+            os.fchmod(f.fileno(), 0o666 & ~current_umask())
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
@@ -39,8 +59,13 @@ def atomic_write_text(path: Path, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
 
 
+def json_text(data: Any) -> str:
+    """The text of a JSON file written by eval: plain data (`to_jsonable`), indented, NaN/inf as null."""
+    return json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n"
+
+
 def atomic_write_json(path: Path, data: Any) -> None:
-    atomic_write_text(path, json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n")
+    atomic_write_text(path, json_text(data))
 
 
 def atomic_save_figure(fig, path: Path, dpi: int = 110) -> None:
@@ -81,19 +106,94 @@ def slug(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "-" for c in text)
 
 
-def check_out(out: Path, overwrite: bool) -> None:
+class sigint_deferred:
+    """Ignore Ctrl-C while the block runs (a report being written is finished, not cut short); a Ctrl-C that
+    came meanwhile is raised as KeyboardInterrupt at the end (with `reraise`). Main thread only (elsewhere: no
+    effect)."""
+
+    def __init__(self, reraise: bool = True) -> None:
+        self.reraise = reraise
+
+    def __enter__(self) -> None:
+        self._main = threading.current_thread() is threading.main_thread()
+        self._got: list[int] = []
+        if self._main:
+            self._previous = signal.signal(signal.SIGINT, lambda signum, frame: self._got.append(signum))
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._main:
+            signal.signal(signal.SIGINT, self._previous)
+            if self._got and self.reraise and exc[0] is None:
+                raise KeyboardInterrupt
+
+
+def check_out(out: Path, overwrite: bool, flag: str = "--out") -> None:
+    """Refuse an output folder before any work: a file, a non-empty folder without `overwrite`, or one this
+    process cannot write to (probed by creating and removing a file; folders created for the probe are removed
+    again, so a refused run leaves nothing behind)."""
+    out = Path(out)
     if out.exists() and not out.is_dir():
-        raise EvalError(f"--out {str(out)!r} exists and is not a directory; choose another --out")
+        raise EvalError(f"{flag} {str(out)!r} exists and is not a directory; choose another {flag}")
     if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise EvalError(
-            f"--out {str(out)!r} exists and is not empty; choose another --out or pass --overwrite "
-            f"(files of the same name are then replaced, others are kept)"
+            f"{flag} {str(out)!r} exists and is not empty; choose another {flag} or pass --overwrite "
+            f"(the files of an earlier run are then replaced, others are kept)"
         )
+    created: list[Path] = []
+    try:
+        for folder in reversed([out, *out.parents]):
+            if not folder.exists():
+                folder.mkdir()
+                created.append(folder)
+        fd, probe = tempfile.mkstemp(prefix=".mobman-write-probe-", dir=out)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise EvalError(
+            f"{flag} {str(out)!r} is not writable ({exc.strerror or exc}); choose a folder you can write to"
+        ) from None
+    finally:
+        for folder in reversed(created):
+            with contextlib.suppress(OSError):
+                folder.rmdir()
 
 
 def resolve_out(out: str | Path | None, command: str) -> Path:
-    """`out` as a Path, or the default `runs/<command>-<UTC timestamp>`."""
+    """`out` as a Path, or the default `runs/<command>-<UTC date-time with microseconds>` (made unique when
+    it is created: `make_out(..., exclusive=True)`)."""
     if out:
         return Path(out)
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S")
+    stamp = datetime.now(timezone.utc).strftime("%Y%m%d-%H%M%S-%f")
     return Path("runs") / f"{command}-{stamp}"
+
+
+def make_out(out: Path, exclusive: bool) -> Path:
+    """Create the output folder and return it. `exclusive` (a default name): never share a folder with another
+    run started at the same time; if the name is taken, `-2`, `-3`, ... is appended."""
+    out = Path(out)
+    if not exclusive:
+        out.mkdir(parents=True, exist_ok=True)
+        return out
+    out.parent.mkdir(parents=True, exist_ok=True)
+    for n in range(1, 1000):
+        candidate = out if n == 1 else out.with_name(f"{out.name}-{n}")
+        try:
+            candidate.mkdir()
+            return candidate
+        except FileExistsError:
+            continue
+    raise EvalError(f"cannot create a new output folder beside {str(out)!r}: 999 names taken; pass --out")
+
+
+def remove_stale(out: Path, patterns: tuple[str, ...], keep: set[Path]) -> list[Path]:
+    """Delete the files under `out` matching `patterns` (glob, relative to `out`: the files a command writes)
+    that are not in `keep` (what this run wrote): an --overwrite run leaves no file of an earlier run beside its
+    own. Files of other names are never touched."""
+    keep = {Path(p).resolve() for p in keep}
+    removed = []
+    for pattern in patterns:
+        for path in Path(out).glob(pattern):
+            if path.is_file() and path.resolve() not in keep:
+                path.unlink()
+                removed.append(path)
+    return removed

@@ -30,7 +30,7 @@ leaves a half-written file and never destroys the previous version of a file bef
  "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
    {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
     "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
-    "status": "ok" | "failed", "error": traceback | null,
+    "status": "ok" | "failed" | "interrupted" (Ctrl-C: never finished), "error": traceback | null,
     "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
     "steady_max_error_m", "steady_rms_error_m",  # over t >= settle_time_s; null if failed or shorter
     "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
@@ -67,9 +67,17 @@ import numpy as np
 
 from eval import metrics as M
 from eval.errors import EvalError
-from eval.output.files import atomic_save_figure, atomic_savez, atomic_write_json, atomic_write_text, slug, to_jsonable
+from eval.output.files import (
+    atomic_save_figure,
+    atomic_savez,
+    atomic_write_json,
+    atomic_write_text,
+    json_text,
+    slug,
+    to_jsonable,
+)
 from eval.output.provenance import git_rev, provenance, versions
-from eval.output.tables import summary_markdown
+from eval.output.tables import print_table, summary_markdown
 
 SCHEMA = 2
 
@@ -244,11 +252,28 @@ class ResultsView:
         return self.results["aggregate"]
 
 
-def write_run(result, config) -> None:
-    """Write every file of a run directory (see the module docstring)."""
+#: What `mobman-eval run` writes into its folder (globs relative to it): an --overwrite run removes the files of
+#: an earlier run that match these and that it did not write itself (`eval.output.files.remove_stale`).
+RUN_OUTPUTS = (
+    "config.json",
+    "results.json",
+    "results.csv",
+    "summary.md",
+    "episodes.npz",
+    "plots/*_paths3d.png",
+    "plots/*_axis_errors.png",
+    "plots/*_error_norm.png",
+    "videos/*.mp4",
+    "videos/*.gif",
+)
+
+
+def write_run(result, config) -> list[Path]:
+    """Write every file of a run directory (see the module docstring); returns the paths written."""
     out = Path(result.out)
     out.mkdir(parents=True, exist_ok=True)
     results = result.results
+    written = [out / "config.json", out / "results.json", out / "results.csv", out / "summary.md"]
     atomic_write_json(out / "config.json", results["config"])
     atomic_write_json(out / "results.json", results)
     atomic_write_text(out / "results.csv", csv_text(results["episodes"]))
@@ -261,8 +286,10 @@ def write_run(result, config) -> None:
                 saved[f"{key}__{name}"] = np.asarray(arr, dtype=np.float32)
     if saved:
         atomic_savez(out / "episodes.npz", saved)
+        written.append(out / "episodes.npz")
     if config.plots:
-        write_plots(result, out / "plots", config.tolerance)
+        written += write_plots(result, out / "plots", config.tolerance)
+    return written
 
 
 def traces_for_plots(result) -> dict[tuple[str, str], list[dict]]:
@@ -292,3 +319,18 @@ def write_plots(result, plot_dir: Path, tolerance: float) -> list[Path]:
             plt.close(fig)
             written.append(path)
     return written
+
+
+def print_results(results: dict, out: Path, fmt: str = "table") -> None:
+    """Print the results on stdout in `fmt`: "table" (the console table), or the content of summary.md
+    ("markdown"), results.json ("json") or results.csv ("csv"); where the files are goes to stderr, so stdout
+    stays parseable."""
+    import sys
+
+    if fmt == "table":
+        print_table(results)
+    else:
+        text = {"markdown": summary_markdown, "json": json_text, "csv": lambda r: csv_text(r["episodes"])}[fmt](results)
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+        sys.stdout.flush()
+    print(f"results in {out}", file=sys.stderr)

@@ -21,7 +21,6 @@ from __future__ import annotations
 
 import difflib
 import json
-import math
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from eval.config import DYNAMICS_CHOICES
 from eval.errors import EvalError
 from eval.metrics import DEFAULT_SETTLE_TIME, DEFAULT_TOLERANCE
 from eval.rollout import FLAG_KWARGS
+from mobman_env.validation import integer, number
 
 
 @dataclass(frozen=True)
@@ -104,15 +104,13 @@ class SweepConfig:
         if "env_kwargs" in data:
             kw["env_kwargs"] = _env_kwargs(data["env_kwargs"], source)
         if "tolerance" in data:
-            tol = data["tolerance"]
-            if not _is_number(tol) or not tol > 0:
-                raise EvalError(f"{source}: tolerance must be a number > 0 (m), e.g. 0.006; got {tol!r}")
-            kw["tolerance"] = float(tol)
+            kw["tolerance"] = number(
+                f"{source}: tolerance", data["tolerance"], low=0, open_low=True, hint="m, e.g. 0.006", error=EvalError
+            )
         if "settle_time" in data:
-            st = data["settle_time"]
-            if not _is_number(st) or st < 0:
-                raise EvalError(f"{source}: settle_time must be a number >= 0 (s), e.g. 0.5; got {st!r}")
-            kw["settle_time"] = float(st)
+            kw["settle_time"] = number(
+                f"{source}: settle_time", data["settle_time"], low=0, hint="s, e.g. 0.5", error=EvalError
+            )
         return cls(**kw)
 
 
@@ -149,10 +147,6 @@ def example_path() -> Path:
 # --- value checks ----------------------------------------------------------------------------------------
 
 
-def _is_number(x: Any) -> bool:
-    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
-
-
 def _as_list(value: Any, name: str, source: str) -> list:
     items = list(value) if isinstance(value, (list, tuple)) else [value]
     if not items:
@@ -173,10 +167,7 @@ def _str_list(value: Any, name: str, source: str) -> tuple[str, ...]:
 
 def _nonneg_list(value: Any, name: str, source: str) -> tuple[float, ...]:
     items = _as_list(value, name, source)
-    for i, v in enumerate(items):
-        if not _is_number(v) or v < 0:
-            raise EvalError(f"{source}: {name}[{i}] must be a finite number >= 0, got {v!r}")
-    return tuple(float(v) for v in items)
+    return tuple(number(f"{source}: {name}[{i}]", v, low=0, error=EvalError) for i, v in enumerate(items))
 
 
 def _seeds(value: Any, source: str) -> tuple[int, ...]:
@@ -187,23 +178,13 @@ def _seeds(value: Any, source: str) -> tuple[int, ...]:
         if unknown or missing:
             what = f"unknown: {', '.join(map(repr, unknown))}" if unknown else f"missing: {', '.join(missing)}"
             raise EvalError(f"{source}: seeds as a mapping takes exactly 'start' and 'count' ({what})")
-        start, count = value["start"], value["count"]
-        if not _is_int(start) or start < 0:
-            raise EvalError(f"{source}: seeds.start must be an integer >= 0, got {start!r}")
-        if not _is_int(count) or count < 1:
-            raise EvalError(f"{source}: seeds.count must be an integer >= 1, got {count!r}")
+        start = integer(f"{source}: seeds.start", value["start"], low=0, error=EvalError)
+        count = integer(f"{source}: seeds.count", value["count"], low=1, error=EvalError)
         return tuple(range(start, start + count))
     if not isinstance(value, (list, tuple)):
         raise EvalError(f"{source}: seeds must be {form}; got {value!r}")
     items = _as_list(value, "seeds", source)
-    for i, v in enumerate(items):
-        if not _is_int(v) or v < 0:
-            raise EvalError(f"{source}: seeds[{i}] must be an integer >= 0, got {v!r}")
-    return tuple(int(v) for v in items)
-
-
-def _is_int(x: Any) -> bool:
-    return isinstance(x, int) and not isinstance(x, bool)
+    return tuple(integer(f"{source}: seeds[{i}]", v, low=0, error=EvalError) for i, v in enumerate(items))
 
 
 def _env_kwargs(value: Any, source: str) -> dict:

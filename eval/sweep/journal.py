@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 
 from eval.errors import EvalError
@@ -34,27 +35,42 @@ class Journal:
         self._fd: int | None = None
 
     def load(self) -> tuple[dict[tuple, dict], int]:
-        """({key: record}, number of torn lines dropped). A torn last line (the process was killed while
-        writing it) is cut off the file; any other unreadable line is an error naming it."""
+        """({key: record}, number of lines dropped). A torn last line (the process was killed while writing
+        it) is cut off the file; a line that is valid JSON but not an object is skipped with a warning; any
+        other unreadable line is an error naming it."""
         if not self.path.exists():
             return {}, 0
         data = self.path.read_bytes()
         records: dict[tuple, dict] = {}
+        dropped = 0
         end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
         for n, line in enumerate(data[:end].splitlines(), 1):
             if not line.strip():
                 continue
             try:
                 rec = json.loads(line)
+            except ValueError as exc:
+                raise EvalError(
+                    f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
+                    f"damaged: delete that line (its episode then runs again)"
+                ) from None
+            if not isinstance(rec, dict):  # valid JSON but no record (an edit, a foreign tool): skipped
+                warnings.warn(
+                    f"{self.path} line {n} is {type(rec).__name__}, not an episode record: skipped (its "
+                    f"episode runs again)",
+                    stacklevel=2,
+                )
+                dropped += 1
+                continue
+            try:
                 records[episode_key(rec)] = rec
             except (ValueError, KeyError, TypeError) as exc:
                 raise EvalError(
                     f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
                     f"damaged: delete that line (its episode then runs again)"
                 ) from None
-        dropped = 0
         if end < len(data):
-            dropped = 1
+            dropped += 1
             os.truncate(self.path, end)
         return records, dropped
 

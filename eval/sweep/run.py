@@ -124,13 +124,17 @@ def run_sweep(
         "n_episodes": len(tasks),
     }
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(out / "config.json", cfg)  # first: the directory is a sweep's from now on
     journal = Journal(out / JOURNAL)
-    journal.open()  # locked before reading: no other sweep appends meanwhile
+    journal.open()  # locked before anything is written or read: a second sweep on this --out stops here
     try:
+        atomic_write_json(out / "config.json", cfg)  # the directory is a sweep's from now on
         done, dropped = journal.load()
         if dropped and progress:
-            print(f"sweep: dropped a torn last line of {journal.path} (its episode runs again)", file=sys.stderr)
+            print(
+                f"sweep: dropped {dropped} unreadable line(s) of {journal.path} (torn by an interruption, or not "
+                f"an episode record); their episodes run again",
+                file=sys.stderr,
+            )
         todo = [
             t
             for t in tasks

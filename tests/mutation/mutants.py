@@ -103,18 +103,17 @@ MUTANTS = (
     ),
     Mutant(
         "train-atomic-write",
-        "train/callbacks.py",
-        "    tmp.write_bytes(data.encode() if isinstance(data, str) else data)\n    os.replace(tmp, path)\n",
-        "    path.write_bytes(data.encode() if isinstance(data, str) else data)\n",
+        "eval/output/files.py",
+        '        with os.fdopen(fd, "wb") as f:\n',
+        '        with open(path, "wb") as f:\n',
         ("tests/test_mutants_train.py::test_a_failing_checkpoint_write_keeps_the_previous_latest_json",),
     ),
     Mutant(
         "train-resume-seeding",
         "train/run.py",
-        'make_vec_env(config, seed_offset=ckpt["steps"])',
-        "make_vec_env(config)",
+        'model.set_random_seed(config.seed + ckpt["steps"])',
+        "model.set_random_seed(config.seed)",
         ("tests/test_mutants_train.py::test_resume_seeds_the_training_envs_with_seed_plus_steps_done",),
-        note="survives until train.run.resume re-seeds after SB3's load() (the test is a strict xfail)",
     ),
     Mutant(
         "fig2b-sign",

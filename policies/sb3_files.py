@@ -1,0 +1,249 @@
+"""Reading a Stable-Baselines3 run folder without running code it names (the files of `policies.sb3`).
+
+Both files of an SB3 agent hold pickles, and `pickle.load` runs whatever callable a pickle names: a crafted
+`vecnormalize.pkl` can call `os.system`. This module reads them with a restricted unpickler whose `find_class`
+resolves only the classes and data constructors those files legitimately contain; anything else is refused
+with `UnsafePickleError`, naming the module and attribute:
+
+* `vecnormalize.pkl` (`load_vecnormalize_stats`): the `VecNormalize` object and its `RunningMeanStd`
+  statistics are rebuilt as plain attribute holders (`_State`), the gymnasium spaces and numpy random state it
+  also carries as inert placeholders; only numpy arrays, scalars and dtypes are really constructed. No
+  Stable-Baselines3 or gymnasium code runs, and SB3 need not be installed.
+* `model.zip` (`safe_custom_objects`): SB3 stores the non-JSON entries of its `data` file as base64 cloudpickles
+  and lets the loader replace any of them (`custom_objects`). Entries inference does not use (the last
+  observation, episode buffers, schedules, buffer classes, action noise) are replaced by neutral values
+  without being decoded; the others (`policy_class`, `observation_space`, `action_space`, `policy_kwargs`) are
+  decoded with the restricted unpickler, which allows SB3 policy and feature-extractor classes, gymnasium
+  spaces, torch activation and optimiser classes, and numpy data. The weights (`*.pth`) are read by SB3 with
+  `torch.load(..., weights_only=True)`.
+
+This narrows what a file can do; it is not a sandbox: load only agents you trust (README, `--help`).
+May import numpy and the standard library; torch, gymnasium and Stable-Baselines3 only inside functions.
+"""
+
+from __future__ import annotations
+
+import base64
+import binascii
+import io
+import json
+import pickle
+import zipfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["UnsafePickleError", "load_vecnormalize_stats", "read_zip_data", "safe_custom_objects"]
+
+
+class UnsafePickleError(pickle.UnpicklingError):
+    """A pickle names a callable outside the allowed list (it could run arbitrary code)."""
+
+
+class _State:
+    """Stands in for a pickled object whose attributes are data (VecNormalize, RunningMeanStd)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        pass
+
+    def __setstate__(self, state: Any) -> None:
+        if isinstance(state, tuple) and len(state) == 2:  # (dict, slots)
+            state = {**(state[0] or {}), **(state[1] or {})}
+        if isinstance(state, dict):
+            self.__dict__.update({str(k): v for k, v in state.items()})
+
+
+class _Inert:
+    """Stands in for a pickled object that is not used (spaces and RNG state inside vecnormalize.pkl)."""
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        pass
+
+    def __setstate__(self, state: Any) -> None:
+        pass
+
+
+def _inert_factory(*args: Any, **kwargs: Any) -> _Inert:
+    return _Inert()
+
+
+#: numpy's data constructors (arrays, scalars, dtypes), under the module names of numpy 1.x and 2.x.
+_NUMPY_DATA = {
+    (module, name)
+    for module in ("numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric", "numpy._core.numeric")
+    for name in ("_reconstruct", "scalar", "_frombuffer")
+} | {("numpy", "dtype"), ("numpy", "ndarray")}
+
+#: Plain containers.
+_CONTAINERS = {("collections", "OrderedDict"), ("collections", "deque"), ("builtins", "set"), ("builtins", "frozenset")}
+
+
+def _is_numpy_random(module: str) -> bool:
+    return module == "numpy.random" or module.startswith("numpy.random.")
+
+
+def _is_spaces(module: str) -> bool:
+    return module.startswith(("gymnasium.spaces", "gym.spaces"))
+
+
+class _StatsUnpickler(pickle.Unpickler):
+    """vecnormalize.pkl: numpy data for real, the SB3 objects as `_State`, spaces and RNGs as `_Inert`."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module, name) in _NUMPY_DATA | _CONTAINERS:
+            return super().find_class(module, name)
+        if module.startswith("stable_baselines3.") and name in ("VecNormalize", "RunningMeanStd"):
+            return _State
+        if _is_spaces(module) or _is_numpy_random(module):
+            return _inert_factory if name.startswith("__") else _Inert
+        raise UnsafePickleError(f"refused to load {module}.{name} (not part of VecNormalize statistics)")
+
+
+def _allowed_model_class(module: str, name: str) -> Any | None:
+    """The class `module.name` if a model.zip may name it (a class of an allowed kind), else None."""
+    import importlib
+
+    if module.split(".")[0] not in ("stable_baselines3", "gymnasium", "torch"):
+        return None
+    try:
+        obj = getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError):
+        return None
+    if not isinstance(obj, type):
+        return None
+    import gymnasium
+    import torch
+    from stable_baselines3.common.policies import BasePolicy
+    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
+
+    if issubclass(obj, (BasePolicy, BaseFeaturesExtractor, gymnasium.spaces.Space)):
+        return obj
+    if module.startswith("torch.nn.modules.activation") and issubclass(obj, torch.nn.Module):
+        return obj
+    if module.startswith("torch.optim") and issubclass(obj, torch.optim.Optimizer):
+        return obj
+    return None
+
+
+class _ModelUnpickler(pickle.Unpickler):
+    """model.zip `data` entries: SB3 policies and extractors, spaces, torch activations/optimisers, numpy data."""
+
+    def find_class(self, module: str, name: str) -> Any:
+        if (module, name) in _NUMPY_DATA | _CONTAINERS:
+            return super().find_class(module, name)
+        if _is_numpy_random(module) and (name.startswith("__") or name in ("PCG64", "MT19937", "Philox", "SFC64")):
+            return super().find_class(module, name)  # the RNG state of a space: bit-generator constructors only
+        if module == "numpy.random.bit_generator" and name == "SeedSequence":
+            return super().find_class(module, name)
+        cls = _allowed_model_class(module, name)
+        if cls is None:
+            raise UnsafePickleError(f"refused to load {module}.{name} (not an SB3 policy, space, layer or numpy data)")
+        return cls
+
+
+def load_vecnormalize_stats(path: Path) -> dict[str, Any]:
+    """The observation statistics of a `VecNormalize` pickle, without unpickling any code.
+
+    Returns {"norm_obs": bool, "obs_rms": {key: (mean, var)} or (mean, var), "norm_obs_keys": list or None,
+    "epsilon": float, "clip_obs": float}. Raises ValueError naming the file when it cannot be read."""
+    try:
+        with open(path, "rb") as f:
+            vn = _StatsUnpickler(f).load()
+    except UnsafePickleError as exc:
+        raise ValueError(
+            f"{path}: {exc}; a vecnormalize.pkl written by VecNormalize.save holds only statistics. "
+            f"Load only agents you trust"
+        ) from None
+    except Exception as exc:  # truncated, not a pickle, ...
+        raise ValueError(
+            f"{path} is not a readable VecNormalize file ({type(exc).__name__}: {exc}); copy it again from "
+            f"the training run (or delete it if the agent was trained without VecNormalize)"
+        ) from None
+    state = getattr(vn, "__dict__", {}) if isinstance(vn, _State) else {}
+    try:
+        norm_obs = bool(state.get("norm_obs", False))
+        rms = state.get("obs_rms")
+        if isinstance(rms, dict):
+            stats: Any = {str(k): _mean_var(v) for k, v in rms.items()}
+        else:
+            stats = _mean_var(rms) if norm_obs else None
+        keys = state.get("norm_obs_keys")
+        return {
+            "norm_obs": norm_obs,
+            "obs_rms": stats,
+            "norm_obs_keys": None if keys is None else [str(k) for k in keys],
+            "epsilon": float(state.get("epsilon", 1e-8)),
+            "clip_obs": float(state.get("clip_obs", 10.0)),
+        }
+    except (TypeError, ValueError) as exc:
+        raise ValueError(
+            f"{path} does not hold VecNormalize statistics ({exc}); copy it again from the training run"
+        ) from None
+
+
+def _mean_var(rms: Any) -> tuple[np.ndarray, np.ndarray]:
+    mean, var = getattr(rms, "mean", None), getattr(rms, "var", None)
+    if not (isinstance(mean, (np.ndarray, float)) and isinstance(var, (np.ndarray, float))):
+        raise TypeError("a RunningMeanStd without numeric mean and var")
+    return np.asarray(mean, dtype=np.float64), np.asarray(var, dtype=np.float64)
+
+
+def read_zip_data(path: Path) -> dict[str, Any]:
+    """The JSON `data` entry of an SB3 model.zip; ValueError naming the file when it is not one."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            data = json.loads(zf.read("data"))
+    except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
+        raise ValueError(
+            f"{path} is not a Stable-Baselines3 model file (a zip with a 'data' entry): {type(exc).__name__}: "
+            f"{exc}; copy model.zip again from the training run"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path}: its 'data' entry is not a JSON object; copy model.zip again from the training run")
+    return data
+
+
+#: model.zip entries that inference does not use, and what replaces them (`_setup_model` rebuilds the
+#: learning-rate schedule; buffers and noise are only for learning).
+NEUTRAL_ENTRIES: dict[str, Any] = {
+    "_last_obs": None,
+    "_last_original_obs": None,
+    "_last_episode_starts": None,
+    "ep_info_buffer": None,
+    "ep_success_buffer": None,
+    "lr_schedule": None,
+    "learning_rate": 0.0,
+    "clip_range": 0.2,
+    "clip_range_vf": None,
+    "train_freq": 1,
+    "replay_buffer_class": None,
+    "rollout_buffer_class": None,
+    "action_noise": None,
+}
+
+
+def safe_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
+    """SB3 `custom_objects` for `Algo.load` so that it unpickles nothing: every serialized entry of `data`,
+    neutral for those inference does not use, decoded with the restricted unpickler for the others."""
+    objects: dict[str, Any] = {}
+    for key, value in data.items():
+        if not (isinstance(value, dict) and ":serialized:" in value):
+            continue
+        if key in NEUTRAL_ENTRIES:
+            objects[key] = NEUTRAL_ENTRIES[key]
+            continue
+        try:
+            raw = base64.b64decode(value[":serialized:"].encode())
+            objects[key] = _ModelUnpickler(io.BytesIO(raw)).load()
+        except UnsafePickleError as exc:
+            raise ValueError(
+                f"{path}: entry {key!r}: {exc}. A model.zip saved by Stable-Baselines3 for a mobman env names only "
+                f"those; load only agents you trust"
+            ) from None
+        except (binascii.Error, pickle.UnpicklingError, EOFError, AttributeError, TypeError, ValueError) as exc:
+            raise ValueError(
+                f"{path}: entry {key!r} cannot be read ({type(exc).__name__}: {exc}); copy model.zip again "
+                f"from the training run"
+            ) from None
+    return objects
