@@ -484,7 +484,7 @@ def _baselines(result, specs, nnbc: str, oracle: str, modes) -> list[str]:
         ca = _agg(result, clik, dyn)
         med = format_mm(ca["max_error_m"]["median"], clik, 1) + " mm"
         line = (
-            f"* **`{clik}` vs JMPI, {dyn}:** the same nominal model as JMPI with eq. (10)'s feedback term is within "
+            f"* **`{clik}` vs JMPI, {dyn}:** the same nominal model as JMPI with eq. (10)'s feedback term (its default gain) is within "
             f"6 mm in {c[0]}/{c[1]} seeds (median {med}); JMPI in {j[0]}/{j[1]}, `{nnbc}` in {m[0]}/{m[1]}."
         )
         if c[0] > j[0]:
