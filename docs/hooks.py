@@ -117,7 +117,26 @@ def policy_table(root: Path) -> str:
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
     if POLICY_TABLE in markdown:
         markdown = markdown.replace(POLICY_TABLE, policy_table(_root(config)))
-    return markdown
+    return _embed_readme_sections(markdown, _root(config), page.file.src_uri.count("/"))
+
+
+_README_SNIPPET = re.compile(r'^--8<-- "README\.md:([\w-]+)"$', re.M)
+
+
+def _embed_readme_sections(markdown: str, root: Path, depth: int) -> str:
+    """Expand `--8<-- "README.md:NAME"` here rather than in pymdownx.snippets, so that the README's links to
+    `docs/...` (relative to the repository) can be made relative to the page before mkdocs validates them."""
+    readme = (root / "README.md").read_text(encoding="utf-8")
+
+    def section(m: re.Match) -> str:
+        name = m.group(1)
+        start, end = f"<!-- --8<-- [start:{name}] -->", f"<!-- --8<-- [end:{name}] -->"
+        if start not in readme or end not in readme:
+            raise ValueError(f"README.md has no section {name!r} (markers {start} ... {end})")
+        text = readme.split(start, 1)[1].split(end, 1)[0]
+        return text.replace("](docs/", "](" + "../" * depth)
+
+    return _README_SNIPPET.sub(section, markdown)
 
 
 def rendering_problems(html: str) -> list[str]:

@@ -244,8 +244,8 @@ def scorecard_markdown(sc: dict) -> str:
         c = p["conditions"][name]
         lines += [f"## {name}: {c['description']}", "", condition_table(sc, name), ""]
     lines += [
-        "Per-task cells: success rate · max-error IQM (mm). Plots: plots/success_<condition>.png (success vs "
-        "tolerance), plots/error_vs_wear.png. Episodes: conditions/<name>/results.json.",
+        "Per-task cells: success rate · max-error IQM (mm). Plots: `plots/success_<condition>.png` (success vs "
+        "tolerance), `plots/error_vs_wear.png`. Episodes: `conditions/<name>/results.json`.",
         "",
     ]
     return "\n".join(lines)
