@@ -26,14 +26,14 @@ from mobman_env import __version__
 from mobman_env.packages import shadowing_message
 
 #: the subcommands, each a module of this package with add_parser(sub) and main(args)
-SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed")
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "readme")
 
 
 def _subcommands() -> dict:
     """The subcommand modules, imported only after the shadowing check (they import policies)."""
-    from eval.cli import bench, paper, run, speed, sweep
+    from eval.cli import bench, paper, readme, run, speed, sweep
 
-    return {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed}
+    return {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed, "readme": readme}
 
 
 def build_parser() -> argparse.ArgumentParser:
