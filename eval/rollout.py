@@ -162,6 +162,43 @@ def rollout(
     failed before its first step). `on_step(k)` is called after the reset (k = 0) and after each step k (used
     to grab video frames). `settle_time` (s) starts the window of the steady-state errors."""
     base = env.unwrapped
+    rec = _empty_record(base, seed, meta)
+    buf: _Buffers | None = None
+    jac = None
+    k = 0
+    wall0 = time.perf_counter()
+    try:
+        obs, info = env.reset(seed=seed)
+        task = info["task"]
+        rec.update(path=task["path"], start=task["start"], true_params_hash=info["true_params_hash"])
+        n = int(task["n_steps"])
+        buf = _Buffers(n, float(base.dt), len(np.asarray(base.action_scale)))
+        buf.observe(0, obs, info)
+        reset = getattr(policy, "reset", None)
+        if reset is not None:
+            reset(obs, info, seed=policy_seed(seed))
+        if getattr(policy, "jacobian_kind", None) is not None:
+            jac = _JacobianRecorder(policy, base, n)
+        if on_step is not None:
+            on_step(0)
+        k, info, rec["terminated"] = _run_steps(env, policy, obs, n, buf, jac, on_step)
+        arrays: dict | None = _finish(rec, buf.arrays(k), info, k, base, tolerance, settle_time, jac)
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # SystemExit from a user's policy too: a failed episode, not a stopped evaluation
+        k = buf.k if buf is not None else 0
+        rec["status"] = "failed"
+        rec["error"] = traceback.format_exc()
+        rec["n_steps"] = k
+        rec.update(_metrics_none())
+        arrays = buf.arrays(k) if buf is not None else None
+    rec["wall_s"] = time.perf_counter() - wall0
+    rec["pid"] = os.getpid()
+    return rec, arrays
+
+
+def _empty_record(base: Any, seed: int, meta: dict | None) -> dict[str, Any]:
+    """The record of an episode before it runs: the caller's fields, the condition, every metric None."""
     rec: dict[str, Any] = dict(meta or {})
     rec.update(
         {
@@ -190,120 +227,100 @@ def rollout(
             **dict.fromkeys(JACOBIAN_KEYS),
         }
     )
-    dt = float(base.dt)
-    scale = np.asarray(base.action_scale, float)
-    arrays = None
-    jac = None
-    k = 0
-    wall0 = time.perf_counter()
-    try:
-        obs, info = env.reset(seed=seed)
-        task = info["task"]
-        rec["path"] = task["path"]
-        rec["start"] = task["start"]
-        rec["true_params_hash"] = info["true_params_hash"]
-        n = int(task["n_steps"])
-        r_d = np.empty((n + 1, 3))
-        r_a = np.empty((n + 1, 3))
-        p_c = np.empty((n + 1, 2))
-        err = np.empty(n + 1)
-        act = np.empty((n, 8))
-        us = np.empty(n)
-        r_d[0], r_a[0], p_c[0], err[0] = (
+    return rec
+
+
+class _Buffers:
+    """The per-step arrays of one episode, allocated for its full length and cut to the steps that ran."""
+
+    def __init__(self, n: int, dt: float, n_act: int):
+        self.t = np.arange(n + 1) * dt
+        self.r_d = np.empty((n + 1, 3))
+        self.r_a = np.empty((n + 1, 3))
+        self.p_c = np.empty((n + 1, 2))
+        self.err = np.empty(n + 1)
+        self.act = np.empty((n, n_act))
+        self.us = np.empty(n)
+        self.k = 0  # steps run so far: the index of the latest state observed
+
+    def observe(self, k: int, obs: dict, info: dict) -> None:
+        """The state after step k (k = 0: after the reset), from the observation and the noise-free info."""
+        self.k = k
+        self.r_d[k], self.r_a[k], self.p_c[k], self.err[k] = (
             obs["target_pos"],
             info["ee_pos_true"],
             obs["arm_base_pos"],
             info["tracking_error"],
         )
-        arrays = {
-            "t": np.arange(n + 1) * dt,
-            "r_d": r_d[:1],
-            "r_a": r_a[:1],
-            "p_c": p_c[:1],
-            "error": err[:1],
-            "action": act[:0],
-            "predict_us": us[:0],
+
+    def arrays(self, k: int) -> dict[str, np.ndarray]:
+        """The arrays of the first k steps (states 0..k, actions and timings 0..k-1)."""
+        return {
+            "t": self.t[: k + 1],
+            "r_d": self.r_d[: k + 1],
+            "r_a": self.r_a[: k + 1],
+            "p_c": self.p_c[: k + 1],
+            "error": self.err[: k + 1],
+            "action": self.act[:k],
+            "predict_us": self.us[:k],
         }
-        reset = getattr(policy, "reset", None)
-        if reset is not None:
-            reset(obs, info, seed=policy_seed(seed))
-        predict = policy.predict
-        if getattr(policy, "jacobian_kind", None) is not None:
-            jac = _JacobianRecorder(policy, base, n)
-        if on_step is not None:
-            on_step(0)
-        state = None
-        clock = time.perf_counter
-        while k < n:
-            t0 = clock()
-            action, state = predict(obs, state=state, episode_start=None, deterministic=True)
-            us[k] = (clock() - t0) * 1e6
-            if jac is not None:
-                jac.record(k, obs)
-            a = np.asarray(action, dtype=np.float32)
-            if a.shape == (1, 8):  # a batch of one back from an SB3-style object
-                a = a[0]
-            obs, _, terminated, truncated, info = env.step(a)
-            act[k] = np.clip(a, -1.0, 1.0)
-            k += 1
-            r_d[k], r_a[k], p_c[k], err[k] = (
-                obs["target_pos"],
-                info["ee_pos_true"],
-                obs["arm_base_pos"],
-                info["tracking_error"],
-            )
-            if on_step is not None:
-                on_step(k)
-            if terminated or truncated:
-                rec["terminated"] = bool(terminated)
-                break
-        rec["n_steps"] = k
-        rec["joint_limit_hits"] = int(info.get("joint_limit_hits", 0))
-        rec["n_clipped"] = int(info.get("n_clipped", 0))
-        rec["tipped_over"] = bool(info.get("tipped_over", False))
-        arrays = _trim(arrays, r_d, r_a, p_c, err, act, us, k)
-        rec.update(
-            M.episode_metrics(
-                arrays["r_d"],
-                arrays["r_a"],
-                arrays["action"],
-                dt,
-                scale,
-                tolerance,
-                tipped_over=rec["tipped_over"],
-                err=arrays["error"],
-                settle_time=settle_time,
-            )
-        )
-        rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
+
+
+def _run_steps(env, policy, obs: dict, n: int, buf: _Buffers, jac, on_step) -> tuple[int, dict, bool]:
+    """Step until truncation, termination or n steps; returns (steps run, last info, terminated). Each
+    `predict` call is timed whole; the action stored is the one the env applied (clipped to [-1, 1])."""
+    predict = policy.predict
+    clock = time.perf_counter
+    n_act = buf.act.shape[1]
+    state = None
+    info: dict = {}
+    k = 0
+    while k < n:
+        t0 = clock()
+        action, state = predict(obs, state=state, episode_start=None, deterministic=True)
+        buf.us[k] = (clock() - t0) * 1e6
         if jac is not None:
-            quality = jac.finish(k)
-            arrays.update(quality.pop("arrays"))
-            rec.update(quality)
-    except KeyboardInterrupt:
-        raise
-    except BaseException:  # SystemExit from a user's policy too: a failed episode, not a stopped evaluation
-        rec["status"] = "failed"
-        rec["error"] = traceback.format_exc()
-        rec["n_steps"] = k
-        rec.update(_metrics_none())
-        if arrays is not None:
-            arrays = _trim(arrays, r_d, r_a, p_c, err, act, us, k)
-    rec["wall_s"] = time.perf_counter() - wall0
-    rec["pid"] = os.getpid()
-    return rec, arrays
+            jac.record(k, obs)
+        a = np.asarray(action, dtype=np.float32)
+        if a.shape == (1, n_act):  # a batch of one back from an SB3-style object
+            a = a[0]
+        obs, _, terminated, truncated, info = env.step(a)
+        buf.act[k] = np.clip(a, -1.0, 1.0)
+        k += 1
+        buf.observe(k, obs, info)
+        if on_step is not None:
+            on_step(k)
+        if terminated or truncated:
+            return k, info, bool(terminated)
+    return k, info, False
 
 
-def _trim(arrays, r_d, r_a, p_c, err, act, us, k):
-    return {
-        "t": arrays["t"][: k + 1],
-        "r_d": r_d[: k + 1],
-        "r_a": r_a[: k + 1],
-        "p_c": p_c[: k + 1],
-        "error": err[: k + 1],
-        "action": act[:k],
-        "predict_us": us[:k],
-    }
+def _finish(rec: dict, arrays: dict, info: dict, k: int, base: Any, tolerance: float, settle_time: float, jac) -> dict:
+    """Fill `rec` with the episode's counters and metrics (and the Jacobian-estimate quality); returns the
+    arrays, with the Jacobian-estimate arrays added."""
+    rec["n_steps"] = k
+    rec["joint_limit_hits"] = int(info.get("joint_limit_hits", 0))
+    rec["n_clipped"] = int(info.get("n_clipped", 0))
+    rec["tipped_over"] = bool(info.get("tipped_over", False))
+    rec.update(
+        M.episode_metrics(
+            arrays["r_d"],
+            arrays["r_a"],
+            arrays["action"],
+            float(base.dt),
+            np.asarray(base.action_scale, float),
+            tolerance,
+            tipped_over=rec["tipped_over"],
+            err=arrays["error"],
+            settle_time=settle_time,
+        )
+    )
+    rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
+    if jac is not None:
+        quality = jac.finish(k)
+        arrays.update(quality.pop("arrays"))
+        rec.update(quality)
+    return arrays
 
 
 def _known_policies_text() -> str:
