@@ -22,6 +22,7 @@ from eval.rollout import make_env
 from eval.sweep.config import SweepConfig
 from eval.sweep.journal import JOURNAL, Journal, episode_key
 from eval.sweep.report import write_tables
+from mobman_env.validation import integer
 
 #: settings that must not change when a sweep is resumed (they change every episode's result), with the value a
 #: sweep written before the key existed had
@@ -77,31 +78,9 @@ def run_sweep(
     the YAML file's path (recorded, and naming the default output directory)."""
     user = dict(policies or {})
     out = Path(out) if out is not None else default_out(source)
-    if max_episodes is not None and (
-        isinstance(max_episodes, bool) or not isinstance(max_episodes, int) or max_episodes < 0
-    ):
-        raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
-    base = EvalConfig(
-        envs=sweep.envs,
-        policies=sweep.policies,
-        episodes=len(sweep.seeds),
-        seed=sweep.seeds[0],
-        out=str(out),
-        overwrite=True,
-        workers=workers,
-        backend=backend,
-        address=address,
-        dynamics=sweep.dynamics,
-        model_error=sweep.model_error[0],
-        obs_noise=sweep.obs_noise[0],
-        env_kwargs=sweep.env_kwargs,
-        tolerance=sweep.tolerance,
-        settle_time=sweep.settle_time,
-        plots=False,
-        save_arrays="none",
-        progress=False,
-        command="sweep",
-    )
+    if max_episodes is not None:
+        integer("max_episodes", max_episodes, low=0, error=EvalError)
+    base = _episode_config(sweep, out, backend, address, workers)
     base.validate()
     if not sweep.policies and not user:
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
@@ -110,8 +89,7 @@ def run_sweep(
     check_all(base, user)
     _check_conditions(sweep)
 
-    names = list(sweep.policies) + list(user)
-    tasks = grid_tasks(sweep, names)
+    tasks = grid_tasks(sweep, list(sweep.policies) + list(user))
     cfg = {
         "command": "sweep",
         "source": source,
@@ -173,17 +151,48 @@ def run_sweep(
         finally:  # interrupted or not: the table shows what the journal holds
             if bar is not None:
                 bar.close()
-            records = []
-            for t in tasks:  # grid order, whatever order the episodes ran in
-                rec = done.get(episode_key(t)) or lost.get(episode_key(t))
-                if rec is not None:
-                    records.append({**rec, "episode": t.episode, "index": len(records), "arrays_key": None})
+            records = _grid_records(tasks, done, lost)
             results = build_results(cfg, records, M.aggregate(records), wall_s=time.perf_counter() - t0)
             write_tables(out, results, sweep.tolerance, plots)
     finally:
         journal.close()
     n_left = sum(episode_key(t) not in done for t in tasks)
     return SweepResult(out=out, results=results, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
+
+
+def _episode_config(sweep: SweepConfig, out: Path, backend: str, address: str | None, workers: int) -> EvalConfig:
+    """The `EvalConfig` every episode of the sweep runs under (each task brings its own condition and seed)."""
+    return EvalConfig(
+        envs=sweep.envs,
+        policies=sweep.policies,
+        episodes=len(sweep.seeds),
+        seed=sweep.seeds[0],
+        out=str(out),
+        overwrite=True,
+        workers=workers,
+        backend=backend,
+        address=address,
+        dynamics=sweep.dynamics,
+        model_error=sweep.model_error[0],
+        obs_noise=sweep.obs_noise[0],
+        env_kwargs=sweep.env_kwargs,
+        tolerance=sweep.tolerance,
+        settle_time=sweep.settle_time,
+        plots=False,
+        save_arrays="none",
+        progress=False,
+        command="sweep",
+    )
+
+
+def _grid_records(tasks: list[Task], done: dict[tuple, dict], lost: dict[tuple, dict]) -> list[dict]:
+    """The records of the grid's episodes that have one, in grid order (whatever order they ran in)."""
+    records: list[dict] = []
+    for t in tasks:
+        rec = done.get(episode_key(t)) or lost.get(episode_key(t))
+        if rec is not None:
+            records.append({**rec, "episode": t.episode, "index": len(records), "arrays_key": None})
+    return records
 
 
 def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
