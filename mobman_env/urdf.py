@@ -74,31 +74,62 @@ def _dh_fixed(a: float, d: float, alpha: float) -> tuple[tuple, tuple]:
 
 
 def urdf_string(params: RobotParams) -> str:
-    """The URDF text of the robot with these parameters."""
-    r, b, h = params.wheel_radius, params.half_track, params.shoulder_height
-    dl, dw, dh = DECK
-    deck_z = DECK_BOTTOM - r + dh / 2  # deck centre relative to the axle
-    top = DECK_BOTTOM + dh - r  # deck top relative to the axle
-    shoulder = h - r  # shoulder above the axle
-    m = params.platform_mass
-    deck_inertia = (m / 12 * (dw**2 + dh**2), m / 12 * (dl**2 + dh**2), m / 12 * (dl**2 + dw**2))
+    """The URDF text of the robot with these parameters: the platform (deck, two driven wheels, two passive
+    casters), the six arm links from the DH table, and the massless end-effector link."""
+    arm, ee_xyz, ee_rpy = _arm(params)
     parts = [
         '<?xml version="1.0"?>',
         '<robot name="wheeled_puma560">',
-        '<material name="deck"><color rgba="0.25 0.3 0.35 1"/></material>',
-        '<material name="arm"><color rgba="0.85 0.85 0.8 1"/></material>',
-        '<material name="joint"><color rgba="0.9 0.5 0.1 1"/></material>',
-        '<material name="tire"><color rgba="0.1 0.1 0.1 1"/></material>',
-        '<material name="tool"><color rgba="0.8 0.1 0.1 1"/></material>',
+        *MATERIALS,
+        *_base_link(params),
+        *_wheels(params),
+        *_casters(params),
+        *arm,
+        # end-effector: the point `tool` along z6, oriented like DH frame 6
+        f'<link name="{EE_LINK}">',
+        _inertial(0.0),
+        '<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
+        "</link>",
+        f'<joint name="ee_joint" type="fixed"><parent link="link6"/><child link="{EE_LINK}"/>'
+        f'<origin xyz="{_f(ee_xyz)}" rpy="{_f(ee_rpy)}"/></joint>',
+        "</robot>",
+    ]
+    return "\n".join(p for p in parts if p)
+
+
+#: the colours the links use
+MATERIALS = (
+    '<material name="deck"><color rgba="0.25 0.3 0.35 1"/></material>',
+    '<material name="arm"><color rgba="0.85 0.85 0.8 1"/></material>',
+    '<material name="joint"><color rgba="0.9 0.5 0.1 1"/></material>',
+    '<material name="tire"><color rgba="0.1 0.1 0.1 1"/></material>',
+    '<material name="tool"><color rgba="0.8 0.1 0.1 1"/></material>',
+)
+
+
+def _base_link(params: RobotParams) -> list[str]:
+    """The platform's deck (a box, its inertial origin at the link origin: the axle centre) and the pedestal."""
+    r, h = params.wheel_radius, params.shoulder_height
+    dl, dw, dh = DECK
+    deck_z = DECK_BOTTOM - r + dh / 2  # deck centre relative to the axle
+    top = DECK_BOTTOM + dh - r  # deck top relative to the axle
+    m = params.platform_mass
+    deck_inertia = (m / 12 * (dw**2 + dh**2), m / 12 * (dl**2 + dh**2), m / 12 * (dl**2 + dw**2))
+    return [
         '<link name="base_link">',
         _inertial(m, diag=deck_inertia),
         f'<visual><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry>'
         '<material name="deck"/></visual>',
-        _segment((params.mount_offset, 0, top), (params.mount_offset, 0, shoulder), 0.08, "deck"),
+        _segment((params.mount_offset, 0, top), (params.mount_offset, 0, h - r), 0.08, "deck"),
         f'<collision><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry></collision>',
         "</link>",
     ]
-    # wheels
+
+
+def _wheels(params: RobotParams) -> list[str]:
+    """The two driven wheels on continuous joints, half a track either side of the axle centre."""
+    r, b = params.wheel_radius, params.half_track
+    parts: list[str] = []
     for name, side in (("wheel_left", 1.0), ("wheel_right", -1.0)):
         wheel_inertia = (
             params.wheel_mass / 12 * (3 * r * r + WHEEL_WIDTH**2),
@@ -119,7 +150,12 @@ def urdf_string(params: RobotParams) -> str:
             f'<origin xyz="0 {side * b:.10g} 0"/><axis xyz="0 1 0"/>'
             f'<limit effort="{params.wheel_torque_limit}" velocity="{params.wheel_speed_limit}"/></joint>',
         ]
-    # casters: fixed frictionless spheres touching the ground
+    return parts
+
+
+def _casters(params: RobotParams) -> list[str]:
+    """The passive casters: fixed frictionless spheres touching the ground ahead of and behind the axle."""
+    parts: list[str] = []
     for name, x in zip(CASTER_LINKS, (CASTER_X, -CASTER_X)):
         geom = f'<geometry><sphere radius="{CASTER_RADIUS}"/></geometry>'
         parts += [
@@ -130,12 +166,19 @@ def urdf_string(params: RobotParams) -> str:
             "</contact>",
             "</link>",
             f'<joint name="{name}_joint" type="fixed"><parent link="base_link"/><child link="{name}"/>'
-            f'<origin xyz="{x} 0 {CASTER_RADIUS - r:.10g}"/></joint>',
+            f'<origin xyz="{x} 0 {CASTER_RADIUS - params.wheel_radius:.10g}"/></joint>',
         ]
-    # arm: the mount frame is DH frame 0 (at P_c, shoulder height, x along the heading)
+    return parts
+
+
+def _arm(params: RobotParams) -> tuple[list[str], np.ndarray, tuple[float, float, float]]:
+    """The six arm links and revolute joints from the DH table; the mount frame is DH frame 0 (at P_c, shoulder
+    height, x along the heading). Returns the parts and the end-effector's origin in link6 (xyz, rpy)."""
     a, d, alpha = params.dh_a, params.dh_d, params.dh_alpha
+    parts: list[str] = []
     parent = "base_link"
-    origin_xyz, origin_rpy = (params.mount_offset, 0.0, shoulder), (0.0, 0.0, 0.0)
+    origin_xyz, origin_rpy = (params.mount_offset, 0.0, params.shoulder_height - params.wheel_radius), (0.0, 0.0, 0.0)
+    ee_xyz = np.zeros(3)
     for i in range(6):
         name = f"link{i + 1}"
         fx, frpy = _dh_fixed(a[i], d[i], alpha[i])
@@ -164,17 +207,7 @@ def urdf_string(params: RobotParams) -> str:
             f'effort="{params.arm_torque_limit[i]}" velocity="{params.arm_speed_limit[i]}"/></joint>',
         ]
         parent, origin_xyz, origin_rpy = name, fx, frpy
-    # end-effector: the point `tool` along z6, oriented like DH frame 6
-    parts += [
-        f'<link name="{EE_LINK}">',
-        _inertial(0.0),
-        '<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
-        "</link>",
-        f'<joint name="ee_joint" type="fixed"><parent link="link6"/><child link="{EE_LINK}"/>'
-        f'<origin xyz="{_f(ee_xyz)}" rpy="{_f(origin_rpy)}"/></joint>',
-        "</robot>",
-    ]
-    return "\n".join(p for p in parts if p)
+    return parts, ee_xyz, origin_rpy
 
 
 def write_urdf(params: RobotParams, path: str | Path) -> Path:
