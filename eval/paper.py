@@ -352,6 +352,8 @@ def _best_other(result, dyn: str, exclude: tuple) -> tuple[str, float] | None:
 
 
 def _differences(result, nnbc, modes, measured, formula, oracle: str = "oracle") -> list[str]:
+    """The "Where we differ, and why" bullets: the path's size, NNBC and JMPI per mode, the comparison, and
+    the dynamics."""
     out = []
     if measured is not None and formula is not None:
         out.append(
@@ -361,91 +363,9 @@ def _differences(result, nnbc, modes, measured, formula, oracle: str = "oracle")
             f"{_size(measured)}. The text's y and z sizes are inconsistent with the formula (0.8 would need no tilt "
             f"in y, 0.2 half of the z span)."
         )
-    for dyn in modes:
-        a, o = _agg(result, nnbc, dyn), _agg(result, oracle, dyn)
-        errs = _errs(result, nnbc, dyn)
-        if a is None or not errs:
-            continue
-        n_ok = sum(e <= PAPER_MAX_ERROR for e in errs)
-        med = a["max_error_m"]["median"]
-        if n_ok == a["n"]:
-            out.append(f"* **NNBC, {dyn}:** within 6 mm in every seed (median {_mm(med, nnbc)}), as the paper says.")
-            continue
-        line = (
-            f"* **NNBC, {dyn}:** above 6 mm in {a['n'] - n_ok}/{a['n']} seeds (median {_mm(med, nnbc)}, worst "
-            f"{_mm(max(errs), nnbc)})."
-        )
-        if a.get("n_tipped_over"):
-            line += (
-                f" In {a['n_tipped_over']} of them the platform tipped over (roll or pitch > 30 deg) and the "
-                f"episode ended early."
-            )
-        if o is not None and o["max_error_m"]["median"] is not None:
-            om = o["max_error_m"]["median"]
-            if om > PAPER_MAX_ERROR:
-                limited = [
-                    r
-                    for r in result.episodes
-                    if r["policy"] == oracle
-                    and r["dynamics"] == dyn
-                    and r["status"] == "ok"
-                    and r.get("joint_limit_hits", 0) > 0
-                ]
-                line += (
-                    f" The oracle, the same law (eq. (10)) given the true robot's Jacobian, reaches a "
-                    f"median {_mm(om)} too, so that much is not the cost of estimating J: it runs into a joint "
-                    f"limit in {len(limited)}/{o['n']} seeds. The circle goes round the shoulder axis, so joint "
-                    f"1 plus the platform's yaw must turn a full 360 deg; eq. (10)'s minimum-norm solution gives "
-                    f"most of that turn to joint 1, which stops at the PUMA 560's +-160 deg late in the circle, "
-                    f"and the law has no way to hand the turn to the platform. The rest "
-                    f"({_mm(max(med - om, 0.0), nnbc)} of the median) is the cost of the online estimate."
-                )
-                best = _best_other(result, dyn, exclude=(nnbc, oracle, "jmpi"))
-                if best is not None and best[1] < PAPER_MAX_ERROR:
-                    line += (
-                        f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1], best[0])} "
-                        f"without a model."
-                    )
-            else:
-                line += (
-                    f" The oracle (true Jacobian, same loop) stays at a median {_mm(om)}, so the excess is the "
-                    f"cost of estimating J online. The paper's J_hat(0) is a matrix that did not survive in its "
-                    f"text; we start model-free from a short probe whose steps count in the error, and we run "
-                    f"the paper's continuous-time equations at 100 Hz."
-                )
-        out.append(line)
-    for dyn in modes:
-        a = _agg(result, "jmpi", dyn)
-        errs = _errs(result, "jmpi", dyn)
-        if a is None or not errs:
-            continue
-        n_fail = sum(e > PAPER_MAX_ERROR for e in errs)
-        if n_fail == len(errs):
-            out.append(
-                f"* **JMPI, {dyn}:** fails the 6 mm criterion in every seed (median {_mm(a['max_error_m']['median'])}): "
-                f"open loop on the nominal model, its error accumulates with the {_pct(result)} model error, as the paper "
-                f"argues. How badly it fails depends on how wrong the model is, which the paper does not state."
-            )
-        else:
-            out.append(
-                f"* **JMPI, {dyn}:** within 6 mm in {len(errs) - n_fail}/{len(errs)} seeds: with a true robot "
-                f"close to the nominal one the open-loop error stays small; the paper's unknown model error is "
-                f"not stated, ours is {_pct(result)} relative std per length."
-            )
-    for dyn in modes:
-        a, b = _agg(result, nnbc, dyn), _agg(result, "jmpi", dyn)
-        if (
-            a
-            and b
-            and a["max_error_m"]["median"] is not None
-            and b["max_error_m"]["median"] is not None
-            and a["max_error_m"]["median"] >= b["max_error_m"]["median"]
-        ):
-            out.append(
-                f"* **NNBC vs JMPI, {dyn}:** here the paper's NNBC does worse than JMPI (median max error "
-                f"{_mm(a['max_error_m']['median'], nnbc)} vs {_mm(b['max_error_m']['median'])}), so the paper's "
-                f"superiority claim is not reproduced in this mode."
-            )
+    out += [line for dyn in modes if (line := _nnbc_difference(result, nnbc, dyn, oracle))]
+    out += [line for dyn in modes if (line := _jmpi_difference(result, dyn))]
+    out += [line for dyn in modes if (line := _comparison_difference(result, nnbc, dyn))]
     if "physics" in modes and "kinematic" in modes:
         k, p = _agg(result, nnbc, "kinematic"), _agg(result, nnbc, "physics")
         if k and p and k["max_error_m"]["median"] is not None and p["max_error_m"]["median"] is not None:
@@ -456,6 +376,97 @@ def _differences(result, nnbc, modes, measured, formula, oracle: str = "oracle")
                 f"{_mm(p['max_error_m']['median'], nnbc)} with PyBullet contact dynamics."
             )
     return out
+
+
+def _nnbc_difference(result, nnbc: str, dyn: str, oracle: str) -> str | None:
+    """NNBC against the paper's 6 mm in mode `dyn`, and how much of its error the oracle explains."""
+    a = _agg(result, nnbc, dyn)
+    errs = _errs(result, nnbc, dyn)
+    if a is None or not errs:
+        return None
+    n_ok = sum(e <= PAPER_MAX_ERROR for e in errs)
+    med = a["max_error_m"]["median"]
+    if n_ok == a["n"]:
+        return f"* **NNBC, {dyn}:** within 6 mm in every seed (median {_mm(med, nnbc)}), as the paper says."
+    line = (
+        f"* **NNBC, {dyn}:** above 6 mm in {a['n'] - n_ok}/{a['n']} seeds (median {_mm(med, nnbc)}, worst "
+        f"{_mm(max(errs), nnbc)})."
+    )
+    if a.get("n_tipped_over"):
+        line += (
+            f" In {a['n_tipped_over']} of them the platform tipped over (roll or pitch > 30 deg) and the "
+            f"episode ended early."
+        )
+    o = _agg(result, oracle, dyn)
+    if o is not None and o["max_error_m"]["median"] is not None:
+        line += _oracle_explanation(result, nnbc, dyn, oracle, med, o)
+    return line
+
+
+def _oracle_explanation(result, nnbc: str, dyn: str, oracle: str, med: float, o: dict) -> str:
+    """What the oracle (the same law with the true Jacobian) says about NNBC's error in mode `dyn`."""
+    om = o["max_error_m"]["median"]
+    if om <= PAPER_MAX_ERROR:
+        return (
+            f" The oracle (true Jacobian, same loop) stays at a median {_mm(om)}, so the excess is the "
+            f"cost of estimating J online. The paper's J_hat(0) is a matrix that did not survive in its "
+            f"text; we start model-free from a short probe whose steps count in the error, and we run "
+            f"the paper's continuous-time equations at 100 Hz."
+        )
+    limited = [
+        r
+        for r in result.episodes
+        if r["policy"] == oracle and r["dynamics"] == dyn and r["status"] == "ok" and r.get("joint_limit_hits", 0) > 0
+    ]
+    text = (
+        f" The oracle, the same law (eq. (10)) given the true robot's Jacobian, reaches a "
+        f"median {_mm(om)} too, so that much is not the cost of estimating J: it runs into a joint "
+        f"limit in {len(limited)}/{o['n']} seeds. The circle goes round the shoulder axis, so joint "
+        f"1 plus the platform's yaw must turn a full 360 deg; eq. (10)'s minimum-norm solution gives "
+        f"most of that turn to joint 1, which stops at the PUMA 560's +-160 deg late in the circle, "
+        f"and the law has no way to hand the turn to the platform. The rest "
+        f"({_mm(max(med - om, 0.0), nnbc)} of the median) is the cost of the online estimate."
+    )
+    best = _best_other(result, dyn, exclude=(nnbc, oracle, "jmpi"))
+    if best is not None and best[1] < PAPER_MAX_ERROR:
+        text += (
+            f" The task itself allows much less: `{best[0]}` reaches a median {_mm(best[1], best[0])} without a model."
+        )
+    return text
+
+
+def _jmpi_difference(result, dyn: str) -> str | None:
+    """JMPI against the 6 mm criterion in mode `dyn`."""
+    a = _agg(result, "jmpi", dyn)
+    errs = _errs(result, "jmpi", dyn)
+    if a is None or not errs:
+        return None
+    n_fail = sum(e > PAPER_MAX_ERROR for e in errs)
+    if n_fail == len(errs):
+        return (
+            f"* **JMPI, {dyn}:** fails the 6 mm criterion in every seed (median {_mm(a['max_error_m']['median'])}): "
+            f"open loop on the nominal model, its error accumulates with the {_pct(result)} model error, as the paper "
+            f"argues. How badly it fails depends on how wrong the model is, which the paper does not state."
+        )
+    return (
+        f"* **JMPI, {dyn}:** within 6 mm in {len(errs) - n_fail}/{len(errs)} seeds: with a true robot "
+        f"close to the nominal one the open-loop error stays small; the paper's unknown model error is "
+        f"not stated, ours is {_pct(result)} relative std per length."
+    )
+
+
+def _comparison_difference(result, nnbc: str, dyn: str) -> str | None:
+    """The superiority claim in mode `dyn`, when NNBC does not beat JMPI."""
+    a, b = _agg(result, nnbc, dyn), _agg(result, "jmpi", dyn)
+    if not (a and b and a["max_error_m"]["median"] is not None and b["max_error_m"]["median"] is not None):
+        return None
+    if a["max_error_m"]["median"] < b["max_error_m"]["median"]:
+        return None
+    return (
+        f"* **NNBC vs JMPI, {dyn}:** here the paper's NNBC does worse than JMPI (median max error "
+        f"{_mm(a['max_error_m']['median'], nnbc)} vs {_mm(b['max_error_m']['median'])}), so the paper's "
+        f"superiority claim is not reproduced in this mode."
+    )
 
 
 def _success(result, policy: str, dyn: str) -> tuple[int, int] | None:
