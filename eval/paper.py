@@ -260,7 +260,39 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
     if notes:
         lines += ["Notes: " + "; ".join(notes) + ".", ""]
     lines += ["## Claims", ""]
-    rows = []
+    rows = _claim_rows(result, nnbc, modes, measured, formula)
+    lines += [markdown_table(("claim", "paper", "measured", "verdict"), rows), ""]
+
+    lines += ["## Where we differ, and why", ""]
+    lines += _differences(result, nnbc, modes, measured, formula, oracle)
+    lines += ["", "## Baselines the paper did not run, and what they mean for its claims", ""]
+    lines += _baselines(result, specs, nnbc, oracle, modes)
+    lines += ["", "## All policies", ""]
+    for dyn in modes:
+        aggs = [a for a in result.aggregate if a["dynamics"] == dyn]
+        lines += [f"### {dyn}", "", markdown_table(SUMMARY_HEADER, [summary_row(a) for a in aggs]), ""]
+    lines += ["## Max error per seed (mm)", ""]
+    lines += [_per_seed_table(result, specs, nnbc, oracle, modes), ""]
+    lines += [f"## Figures (seed {cfg['seed']})", ""]
+    for dyn in modes:
+        names = figures.get(dyn, [])
+        lines += [
+            f"* {dyn}: "
+            + ", ".join(f"[{nm}]({nm})" for nm in names)
+            + f"; all policies: plots/{PAPER_ENV}_{dyn}_paths3d.png, _axis_errors.png, _error_norm.png"
+        ]
+    lines += [
+        "",
+        "Fig. 2a = NNBC's path and platform trace, Fig. 2b = NNBC's error per axis, Fig. 3 = NNBC vs JMPI.",
+        "Every number above comes from results.json in this directory.",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def _claim_rows(result, nnbc: str, modes, measured, formula) -> list[list[str]]:
+    """The rows of the claims table: the path's size, NNBC's 6 mm, JMPI fails, NNBC better than JMPI."""
+    rows: list[list[str]] = []
     size_measured = _size(measured) if measured is not None else "-"
     if measured is not None:
         match = (
@@ -294,21 +326,16 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
                     "holds" if na < nb else "does not hold",
                 ]
             )
-    lines += [markdown_table(("claim", "paper", "measured", "verdict"), rows), ""]
+    return rows
 
-    lines += ["## Where we differ, and why", ""]
-    lines += _differences(result, nnbc, modes, measured, formula, oracle)
-    lines += ["", "## Baselines the paper did not run, and what they mean for its claims", ""]
-    lines += _baselines(result, specs, nnbc, oracle, modes)
-    lines += ["", "## All policies", ""]
-    for dyn in modes:
-        aggs = [a for a in result.aggregate if a["dynamics"] == dyn]
-        lines += [f"### {dyn}", "", markdown_table(SUMMARY_HEADER, [summary_row(a) for a in aggs]), ""]
-    lines += ["## Max error per seed (mm)", ""]
+
+def _per_seed_table(result, specs, nnbc: str, oracle: str, modes) -> str:
+    """Max error per seed (mm) of NNBC, JMPI, CLIK, the oracle and the ceiling, per mode."""
+    cfg = result.results["config"]
     shown = [p for p in (nnbc, "jmpi", spec_of(specs, "clik"), oracle, spec_of(specs, "qp-oracle")) if p]
     header = ["seed"] + [f"{p} ({d})" for d in modes for p in shown]
     per_seed = []
-    for k in range(n):
+    for k in range(cfg["episodes"]):
         row = [str(cfg["seed"] + k)]
         for d in modes:
             for p in shown:
@@ -317,22 +344,7 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
                 )
                 row.append("-" if rec is None else format_mm(rec.get("max_error_m"), p))
         per_seed.append(row)
-    lines += [markdown_table(header, per_seed), ""]
-    lines += [f"## Figures (seed {cfg['seed']})", ""]
-    for dyn in modes:
-        names = figures.get(dyn, [])
-        lines += [
-            f"* {dyn}: "
-            + ", ".join(f"[{nm}]({nm})" for nm in names)
-            + f"; all policies: plots/{PAPER_ENV}_{dyn}_paths3d.png, _axis_errors.png, _error_norm.png"
-        ]
-    lines += [
-        "",
-        "Fig. 2a = NNBC's path and platform trace, Fig. 2b = NNBC's error per axis, Fig. 3 = NNBC vs JMPI.",
-        "Every number above comes from results.json in this directory.",
-        "",
-    ]
-    return "\n".join(lines)
+    return markdown_table(header, per_seed)
 
 
 def _pct(result) -> str:
