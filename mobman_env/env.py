@@ -234,14 +234,7 @@ class WheeledPumaEnv(gym.Env):
         self.wear_rate = self._conditions["wear_rate"]
         if error_bound is not None:
             error_bound = number("error_bound", error_bound, low=0.0, hint="m; None: never terminate on the error")
-        weights = dict(DEFAULT_REWARD_WEIGHTS)
-        if reward_weights is not None:
-            if not isinstance(reward_weights, dict) or set(reward_weights) - set(DEFAULT_REWARD_WEIGHTS):
-                raise ValueError(
-                    f"reward_weights must be a dict with keys from {sorted(DEFAULT_REWARD_WEIGHTS)}, got {reward_weights!r}"
-                )
-            weights.update({k: number(f"reward_weights[{k!r}]", v, low=0.0) for k, v in reward_weights.items()})
-        self.reward_weights = weights
+        self.reward_weights = _reward_weights(reward_weights)
         self.error_bound = error_bound
         self.path_spec = validate_spec(PAPER_CIRCLE if path is None else path)
         self._check_wear(dynamics, self.wear_rate, _duration(self.path_spec))
@@ -262,22 +255,8 @@ class WheeledPumaEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
         self.observation_space = self._make_observation_space()
         # one flat float32 vector per step, clipped once and handed out as views, in OBS_KEYS order
-        boxes = [cast(spaces.Box, self.observation_space[k]) for k in OBS_KEYS]
-        sizes = [b.shape[0] for b in boxes]
-        ends = np.cumsum(sizes)
-        self._obs_slices = [(k, slice(e - n, e)) for k, n, e in zip(OBS_KEYS, sizes, ends)]
-        self._obs_low = np.concatenate([b.low for b in boxes])
-        self._obs_high = np.concatenate([b.high for b in boxes])
-
-        window = render_mode == "human" and display_available()
-        if render_mode == "human" and not window:
-            warnings.warn(
-                "render_mode='human' needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set; PyBullet's GUI "
-                "would kill the process): running headless with no window, render() returns None; use "
-                "render_mode='rgb_array' for frames without a display",
-                UserWarning,
-                stacklevel=2,
-            )
+        self._obs_slices, self._obs_low, self._obs_high = _flat_layout(self.observation_space)
+        window = _gui_window(render_mode)
         # the path is drawn (as markers) only where it can be seen
         self._draws = render_mode == "rgb_array" or window
         self._sim = Sim(dynamics, self.dt, self.n_substeps, gui=window)
@@ -525,3 +504,39 @@ class WheeledPumaEnv(gym.Env):
         through `true_params`: a guard on `true_params` covers it. For tests and the speed benchmark."""
         self.true_params  # noqa: B018 - the one door to the true robot, so that a guard on it sees this access
         return self._sim
+
+
+def _reward_weights(reward_weights: dict | None) -> dict[str, float]:
+    """The reward weights: the defaults, overridden by the given ones (known keys, numbers >= 0)."""
+    weights = dict(DEFAULT_REWARD_WEIGHTS)
+    if reward_weights is not None:
+        if not isinstance(reward_weights, dict) or set(reward_weights) - set(DEFAULT_REWARD_WEIGHTS):
+            raise ValueError(
+                f"reward_weights must be a dict with keys from {sorted(DEFAULT_REWARD_WEIGHTS)}, got {reward_weights!r}"
+            )
+        weights.update({k: number(f"reward_weights[{k!r}]", v, low=0.0) for k, v in reward_weights.items()})
+    return weights
+
+
+def _flat_layout(space: spaces.Dict) -> tuple[list[tuple[str, slice]], np.ndarray, np.ndarray]:
+    """Where each observation key sits in the flat float32 vector (OBS_KEYS order), and the vector's bounds."""
+    boxes = [cast(spaces.Box, space[k]) for k in OBS_KEYS]
+    sizes = [b.shape[0] for b in boxes]
+    ends = np.cumsum(sizes)
+    slices = [(k, slice(e - n, e)) for k, n, e in zip(OBS_KEYS, sizes, ends)]
+    return slices, np.concatenate([b.low for b in boxes]), np.concatenate([b.high for b in boxes])
+
+
+def _gui_window(render_mode: str | None) -> bool:
+    """Whether to open PyBullet's GUI: `render_mode="human"` with a display; without one, warn and run
+    headless (a GUI connect without a display kills the process)."""
+    window = render_mode == "human" and display_available()
+    if render_mode == "human" and not window:
+        warnings.warn(
+            "render_mode='human' needs a display (neither DISPLAY nor WAYLAND_DISPLAY is set; PyBullet's GUI "
+            "would kill the process): running headless with no window, render() returns None; use "
+            "render_mode='rgb_array' for frames without a display",
+            UserWarning,
+            stacklevel=3,
+        )
+    return window
