@@ -162,14 +162,18 @@ def _algo_classes() -> dict[str, Any]:
 
 
 def _algo_from_zip(data: dict) -> str | None:
-    """The algorithm recorded in the zip: the module of its policy class (e.g. stable_baselines3.sac.policies)."""
+    """The algorithm recorded in the zip: the module of its policy class (e.g. stable_baselines3.sac.policies);
+    for the actor-critic policies PPO and A2C share (stable_baselines3.common.policies, what plain SB3 saves for
+    `"MultiInputPolicy"`), PPO if the zip holds PPO's own `n_epochs` and `clip_range`, else A2C."""
     try:
-        module = data["policy_class"]["__module__"]
+        module = str(data["policy_class"]["__module__"])
     except (KeyError, TypeError):
         return None
     for algo in ALGOS:
-        if f".{algo}." in str(module):
+        if f".{algo}." in module:
             return algo
+    if module == "stable_baselines3.common.policies":
+        return "ppo" if "n_epochs" in data and "clip_range" in data else "a2c"
     return None
 
 
@@ -244,6 +248,16 @@ def _zoo_view(config: dict, where: Path) -> dict:
 
 
 def _describe(space: Any) -> str:
+    """A one-line text of a gymnasium space: Box(low, high, shape, dtype) with the bounds' range, Dict of them."""
+    import gymnasium
+
+    if isinstance(space, gymnasium.spaces.Box):
+        low, high = np.asarray(space.low), np.asarray(space.high)
+        lo = f"{low.min():g}" if low.min() == low.max() else f"{low.min():g}..{low.max():g}"
+        hi = f"{high.min():g}" if high.min() == high.max() else f"{high.min():g}..{high.max():g}"
+        return f"Box({lo}, {hi}, {space.shape}, {space.dtype})"
+    if isinstance(space, gymnasium.spaces.Dict):
+        return "Dict(" + ", ".join(f"{k!r}: {_describe(v)}" for k, v in space.spaces.items()) + ")"
     return repr(space)
 
 
