@@ -417,7 +417,7 @@ class SB3Policy:
         base = unwrap_env(env)
         raw = base.observation_space
         if isinstance(raw, gymnasium.spaces.Dict):
-            zeros = {k: np.zeros(sp.shape, sp.dtype) for k, sp in raw.spaces.items()}
+            zeros = {k: np.zeros(tuple(sp.shape or ()), dtype=sp.dtype or np.float32) for k, sp in raw.spaces.items()}
             view = self._view(zeros)
             seen: Any = (
                 gymnasium.spaces.Box(-np.inf, np.inf, np.shape(view), np.asarray(view).dtype)

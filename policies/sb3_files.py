@@ -26,7 +26,7 @@ tags; `load_zoo_yaml` reads them with a `yaml.SafeLoader` that builds only that 
 never `yaml.unsafe_load`.
 
 This narrows what a file can do; it is not a sandbox: load only agents you trust (README, `--help`).
-May import numpy and the standard library; torch, gymnasium and Stable-Baselines3 only inside functions.
+May import numpy and the standard library; torch, gymnasium, yaml and Stable-Baselines3 only inside functions.
 """
 
 from __future__ import annotations
@@ -352,7 +352,7 @@ def load_zoo_yaml(path: Path) -> dict[str, Any]:
         pass
 
     def _ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict[str, Any]:
-        args = loader.construct_sequence(node, deep=True)  # type: ignore[arg-type]  # OrderedDict(*args)
+        args = loader.construct_sequence(node, deep=True)  # OrderedDict(*args)
         pairs = args[0] if len(args) == 1 and isinstance(args[0], list) else None
         if pairs is None or not all(isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) for p in pairs):
             raise yaml.constructor.ConstructorError(None, None, "an OrderedDict of [key, value] pairs", node.start_mark)
