@@ -9,6 +9,7 @@ deterministic), run beside mobman's loader on an identically seeded env.
 from __future__ import annotations
 
 import json
+import pickle
 import shutil
 import warnings
 from collections import OrderedDict
@@ -171,8 +172,8 @@ def test_eval_run_of_a_plain_sb3_agent_equals_sb3s_own_loop(plain_dir, tmp_path)
     for rec, seed in zip(episodes, seeds):
         errors, _ = _sb3_loop(plain_dir / "model.zip", plain_dir / "vec_normalize.pkl", _raw_env, seed)
         assert rec["seed"] == seed and len(errors) == 101
-        assert rec["max_error_m"] == pytest.approx(errors.max(), rel=1e-12, abs=0)
-        assert rec["rms_error_m"] == pytest.approx(np.sqrt(np.mean(errors**2)), rel=1e-12, abs=0)
+        assert rec["max_error_m"] == errors.max()  # equal, not close
+        assert rec["rms_error_m"] == np.sqrt(np.mean(errors**2))
     # the statistics matter: unnormalised, the same agent tracks differently
     assert episodes[0]["max_error_m"] != pytest.approx(_unnormalised_max_error(plain_dir, seeds[0]), rel=1e-6)
 
@@ -202,6 +203,25 @@ def test_vec_normalize_pkl_is_read_and_two_statistics_files_are_refused(plain_di
     shutil.copy(both / "vec_normalize.pkl", both / "vecnormalize.pkl")
     with pytest.raises(ValueError, match=r"two VecNormalize files, vecnormalize.pkl and vec_normalize.pkl"):
         policies.SB3Policy(both)
+
+    crafted = shutil.copytree(plain_dir, tmp_path / "crafted")  # the new name goes through the same unpickler
+    marker = tmp_path / "pwned"
+    (crafted / "vec_normalize.pkl").write_bytes(pickle.dumps(_System(f"touch {marker}")))
+    with pytest.raises(ValueError, match=r"vec_normalize.pkl: refused to load (posix|os)\.system"):
+        policies.SB3Policy(crafted)
+    assert not marker.exists()
+
+
+class _System:
+    """Pickles as a call of os.system (what a crafted statistics file can do)."""
+
+    def __init__(self, command):
+        self.command = command
+
+    def __reduce__(self):
+        import os
+
+        return (os.system, (self.command,))
 
 
 # --- 3. Box observations (FlattenObservation) -------------------------------------------------------------
