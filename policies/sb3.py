@@ -5,7 +5,8 @@ folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/m
 `VecNormalize.save("DIR/vec_normalize.pkl")`) or by rl-baselines3-zoo (see below):
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
-  recorded in the zip (a file naming none is refused: add "algo" to config.json). SB3 loads it with every
+  recorded in the zip (PPO or A2C for the actor-critic class they share, by PPO's own entries; a file naming
+  none is refused: add "algo" to config.json). SB3 loads it with every
   pickled entry supplied by `policies.sb3_files.safe_custom_objects`, so nothing in it is unpickled by SB3.
 * `vecnormalize.pkl` or `vec_normalize.pkl` (optional; both present: refused, naming both) - the
   `VecNormalize` statistics of training, read without unpickling code
@@ -20,8 +21,8 @@ folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/m
   wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
   `RecordEpisodeStatistics`, `ClipAction`, reward wrappers) are accepted and ignored; any other name is
   refused with the list, so a mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own
-  observation space are used. The kept keys are cast to float32 (the dtype the agent saw through the VecEnv's
-  buffers) before normalisation.
+  observation space are used. The kept keys are cast to the dtype of the model's space for them (what the
+  agent saw through the VecEnv's buffers; float32 for mobman's envs) before normalisation.
 
 A model whose observation space is a `Box` was trained on `gymnasium.wrappers.FlattenObservation`: the kept
 keys (all of the env's keys without `obs_keys`) are concatenated in the order of a `gymnasium.spaces.Dict`
@@ -35,7 +36,9 @@ statistics `<ENV>/vecnormalize.pkl`, and `<ENV>/config.yml` (the hyperparameters
 `train.wrappers.AliveBonus` (reward only) and `gymnasium.wrappers.FlattenObservation` (reproduced from the
 model's Box space) are accepted, any other wrapper, and `frame_stack`, is refused, naming it; `normalize`
 asking for observation statistics without the file is refused. `<ENV>/args.yml`'s `env` and `env_kwargs`
-are recorded (`trained_env`), as are config.json's `env_id`/`env_kwargs`.
+are recorded (`trained_env`), as are config.json's `env_id`/`env_kwargs`; the algorithm is args.yml's `algo`.
+The zoo's zip also pickles a learning-rate schedule naming `rl_zoo3`: like every entry inference does not
+use, it is replaced without being decoded, so rl_zoo3 need not be installed.
 
 Before any rollout (`check_compatible`, which `policies.make` calls) the env's observation, passed through the
 agent's transforms, must have the model's observation space (keys and shapes) and the env's action space the
