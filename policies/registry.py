@@ -246,7 +246,7 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         from policies.sb3 import SB3Policy
 
         policy = SB3Policy(spec[4:])
-        policy.check_compatible(EnvFacts.from_env(env))
+        policy.check_compatible(EnvFacts.from_env(env), env)
         return policy
     name, _, rest = spec.partition(":")
     if name in _REGISTRY:

@@ -1,12 +1,15 @@
 """`SB3Policy`: a trained Stable-Baselines3 agent behind the same interface as the controllers.
 
 `policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias `sb3:sac-circle`) reads a run
-folder written by `mobman-train`:
+folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
+`VecNormalize.save("DIR/vec_normalize.pkl")`) or by rl-baselines3-zoo (see below):
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
-  recorded in the zip (a file naming none is refused: add "algo" to config.json). SB3 loads it with every
+  recorded in the zip (PPO or A2C for the actor-critic class they share, by PPO's own entries; a file naming
+  none is refused: add "algo" to config.json). SB3 loads it with every
   pickled entry supplied by `policies.sb3_files.safe_custom_objects`, so nothing in it is unpickled by SB3.
-* `vecnormalize.pkl` (optional) - the `VecNormalize` statistics of training, read without unpickling code
+* `vecnormalize.pkl` or `vec_normalize.pkl` (optional; both present: refused, naming both) - the
+  `VecNormalize` statistics of training, read without unpickling code
   (`policies.sb3_files.load_vecnormalize_stats`). Observations are normalised
   exactly as `VecNormalize.normalize_obs` does: `clip((obs - mean) / sqrt(var + epsilon), -clip_obs,
   clip_obs)` cast to float32, with the saved `obs_rms`, `epsilon` and `clip_obs`, only for the keys in its
@@ -18,8 +21,31 @@ folder written by `mobman-train`:
   wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
   `RecordEpisodeStatistics`, `ClipAction`, reward wrappers) are accepted and ignored; any other name is
   refused with the list, so a mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own
-  observation space are used. The kept keys are cast to float32 (the dtype the agent saw through the VecEnv's
-  buffers) before normalisation.
+  observation space are used. The kept keys are cast to the dtype of the model's space for them (what the
+  agent saw through the VecEnv's buffers; float32 for mobman's envs) before normalisation.
+
+A model whose observation space is a `Box` was trained on `gymnasium.wrappers.FlattenObservation`: the kept
+keys (all of the env's keys without `obs_keys`) are concatenated in the order of a `gymnasium.spaces.Dict`
+of them (gymnasium sorts a plain dict's keys), each flattened, and cast to the model's dtype, exactly as
+`gymnasium.spaces.flatten` and the VecEnv's buffer do, before normalisation.
+
+rl-baselines3-zoo (`sb3:logs/ppo/WheeledPuma-Circle-v0_1`, the folder or its `<ENV>.zip`): the final model
+`<ENV>.zip` (else `best_model.zip`; when both exist the final one is taken and a warning says so), the
+statistics `<ENV>/vecnormalize.pkl`, and `<ENV>/config.yml` (the hyperparameters): its `env_wrapper`
+`train.wrappers.AgentObservation` (kwargs `wrappers`, `obs_keys`) gives the wrappers and keys above,
+`train.wrappers.AliveBonus` (reward only) and `gymnasium.wrappers.FlattenObservation` (reproduced from the
+model's Box space) are accepted, any other wrapper, and `frame_stack`, is refused, naming it; `normalize`
+asking for observation statistics without the file is refused. `<ENV>/args.yml`'s `env` and `env_kwargs`
+are recorded (`trained_env`), as are config.json's `env_id`/`env_kwargs`; the algorithm is args.yml's `algo`.
+The zoo's zip also pickles a learning-rate schedule naming `rl_zoo3`: like every entry inference does not
+use, it is replaced without being decoded, so rl_zoo3 need not be installed.
+
+Before any rollout (`check_compatible`, which `policies.make` calls) the env's observation, passed through the
+agent's transforms, must have the model's observation space (keys and shapes) and the env's action space the
+model's (shape and bounds); otherwise the load is refused naming both spaces. An env id other than the one
+the agent was trained on gives a `UserWarning` (evaluating on another task is legitimate, e.g. a
+generalisation test, but should be deliberate); env kwargs are not compared (the learning-only ones such as
+`reward_weights` and `error_bound` differ from evaluation by design).
 
 **Only load agents you trust.** SB3's files hold pickles, which can run code; `policies.sb3_files` reads
 them with a restricted unpickler (numpy data, SB3 policy classes, gymnasium spaces, torch layers only) and
@@ -34,13 +60,22 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 
 from __future__ import annotations
 
+import ast
 import json
+import warnings
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from policies.sb3_files import load_vecnormalize_stats, read_zip_data, safe_custom_objects
+from policies.sb3_files import (
+    RunFiles,
+    find_run,
+    load_vecnormalize_stats,
+    load_zoo_yaml,
+    read_zip_data,
+    safe_custom_objects,
+)
 
 #: Aliases of models shipped as package data: name -> path inside this package (`policies/models/`), found
 #: through this file's own location, so a user's `train.py` or `policies.py` beside their script cannot hide it.
@@ -74,9 +109,23 @@ _NEUTRAL_WRAPPERS = (
     "PassiveEnvChecker",
 )
 
+#: rl-zoo `env_wrapper` entries: the one that defines the agent's view, and those that do not change it.
+ZOO_AGENT_VIEW = "train.wrappers.AgentObservation"
+ZOO_NEUTRAL = ("train.wrappers.AliveBonus", "gymnasium.wrappers.FlattenObservation")
+
 
 def resolve_model_path(text: str) -> Path:
-    """`sac-circle` -> the packaged model; a folder -> its `model.zip`; else the path itself (must exist)."""
+    """`sac-circle` -> the packaged model; a folder -> its model (`model.zip`, or rl-zoo's `<ENV>.zip`); else
+    the path itself (must exist)."""
+    return resolve_run(text).model
+
+
+def resolve_run(text: str) -> RunFiles:
+    """The files of the agent `text` names (an alias, a folder, a model file); see `policies.sb3_files.find_run`."""
+    return find_run(_model_path(text))
+
+
+def _model_path(text: str) -> Path:
     text = text.strip()
     if text in ALIASES:
         path = Path(__file__).resolve().parent / ALIASES[text]
@@ -89,9 +138,7 @@ def resolve_model_path(text: str) -> Path:
     if not text:
         raise FileNotFoundError(f"sb3: needs a path, e.g. sb3:runs/sac/model.zip, or an alias: {', '.join(ALIASES)}")
     path = Path(text).expanduser()
-    if path.is_dir():
-        path = path / "model.zip"
-    if not path.is_file():
+    if not path.exists():
         raise FileNotFoundError(
             f"no SB3 model at {str(path)!r}; give a model.zip of a mobman-train run folder "
             f"(sb3:DIR/model.zip) or an alias: {', '.join('sb3:' + a for a in ALIASES)}"
@@ -118,14 +165,18 @@ def _algo_classes() -> dict[str, Any]:
 
 
 def _algo_from_zip(data: dict) -> str | None:
-    """The algorithm recorded in the zip: the module of its policy class (e.g. stable_baselines3.sac.policies)."""
+    """The algorithm recorded in the zip: the module of its policy class (e.g. stable_baselines3.sac.policies);
+    for the actor-critic policies PPO and A2C share (stable_baselines3.common.policies, what plain SB3 saves for
+    `"MultiInputPolicy"`), PPO if the zip holds PPO's own `n_epochs` and `clip_range`, else A2C."""
     try:
-        module = data["policy_class"]["__module__"]
+        module = str(data["policy_class"]["__module__"])
     except (KeyError, TypeError):
         return None
     for algo in ALGOS:
-        if f".{algo}." in str(module):
+        if f".{algo}." in module:
             return algo
+    if module == "stable_baselines3.common.policies":
+        return "ppo" if "n_epochs" in data and "clip_range" in data else "a2c"
     return None
 
 
@@ -163,26 +214,105 @@ def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
     return tuple(names)
 
 
+def _zoo_normalize(value: Any, where: Path) -> bool:
+    """Whether rl-zoo's `normalize` hyperparameter asks for observation statistics (bool, dict or its text)."""
+    if isinstance(value, str):
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict") from None
+    if isinstance(value, dict):
+        return bool(value.get("norm_obs", True))
+    return bool(value)
+
+
+def _zoo_view(config: dict, where: Path) -> dict:
+    """mobman's config keys (`wrappers`, `obs_keys`) from rl-zoo's `env_wrapper`; refuses what it cannot reproduce."""
+    if config.get("frame_stack"):
+        raise ValueError(f"{where}: frame_stack {config['frame_stack']!r} cannot be reproduced at inference")
+    items = config.get("env_wrapper") or []
+    items = items if isinstance(items, list) else [items]
+    view: dict = {}
+    for item in items:
+        name, kwargs = next(iter(item.items())) if isinstance(item, dict) and len(item) == 1 else (item, None)
+        if not isinstance(name, str):
+            raise ValueError(f"{where}: env_wrapper entry {item!r} is not a name or {{name: kwargs}}")
+        if name == ZOO_AGENT_VIEW:
+            kwargs = kwargs or {}
+            view["wrappers"] = list(kwargs.get("wrappers") or [])
+            if kwargs.get("obs_keys") is not None:
+                view["obs_keys"] = list(kwargs["obs_keys"])
+        elif name not in ZOO_NEUTRAL:
+            raise ValueError(
+                f"{where}: env_wrapper {name!r} cannot be reproduced at inference; accepted: "
+                f"{', '.join((ZOO_AGENT_VIEW, *ZOO_NEUTRAL))}"
+            )
+    return view
+
+
+def _describe(space: Any) -> str:
+    """A one-line text of a gymnasium space: Box(low, high, shape, dtype) with the bounds' range, Dict of them."""
+    import gymnasium
+
+    if isinstance(space, gymnasium.spaces.Box):
+        low, high = np.asarray(space.low), np.asarray(space.high)
+        lo = f"{low.min():g}" if low.min() == low.max() else f"{low.min():g}..{low.max():g}"
+        hi = f"{high.min():g}" if high.min() == high.max() else f"{high.min():g}..{high.max():g}"
+        return f"Box({lo}, {hi}, {space.shape}, {space.dtype})"
+    if isinstance(space, gymnasium.spaces.Dict):
+        return "Dict(" + ", ".join(f"{k!r}: {_describe(v)}" for k, v in space.spaces.items()) + ")"
+    return repr(space)
+
+
 class SB3Policy:
-    """A Stable-Baselines3 agent from a run folder; see the module docstring for what is read and how."""
+    """A Stable-Baselines3 agent from a run folder; see the module docstring for what is read and how.
+
+    Attributes after loading: `path` (the model file), `run_dir`, `layout` ("mobman" or "zoo"), `stats_path`
+    (the VecNormalize file or None), `config` (config.json's content, or for rl-zoo the keys derived from
+    config.yml), `trained_env` ({"env_id", "env_kwargs"} the run recorded, values None when unknown)."""
 
     name = "sb3"
 
     def __init__(self, model_path: str | Path, *, device: str = "cpu", torch_threads: int | None = 1):
         require_sb3()
-        self.path = resolve_model_path(str(model_path))
-        self.run_dir = self.path.parent
-        self.config: dict = _read_config(self.run_dir / "config.json")
+        run = resolve_run(str(model_path))
+        self.path, self.run_dir, self.layout, self.stats_path = run.model, run.model.parent, run.layout, run.stats
+        if run.note:
+            warnings.warn(f"sb3:{model_path}: {run.note}", UserWarning, stacklevel=2)
+        self._config_file = run.config_json or self.run_dir / "config.json"
+        if run.zoo_dir is not None:
+            self._config_file = run.zoo_dir / "config.yml"
+            self.config = self._zoo_config(run)
+        else:
+            self.config = _read_config(self._config_file)
+        self.trained_env = {"env_id": self.config.get("env_id"), "env_kwargs": self.config.get("env_kwargs")}
         if torch_threads is not None:
             import torch
 
             torch.set_num_threads(int(torch_threads))
         self.model = self._load_model(device)
-        self.wrappers = _wrapper_names(self.config.get("wrappers"), self.run_dir / "config.json")
+        self.wrappers = _wrapper_names(self.config.get("wrappers"), self._config_file)
         self.obs_keys = self._observation_keys()
         self._load_normalisation()
 
     # --- loading ---------------------------------------------------------------------------------------
+    def _zoo_config(self, run: RunFiles) -> dict:
+        """mobman's config keys from rl-zoo's `<ENV>/config.yml` and `<ENV>/args.yml`."""
+        assert run.zoo_dir is not None
+        cfg_path, args_path = run.zoo_dir / "config.yml", run.zoo_dir / "args.yml"
+        hp = load_zoo_yaml(cfg_path) if cfg_path.is_file() else {}
+        args = load_zoo_yaml(args_path) if args_path.is_file() else {}
+        config: dict = {"env_id": args.get("env", run.zoo_dir.name), "env_kwargs": args.get("env_kwargs") or {}}
+        if isinstance(args.get("algo"), str):
+            config["algo"] = args["algo"]
+        config.update(_zoo_view(hp, cfg_path))
+        if _zoo_normalize(hp.get("normalize", False), cfg_path) and run.stats is None:
+            raise ValueError(
+                f"{cfg_path}: normalize {hp.get('normalize')!r} says the agent saw normalised observations, but "
+                f"{run.zoo_dir / 'vecnormalize.pkl'} is missing; copy it from the training run"
+            )
+        return config
+
     def _load_model(self, device: str) -> Any:
         """Load model.zip once with the algorithm of config.json's "algo" (else the one its policy class
         names); SB3 unpickles nothing (`safe_custom_objects`)."""
@@ -193,7 +323,7 @@ class SB3Policy:
         if algo is not None:
             key = str(algo).lower()
             if key not in classes:
-                raise ValueError(f"{self.run_dir / 'config.json'}: unknown algo {algo!r}; accepted: {', '.join(ALGOS)}")
+                raise ValueError(f"{self._config_file}: unknown algo {algo!r}; accepted: {', '.join(ALGOS)}")
         else:
             key = _algo_from_zip(data)
         if key is None:
@@ -211,8 +341,15 @@ class SB3Policy:
         self.algo = key
         return model
 
+    @property
+    def flattens(self) -> bool:
+        """Whether the agent takes a Box (a `FlattenObservation` of the dict) rather than a Dict."""
+        import gymnasium
+
+        return isinstance(self.model.observation_space, gymnasium.spaces.Box)
+
     def _observation_keys(self) -> tuple[str, ...] | None:
-        """The Dict keys the agent sees, in order (None: the agent takes the observation unchanged)."""
+        """The Dict keys the agent sees, in order (None: all of the observation's keys)."""
         model_keys = tuple(getattr(self.model.observation_space, "spaces", {}).keys()) or None
         keys = self.config.get("obs_keys")
         if keys is None:
@@ -220,27 +357,31 @@ class SB3Policy:
         keys = tuple(keys)
         if model_keys is not None and set(keys) != set(model_keys):
             raise ValueError(
-                f"{self.run_dir / 'config.json'}: obs_keys {list(keys)} differ from the model's "
+                f"{self._config_file}: obs_keys {list(keys)} differ from the model's "
                 f"observation keys {list(model_keys)}"
             )
         return keys
 
     def _load_normalisation(self) -> None:
         self._norm: Any = None
-        pkl = self.run_dir / "vecnormalize.pkl"
-        if not pkl.is_file():
+        pkl = self.stats_path
+        if pkl is None:
             return
         stats = load_vecnormalize_stats(pkl)
         if not stats["norm_obs"]:
             return
         rms = stats["obs_rms"]
         if isinstance(rms, dict):
+            if self.flattens:
+                raise ValueError(f"{pkl} holds per-key statistics but the model {self.path} takes a Box observation")
             keys = stats["norm_obs_keys"] if stats["norm_obs_keys"] is not None else list(rms)
             missing = [k for k in keys if k not in rms]
             if missing:
                 raise ValueError(f"{pkl}: norm_obs_keys {missing} have no statistics; copy it again from training")
             self._norm = {k: rms[k] for k in keys}
         else:
+            if not self.flattens:
+                raise ValueError(f"{pkl} holds statistics of a Box observation but the model {self.path} takes a Dict")
             self._norm = rms
         self._eps = stats["epsilon"]
         self._clip = stats["clip_obs"]
@@ -254,8 +395,10 @@ class SB3Policy:
             needed += [k for k in OBS_WRAPPERS[name][1] if k not in needed]
         return needed
 
-    def check_compatible(self, facts: Any) -> None:
-        """Fail early (before any rollout) if the env lacks a key the agent needs or has another action size."""
+    def check_compatible(self, facts: Any, env: Any = None) -> None:
+        """Fail early (before any rollout) if the env lacks a key the agent needs, or (given `env`) if the env's
+        observation after the agent's transforms, or its action space, differs from the model's (naming both
+        spaces). Warns when `env` is another env id than the agent was trained on."""
         if facts.obs_keys:
             missing = [k for k in self.required_keys() if k not in facts.obs_keys]
             if missing:
@@ -266,19 +409,100 @@ class SB3Policy:
         n = int(np.prod(self.model.action_space.shape))
         if n != len(facts.action_scale):
             raise ValueError(f"the agent {self.path} outputs {n} actions; the env takes {len(facts.action_scale)}")
+        if env is not None:
+            self._check_spaces(env)
+
+    def _check_spaces(self, env: Any) -> None:
+        import gymnasium
+
+        from policies.base import unwrap_env
+
+        base = unwrap_env(env)
+        raw = base.observation_space
+        if isinstance(raw, gymnasium.spaces.Dict):
+            zeros = {k: np.zeros(tuple(sp.shape or ()), dtype=sp.dtype or np.float32) for k, sp in raw.spaces.items()}
+            view = self._view(zeros)
+            seen: Any = (
+                gymnasium.spaces.Box(-np.inf, np.inf, np.shape(view), np.asarray(view).dtype)
+                if not isinstance(view, dict)
+                else gymnasium.spaces.Dict(
+                    {
+                        k: raw.spaces[k]
+                        if k in raw.spaces
+                        else gymnasium.spaces.Box(-np.inf, np.inf, np.shape(v), v.dtype)
+                        for k, v in view.items()
+                    }
+                )
+            )
+        else:
+            seen = raw
+        model_obs = self.model.observation_space
+        if isinstance(model_obs, gymnasium.spaces.Dict):
+            same = (
+                isinstance(seen, gymnasium.spaces.Dict)
+                and set(seen.spaces) == set(model_obs.spaces)
+                and all(seen.spaces[k].shape == model_obs.spaces[k].shape for k in model_obs.spaces)
+            )
+        else:
+            same = not isinstance(seen, gymnasium.spaces.Dict) and seen.shape == model_obs.shape
+        if not same:
+            raise ValueError(
+                f"the agent {self.path} takes observations {_describe(model_obs)}, but the env's observation "
+                f"through the agent's transforms (wrappers {list(self.wrappers)}, keys "
+                f"{list(self.obs_keys) if self.obs_keys else 'all'}{', flattened' if self.flattens else ''}) is "
+                f"{_describe(seen)}; evaluate it on the env (and obs_keys / wrappers) it was trained with"
+            )
+        model_act, act = self.model.action_space, getattr(base, "action_space", None)
+        if act is not None and not (
+            getattr(act, "shape", None) == model_act.shape
+            and np.array_equal(np.asarray(getattr(act, "low", np.nan)), np.asarray(model_act.low))
+            and np.array_equal(np.asarray(getattr(act, "high", np.nan)), np.asarray(model_act.high))
+        ):
+            raise ValueError(
+                f"the agent {self.path} outputs actions in {_describe(model_act)}, but the env takes "
+                f"{_describe(act)}; evaluate it on the env it was trained with"
+            )
+        try:
+            env_id = base.spec.id
+        except AttributeError:
+            env_id = None
+        trained = self.trained_env.get("env_id")
+        if trained and env_id and trained != env_id:
+            warnings.warn(
+                f"the agent {self.path} was trained on {trained} and is evaluated on {env_id}",
+                UserWarning,
+                stacklevel=3,
+            )
 
     # --- the Policy contract ---------------------------------------------------------------------------
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
         """Nothing to re-initialise: the agent is stateless between steps."""
 
-    def transform(self, observation: Any) -> Any:
-        """The observation as the agent saw it in training: wrapped, reduced to `obs_keys`, normalised."""
+    def _view(self, observation: Any) -> Any:
+        """The observation through the agent's wrappers and keys (and flattened for a Box model), unnormalised."""
         obs = observation
-        if isinstance(obs, dict):
-            for name in self.wrappers:
-                obs = OBS_WRAPPERS[name][0](obs)
-            keys = self.obs_keys if self.obs_keys is not None else tuple(obs)
-            obs = {k: np.asarray(obs[k], dtype=np.float32) for k in keys}
+        if not isinstance(obs, dict):
+            return obs
+        for name in self.wrappers:
+            obs = OBS_WRAPPERS[name][0](obs)
+        keys = self.obs_keys if self.obs_keys is not None else tuple(obs)
+        space = self.model.observation_space
+        if self.flattens:
+            import gymnasium
+
+            # gymnasium.spaces.flatten's order: that of a Dict space of the kept keys (sorted for a plain dict)
+            order = list(gymnasium.spaces.Dict({k: gymnasium.spaces.Discrete(1) for k in keys}).spaces)
+            arrays = [np.asarray(obs[k]) for k in order]
+            batched = arrays[0].ndim >= 2
+            parts = [a.reshape(a.shape[0], -1) if batched else a.reshape(-1) for a in arrays]
+            return np.concatenate(parts, axis=-1).astype(space.dtype)
+        dtypes = getattr(space, "spaces", {})
+        return {k: np.asarray(obs[k], dtype=dtypes[k].dtype if k in dtypes else np.float32) for k in keys}
+
+    def transform(self, observation: Any) -> Any:
+        """The observation as the agent saw it in training: wrapped, reduced to `obs_keys` (flattened for a Box
+        model), normalised."""
+        obs = self._view(observation)
         if self._norm is None:
             return obs
         eps, clip = self._eps, self._clip
@@ -287,7 +511,7 @@ class SB3Policy:
                 obs[k] = np.clip((obs[k] - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
             return obs
         mean, var = self._norm
-        return np.clip((np.asarray(obs, dtype=np.float32) - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
+        return np.clip((np.asarray(obs) - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         return self.model.predict(

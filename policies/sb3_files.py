@@ -17,8 +17,16 @@ with `UnsafePickleError`, naming the module and attribute:
   spaces, torch activation and optimiser classes, and numpy data. The weights (`*.pth`) are read by SB3 with
   `torch.load(..., weights_only=True)`.
 
+Where the files are (`find_run`): a mobman-train or plain SB3 folder holds `model.zip` and, optionally, the
+statistics under mobman's name `vecnormalize.pkl` or `VecNormalize.save`'s conventional `vec_normalize.pkl`
+(both present: refused, naming both); an rl-baselines3-zoo run folder (`logs/<algo>/<ENV>_<n>/`) holds
+`<ENV>.zip` (the final model; `best_model.zip` is used only without it) and `<ENV>/` with `vecnormalize.pkl`,
+`config.yml` and `args.yml`. The zoo's YAML files are written with `!!python/object/apply:collections.OrderedDict`
+tags; `load_zoo_yaml` reads them with a `yaml.SafeLoader` that builds only that tag (as a dict of its pairs),
+never `yaml.unsafe_load`.
+
 This narrows what a file can do; it is not a sandbox: load only agents you trust (README, `--help`).
-May import numpy and the standard library; torch, gymnasium and Stable-Baselines3 only inside functions.
+May import numpy and the standard library; torch, gymnasium, yaml and Stable-Baselines3 only inside functions.
 """
 
 from __future__ import annotations
@@ -29,12 +37,24 @@ import io
 import json
 import pickle
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-__all__ = ["UnsafePickleError", "load_vecnormalize_stats", "read_zip_data", "safe_custom_objects"]
+__all__ = [
+    "RunFiles",
+    "UnsafePickleError",
+    "find_run",
+    "load_vecnormalize_stats",
+    "load_zoo_yaml",
+    "read_zip_data",
+    "safe_custom_objects",
+]
+
+#: The file names of VecNormalize statistics: mobman-train's, and the one SB3's docs and examples use.
+STATS_NAMES = ("vecnormalize.pkl", "vec_normalize.pkl")
 
 
 class UnsafePickleError(pickle.UnpicklingError):
@@ -247,3 +267,105 @@ def safe_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
                 f"from the training run"
             ) from None
     return objects
+
+
+# --- where the files of a run are ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RunFiles:
+    """The files of one agent. layout: "mobman" (model.zip + config.json, or plain SB3) or "zoo"
+    (rl-baselines3-zoo). stats: the VecNormalize file or None. config_json: mobman's config.json or None.
+    zoo_dir: the zoo's `<ENV>/` folder (config.yml, args.yml) or None. note: a choice made (e.g. which of
+    two zoo models was taken), "" if none."""
+
+    model: Path
+    layout: str
+    stats: Path | None
+    config_json: Path | None
+    zoo_dir: Path | None
+    note: str = ""
+
+
+def _stats_file(folder: Path) -> Path | None:
+    found = [folder / n for n in STATS_NAMES if (folder / n).is_file()]
+    if len(found) > 1:
+        raise ValueError(
+            f"{folder} holds two VecNormalize files, {found[0].name} and {found[1].name}; it is not clear which "
+            f"one the agent was trained with: delete or rename the other one"
+        )
+    return found[0] if found else None
+
+
+def _zoo_dirs(folder: Path) -> list[Path]:
+    """Sub-folders of `folder` laid out as rl-zoo's `<ENV>/` (a config.yml or args.yml inside)."""
+    if not folder.is_dir():
+        return []
+    return sorted(
+        d for d in folder.iterdir() if d.is_dir() and ((d / "config.yml").is_file() or (d / "args.yml").is_file())
+    )
+
+
+def find_run(path: Path) -> RunFiles:
+    """The files of the agent at `path` (a folder or a .zip). FileNotFoundError/ValueError naming what is missing
+    or ambiguous."""
+    folder = path if path.is_dir() else path.parent
+    zoo = _zoo_dirs(folder)
+    if len(zoo) > 1:
+        raise ValueError(
+            f"{folder} holds several rl-zoo env folders ({', '.join(d.name for d in zoo)}); give the model file, "
+            f"e.g. sb3:{folder / (zoo[0].name + '.zip')}"
+        )
+    if zoo and not (folder / "model.zip").is_file():
+        env_dir = zoo[0]
+        final, best = folder / f"{env_dir.name}.zip", folder / "best_model.zip"
+        note = ""
+        if path.is_dir():
+            if final.is_file():
+                model = final
+                if best.is_file():
+                    note = f"took the final model {final.name}, not {best.name} (give sb3:{best} for that one)"
+            elif best.is_file():
+                model, note = best, f"took {best.name}: the final model {final.name} is missing"
+            else:
+                raise FileNotFoundError(
+                    f"{folder} looks like an rl-zoo run folder (it has {env_dir.name}/) but holds neither "
+                    f"{final.name} nor {best.name}; copy the model from the training run"
+                )
+        else:
+            model = path
+        return RunFiles(model, "zoo", _stats_file(env_dir), None, env_dir, note)
+    model = folder / "model.zip" if path.is_dir() else path
+    if not model.is_file():
+        raise FileNotFoundError(
+            f"no SB3 model at {str(model)!r}; give a model.zip (a mobman-train or SB3 folder, sb3:DIR or "
+            f"sb3:DIR/model.zip) or an rl-zoo run folder (sb3:logs/ppo/<ENV>_1)"
+        )
+    config = folder / "config.json"
+    return RunFiles(model, "mobman", _stats_file(folder), config if config.is_file() else None, None)
+
+
+def load_zoo_yaml(path: Path) -> dict[str, Any]:
+    """An rl-zoo config.yml / args.yml as a dict; only the `collections.OrderedDict` tag is built (from its
+    list of [key, value] pairs), every other tag is refused by yaml's SafeLoader. ValueError naming the file."""
+    import yaml
+
+    class _ZooLoader(yaml.SafeLoader):
+        pass
+
+    def _ordered_dict(loader: yaml.SafeLoader, node: yaml.Node) -> dict[str, Any]:
+        args = loader.construct_sequence(node, deep=True)  # OrderedDict(*args)
+        pairs = args[0] if len(args) == 1 and isinstance(args[0], list) else None
+        if pairs is None or not all(isinstance(p, list) and len(p) == 2 and isinstance(p[0], str) for p in pairs):
+            raise yaml.constructor.ConstructorError(None, None, "an OrderedDict of [key, value] pairs", node.start_mark)
+        return {k: v for k, v in pairs}
+
+    _ZooLoader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", _ordered_dict)
+    try:
+        data = yaml.load(path.read_text(), Loader=_ZooLoader)  # a SafeLoader subclass: no arbitrary tags
+    except (yaml.YAMLError, OSError, UnicodeDecodeError) as exc:
+        raise ValueError(
+            f"{path} is not a readable rl-zoo YAML file ({type(exc).__name__}: {exc}); copy it again from the "
+            f"training run"
+        ) from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} must hold a mapping (rl-zoo's OrderedDict), got {type(data).__name__}")
+    return data
