@@ -505,13 +505,16 @@ class SB3Policy:
         obs = self._view(observation)
         if self._norm is None:
             return obs
-        eps, clip = self._eps, self._clip
         if isinstance(self._norm, dict):
             for k, (mean, var) in self._norm.items():
-                obs[k] = np.clip((obs[k] - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
+                obs[k] = self._normalize(obs[k], mean, var)
             return obs
         mean, var = self._norm
-        return np.clip((np.asarray(obs) - mean) / np.sqrt(var + eps), -clip, clip).astype(np.float32)
+        return self._normalize(np.asarray(obs), mean, var)
+
+    def _normalize(self, x: Any, mean: Any, var: Any) -> np.ndarray:
+        """`VecNormalize.normalize_obs`'s formula (one home): clip((x - mean) / sqrt(var + eps), +-clip_obs), float32."""
+        return np.clip((x - mean) / np.sqrt(var + self._eps), -self._clip, self._clip).astype(np.float32)
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         return self.model.predict(

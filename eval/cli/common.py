@@ -71,7 +71,8 @@ def policy_help() -> str:
 
 #: The --help note on loading agents (model files hold pickles).
 TRUST_NOTE = (
-    "Load only agents you trust: sb3: model.zip and vecnormalize.pkl hold pickles (mobman reads them with a "
+    "Load only agents you trust: sb3: model.zip and vecnormalize.pkl / vec_normalize.pkl (mobman-train, plain SB3 "
+    "or rl-zoo run folders) hold pickles (mobman reads them with a "
     "restricted unpickler, which narrows but does not sandbox what a crafted file can do), and module:attr runs "
     "the module's code"
 )
