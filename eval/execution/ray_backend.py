@@ -226,7 +226,7 @@ def task_error_text(exc: BaseException) -> str:
 def execute_ray(
     config: EvalConfig, user: dict, tasks: list[Task], on_result=None
 ) -> tuple[dict[int, dict], dict[int, dict]]:
-    """Run `tasks` as Ray tasks; returns ({index: record}, {index: arrays}) like `eval.workers.execute`.
+    """Run `tasks` as Ray tasks; returns ({index: record}, {index: arrays}) like `eval.execution.local.execute_local`.
 
     `on_result(record)` is called in this process as each episode ends (in completion order)."""
     require_ray()

@@ -6,7 +6,7 @@ each env (per id, dynamics, model error and noise) and each policy (per env) onc
 `Executor.MAX_ENVS` most recently used envs are kept); every episode starts from `env.reset(seed)` and
 `policy.reset(..., seed=policy_seed(seed))`, so results do not depend on which process runs an episode or what it ran before
 (physics mode included: tested bit-identical). A worker that dies marks its unfinished episodes failed.
-`config.backend == "ray"` hands the tasks to `eval.ray_backend` instead.
+`config.backend == "ray"` hands the tasks to `eval.execution.ray_backend` instead (`eval.execution.dispatch.execute` chooses).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ Output directory (default `runs/sweep-<config file stem>`, so running the same c
 | file | content |
 |---|---|
 | `episodes.jsonl` | the journal: one complete episode record per line, appended (one `write`) as each ends |
-| `results.json` | schema 1 like `mobman-eval run`: config, versions, git, episodes (grid order), aggregate |
+| `results.json` | schema 2 like `mobman-eval run`: config, versions, git, episodes (grid order), aggregate |
 | `results.csv` | the tidy table: one row per episode, the columns of `run`'s results.csv |
 | `aggregate.csv` | per (env, policy, dynamics, model_error, obs_noise): n, failures, success rate, error stats |
 | `summary.md` | success rate and max error per policy and condition, in mm |
