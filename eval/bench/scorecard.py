@@ -38,7 +38,7 @@ from eval.output.files import to_jsonable
 from eval.output.precision import CHAOTIC, CHAOTIC_NOTE, SIGNIFICANT_DIGITS, format_mm, is_chaotic
 from eval.output.provenance import git_rev, provenance, versions
 from eval.output.results import statistics_block
-from eval.output.tables import iqm_text, markdown_table, success_text
+from eval.output.tables import iqm_text, markdown_table, seed_text, success_text
 
 KIND = "mobman-bench-scorecard"
 SCHEMA = 2
@@ -124,13 +124,6 @@ def _conditions(sc: dict) -> list[str]:
     return list(dict.fromkeys(str(r["condition"]) for r in sc["pooled"]))
 
 
-def _seed_text(seeds: Sequence[int]) -> str:
-    seeds = list(seeds)
-    if seeds and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
-        return f"{seeds[0]}..{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
-    return ", ".join(map(str, seeds))
-
-
 def _blas_text(sc: dict) -> str:
     prov = sc.get("provenance") or {}
     libs = [b for b in prov.get("blas") or [] if b.get("user_api") == "blas"]
@@ -171,7 +164,7 @@ def readme_markdown(sc: dict) -> str:
     lines = [
         f"`mobman-eval bench` (protocol v{p['version']}): {len(p['envs'])} tasks ({', '.join(p['tasks'])}) x "
         f"{len(_conditions(sc))} conditions x {len(_policies(sc))} controllers x {len(seeds)} seeds "
-        f"({_seed_text(seeds)}); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
+        f"({seed_text(seeds)}); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
         f"{prov.get('cpu') or '?'}, {_blas_text(sc)}.",
         "",
         *headline_tables(sc),
@@ -211,7 +204,7 @@ def scorecard_markdown(sc: dict) -> str:
     lines = [
         "# mobman-eval bench: scorecard",
         "",
-        f"Protocol v{p['version']}; seeds {_seed_text(p['seeds'])}; success = max tracking error <= "
+        f"Protocol v{p['version']}; seeds {seed_text(p['seeds'])}; success = max tracking error <= "
         f"{p['tolerance'] * 1e3:g} mm over the whole episode (failed or tipped-over episodes are not successes); "
         f"steady-state errors over t >= {p['settle_time']:g} s. {sc['n_episodes']} of {sc['n_expected']} episodes, "
         f"{sc['n_failed']} failed. IQM = interquartile mean (rliable's); intervals: Wilson 95% for success, "

@@ -39,6 +39,14 @@ def chaotic_note(rows: list[dict]) -> list[str]:
     return [CHAOTIC_NOTE + ".", ""] if any(is_chaotic(str(a["policy"])) for a in rows) else []
 
 
+def seed_text(seeds) -> str:
+    """Seeds as "first..last" when consecutive (one seed: itself), else a comma-separated list."""
+    seeds = list(seeds)
+    if seeds and seeds == list(range(seeds[0], seeds[0] + len(seeds))):
+        return f"{seeds[0]}..{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
+    return ", ".join(map(str, seeds))
+
+
 def _num(x: float | None, fmt: str = "{:.2f}") -> str:
     return "-" if x is None else fmt.format(x)
 

@@ -11,7 +11,7 @@ from eval import metrics as M
 from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text
 from eval.output.precision import format_mm
 from eval.output.results import csv_text
-from eval.output.tables import chaotic_note, failed_episode_lines, iqm_text, markdown_table, success_text
+from eval.output.tables import chaotic_note, failed_episode_lines, iqm_text, markdown_table, seed_text, success_text
 
 AGGREGATE_COLUMNS = (
     "env",
@@ -91,7 +91,7 @@ def summary_markdown(results: dict) -> str:
     lines = [
         "# mobman-eval sweep",
         "",
-        f"{len(eps)} of {cfg['n_episodes']} episodes of the grid; seeds {_seed_text(cfg['seeds'])}; success = max "
+        f"{len(eps)} of {cfg['n_episodes']} episodes of the grid; seeds {seed_text(cfg['seeds'])}; success = max "
         f"tracking error <= {cfg['tolerance'] * 1e3:g} mm (failed or tipped-over episodes are not successes). "
         f"Errors in mm over the episodes that ran (status ok). git {results['git']}.",
         "",
@@ -111,12 +111,6 @@ def summary_markdown(results: dict) -> str:
         ),
     )
     return "\n".join(lines)
-
-
-def _seed_text(seeds: list[int]) -> str:
-    if seeds == list(range(seeds[0], seeds[0] + len(seeds))):
-        return f"{seeds[0]}..{seeds[-1]}"
-    return ", ".join(map(str, seeds))
 
 
 def write_tables(out: Path, results: dict, tolerance: float, plots: bool = True) -> list[Path]:
