@@ -95,11 +95,7 @@ def run_sweep(
         "source": source,
         **sweep.to_dict(),
         "policy_objects": {name: type(obj).__name__ for name, obj in user.items()},
-        "out": str(out),
-        "backend": backend,
-        "address": address,
-        "workers": workers,
-        "n_episodes": len(tasks),
+        **{"out": str(out), "backend": backend, "address": address, "workers": workers, "n_episodes": len(tasks)},
     }
     out.mkdir(parents=True, exist_ok=True)
     journal = Journal(out / JOURNAL)
@@ -113,51 +109,28 @@ def run_sweep(
                 f"an episode record); their episodes run again",
                 file=sys.stderr,
             )
-        todo = [
-            t
-            for t in tasks
-            if episode_key(t) not in done or (retry_failed and done[episode_key(t)].get("status") != "ok")
-        ]
-        n_skipped = len(tasks) - len(todo)
-        if max_episodes is not None:
-            todo = todo[:max_episodes]
+        todo, n_skipped = _plan(tasks, done, retry_failed, max_episodes)
         if progress:
             print(
                 f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
                 f"{' (resuming)' if resuming else ''}, {len(todo)} to run now",
                 file=sys.stderr,
             )
-        lost: dict[tuple, dict] = {}  # episodes without any result (dead worker, failed Ray task): not journaled
-        n_run = 0
-        bar = _progress_bar(len(todo)) if progress and todo else None
-
-        def on_result(rec: dict) -> None:
-            nonlocal n_run
-            rec = to_jsonable(rec)
-            if rec.get("pid") is None:
-                lost[episode_key(rec)] = rec
-            else:
-                journal.append(rec)
-                done[episode_key(rec)] = rec
-                lost.pop(episode_key(rec), None)
-            n_run += 1
-            if bar is not None:
-                bar.update(1)
-
+        collect = _Collector(journal, done, _progress_bar(len(todo)) if progress and todo else None)
         t0 = time.perf_counter()
         try:
             if todo:
-                execute(base, user, todo, user_bytes, on_result)
+                execute(base, user, todo, user_bytes, collect)
         finally:  # interrupted or not: the table shows what the journal holds
-            if bar is not None:
-                bar.close()
-            records = _grid_records(tasks, done, lost)
+            if collect.bar is not None:
+                collect.bar.close()
+            records = _grid_records(tasks, done, collect.lost)
             results = build_results(cfg, records, M.aggregate(records), wall_s=time.perf_counter() - t0)
             write_tables(out, results, sweep.tolerance, plots)
     finally:
         journal.close()
     n_left = sum(episode_key(t) not in done for t in tasks)
-    return SweepResult(out=out, results=results, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
+    return SweepResult(out=out, results=results, n_run=collect.n_run, n_skipped=n_skipped, n_left=n_left)
 
 
 def _episode_config(sweep: SweepConfig, out: Path, backend: str, address: str | None, workers: int) -> EvalConfig:
@@ -183,6 +156,42 @@ def _episode_config(sweep: SweepConfig, out: Path, backend: str, address: str | 
         progress=False,
         command="sweep",
     )
+
+
+class _Collector:
+    """Takes each episode's record as it ends (in this process): journaled and counted; a record without a
+    result at all (dead worker, failed Ray task: `pid` None) is kept aside, not journaled, so the next run
+    tries that episode again."""
+
+    def __init__(self, journal: Journal, done: dict[tuple, dict], bar: Any):
+        self.journal, self.done, self.bar = journal, done, bar
+        self.lost: dict[tuple, dict] = {}
+        self.n_run = 0
+
+    def __call__(self, rec: dict) -> None:
+        rec = to_jsonable(rec)
+        key = episode_key(rec)
+        if rec.get("pid") is None:
+            self.lost[key] = rec
+        else:
+            self.journal.append(rec)
+            self.done[key] = rec
+            self.lost.pop(key, None)
+        self.n_run += 1
+        if self.bar is not None:
+            self.bar.update(1)
+
+
+def _plan(
+    tasks: list[Task], done: dict[tuple, dict], retry_failed: bool, max_episodes: int | None
+) -> tuple[list[Task], int]:
+    """(the tasks to run now, in grid order; how many the journal already has): episodes without a record, and
+    with `retry_failed` those recorded as failed; at most `max_episodes` of them."""
+    todo = [
+        t for t in tasks if episode_key(t) not in done or (retry_failed and done[episode_key(t)].get("status") != "ok")
+    ]
+    n_skipped = len(tasks) - len(todo)
+    return (todo if max_episodes is None else todo[:max_episodes]), n_skipped
 
 
 def _grid_records(tasks: list[Task], done: dict[tuple, dict], lost: dict[tuple, dict]) -> list[dict]:
