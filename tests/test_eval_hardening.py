@@ -192,6 +192,9 @@ def _interrupt(cmd: list[str], marks: Path, n_marks: int, cwd: Path) -> tuple[su
         while len(list(marks.iterdir())) < n_marks and time.time() < deadline and proc.poll() is None:
             time.sleep(0.05)
         assert proc.poll() is None, proc.communicate()
+        # a mark is touched at an episode's last predict, before its last step and before the worker sends the
+        # record: give the marked episodes time to reach the parent, so "n finished" means delivered
+        time.sleep(0.5)
         t0 = time.time()
         os.killpg(proc.pid, signal.SIGINT)
         _, err = proc.communicate(timeout=60)
