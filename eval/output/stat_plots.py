@@ -77,14 +77,7 @@ def plot_success_curves(
         ax.set_ylabel("success rate (%)")
         ax.set_title(env, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
-    for ax in axes[len(panels) :]:
-        ax.set_visible(False)
-    if panels:
-        handles, labels = axes[0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="outside right center", fontsize=7)
-    if title:
-        fig.suptitle(title, fontsize=11)
-    return fig
+    return _finish(fig, axes, len(panels), title)
 
 
 def plot_error_vs_wear(rows: Sequence[dict], *, title: str = "", tolerance: float | None = None) -> Figure:
@@ -113,9 +106,14 @@ def plot_error_vs_wear(rows: Sequence[dict], *, title: str = "", tolerance: floa
         ax.set_ylabel("max tracking error, IQM (mm)")
         ax.set_title(env, fontsize=10)
         ax.grid(True, which="both", alpha=0.3)
-    for ax in axes[len(panels) :]:
+    return _finish(fig, axes, len(panels), title)
+
+
+def _finish(fig: Figure, axes, n_panels: int, title: str) -> Figure:
+    """Hide the unused panels, put one legend (the first panel's) beside the grid, and the title above it."""
+    for ax in axes[n_panels:]:
         ax.set_visible(False)
-    if panels:
+    if n_panels:
         handles, labels = axes[0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside right center", fontsize=7)
     if title:
