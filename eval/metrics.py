@@ -4,7 +4,7 @@ Conventions (SI units throughout; the Markdown and console reports convert to mm
 
 * `r_d`, `r_a`: desired and true (noise-free) end-effector positions, shape (n + 1, 3), m, sampled at
   t_0 = 0, t_1 = dt, ..., t_n (the state after each of the n control steps, plus the start).
-* `actions`: the normalised actions the env applied, shape (n, 8), in [-1, 1]; action k is held over
+* `actions`: the normalised actions the env applied, shape (n, n_act) (n_act = arm joints + 2 wheels), in [-1, 1]; action k is held over
   [t_k, t_k+1].
 * The tracking error is e_k = ||r_d(t_k) - r_a(t_k)||. Max, RMS (over all n + 1 samples) and final error are
   taken from it; the per-axis max error is max_k |r_d - r_a| for x, y and z separately.
@@ -132,10 +132,13 @@ def effort(actions: np.ndarray, dt: float) -> float:
     return float(np.sum(a * a) * dt)
 
 
-def peak_speeds(actions: np.ndarray, action_scale: Sequence[float], n_arm: int = 6) -> tuple[float, float]:
-    """(peak arm joint speed, peak wheel speed), rad/s: max |a_i| * scale_i over time, per actuator group."""
+def peak_speeds(actions: np.ndarray, action_scale: Sequence[float], n_arm: int | None = None) -> tuple[float, float]:
+    """(peak arm joint speed, peak wheel speed), rad/s: max |a_i| * scale_i over time, per actuator group.
+    `n_arm`: the arm joints (the last two actuators are the wheels); None: len(action_scale) - 2."""
     a = np.asarray(actions, float)
     scale = np.asarray(action_scale, float)
+    if n_arm is None:
+        n_arm = len(scale) - 2
     if a.size == 0:
         return 0.0, 0.0
     speeds = np.abs(a) * scale

@@ -1,13 +1,23 @@
-"""mobman_env: a PyBullet wheeled PUMA 560 for end-effector path tracking (Gymnasium).
+"""mobman_env: PyBullet wheeled mobile manipulators for end-effector path tracking (Gymnasium).
 
-Importing this package registers four ids (only those not yet registered, so importing twice is silent):
+Importing this package registers sixteen ids (only those not yet registered, so importing twice is silent):
+`Wheeled<Robot>-<Task>-v0` for the robots
 
-| id | path |
+| robot | `robot=` | arm |
+|---|---|---|
+| `Puma` | "puma560" | PUMA 560, 6 joints (release 0.1's ids, unchanged) |
+| `UR5` | "ur5" | Universal Robots UR5, 6 joints |
+| `Panda` | "panda" | Franka Emika Panda, 7 joints (9 actuators) |
+| `RandomArm` | "random" | a new random 6-joint arm every reset |
+
+and the tasks
+
+| task | path |
 |---|---|
-| `WheeledPuma-Circle-v0` | the paper's circle: radius 0.4 m, tilt pi/6, 20 s |
-| `WheeledPuma-Line-v0` | a 3 m straight line along the heading, 20 s (the platform must drive) |
-| `WheeledPuma-Lemniscate-v0` | a figure eight 0.6 m x 0.3 m, 20 s |
-| `WheeledPuma-Random-v0` | a random smooth path per seed, each axis within 0.3 m, 20 s |
+| `Circle` | the paper's circle: radius 0.4 m, tilt pi/6, 20 s |
+| `Line` | a 3 m straight line along the heading, 20 s (the platform must drive) |
+| `Lemniscate` | a figure eight 0.6 m x 0.3 m, 20 s |
+| `Random` | a random smooth path per seed, each axis within 0.3 m, 20 s |
 
 `gym.make("mobman_env:WheeledPuma-Circle-v0")` works without importing this package first.
 """
@@ -27,14 +37,17 @@ __all__ = [
     "PAPER_ARM_JOINT_POS",
     "PAPER_BASE_POSE",
     "PAPER_CIRCLE",
+    "ROBOT_IDS",
+    "ROBOT_TASKS",
     "RobotParams",
     "WheeledPumaEnv",
+    "env_ids",
     "register_envs",
 ]
 #: The one source of mobman's version (pyproject.toml reads it; Semantic Versioning, CHANGELOG.md).
 __version__ = "0.2.0.dev0"
 
-#: id -> path spec of each registered task (all start at the paper's theta(0), heading pi).
+#: id -> path spec of each PUMA task (all start at the paper's theta(0), heading pi).
 TASKS = {
     "WheeledPuma-Circle-v0": PAPER_CIRCLE,
     "WheeledPuma-Line-v0": {"type": "line", "length": 3.0, "direction": [-1.0, 0.0, 0.0], "duration": 20.0},
@@ -48,14 +61,33 @@ TASKS = {
     },
     "WheeledPuma-Random-v0": {"type": "random", "size": 0.3, "n_terms": 3, "duration": 20.0},
 }
-ENV_IDS = tuple(TASKS)
+#: id prefix -> the env's `robot` argument (the PUMA ids pass none: the default, as in release 0.1).
+ROBOT_IDS = {"WheeledPuma": "puma560", "WheeledUR5": "ur5", "WheeledPanda": "panda", "WheeledRandomArm": "random"}
+#: id -> (robot, path spec) of every registered id, PUMA ids first.
+ROBOT_TASKS = {
+    env_id.replace("WheeledPuma", prefix, 1): (robot, spec)
+    for prefix, robot in ROBOT_IDS.items()
+    for env_id, spec in TASKS.items()
+}
+ENV_IDS = tuple(ROBOT_TASKS)
+
+
+def env_ids(robot: str) -> tuple[str, ...]:
+    """The four task ids of one robot (`robot=` value, e.g. "ur5"), in `TASKS` order."""
+    ids = tuple(env_id for env_id, (r, _) in ROBOT_TASKS.items() if r == robot)
+    if not ids:
+        raise ValueError(f"unknown robot {robot!r}; accepted: {', '.join(map(repr, ROBOT_IDS.values()))}")
+    return ids
 
 
 def register_envs() -> None:
     """Register the ids that are not registered yet (harmless and silent when called again)."""
-    for env_id, spec in TASKS.items():
+    for env_id, (robot, spec) in ROBOT_TASKS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point="mobman_env.env:WheeledPumaEnv", kwargs={"path": dict(spec)})
+            kwargs: dict = {"path": dict(spec)}
+            if robot != "puma560":
+                kwargs["robot"] = robot
+            register(id=env_id, entry_point="mobman_env.env:WheeledPumaEnv", kwargs=kwargs)
 
 
 register_envs()

@@ -1,7 +1,9 @@
-"""`WheeledPumaEnv`: end-effector path tracking with a PUMA 560 on a two-wheel differential-drive platform.
+"""`WheeledPumaEnv`: end-effector path tracking with an arm (default the PUMA 560; also the UR5, the Panda and
+a random arm per episode) on a two-wheel differential-drive platform.
 
-Joins the robot (`params`), the simulation (`sim`), the task (`paths`) and the sensor model (`sensors`). Imports
-gymnasium, numpy and those `mobman_env` modules only.
+Joins the robot (`params`, drawn by `robots.sources`), the simulation (`sim`), the task (`paths`) and the
+sensor model (`sensors`). Imports gymnasium, numpy and those `mobman_env` modules only. The class keeps its
+release 0.1 name (users' scripts and pickles use it); the robot is its `robot` argument.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from gymnasium import spaces
 
 from mobman_env.params import MAX_REL_STD, RobotParams
 from mobman_env.paths import Path, path_from_spec, validate_spec
+from mobman_env.robots.sources import ROBOT_NAMES, RobotSource, robot_source
 from mobman_env.sensors import SENSOR_KEYS, Sensors
 from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
 from mobman_env.validation import integer, number, vector
@@ -39,6 +42,7 @@ MAX_WEAR_RATE = 0.1  # 1/s: 10% length change per second; each episode also need
 #: per-episode conditions: constructor arguments that a reset option of the same name overrides for one episode
 CONDITIONS = ("model_error", "obs_noise", "obs_noise_vel", "obs_noise_joint_vel", "obs_delay", "wear_rate")
 RESET_OPTIONS = ("path", "arm_joint_pos", "base_pose", *CONDITIONS)
+__all__ = ["OBS_KEYS", "PAPER_ARM_JOINT_POS", "PAPER_BASE_POSE", "PAPER_CIRCLE", "ROBOT_NAMES", "WheeledPumaEnv"]
 _CLOSED = "the env is closed; make a new one with gym.make(...) (or WheeledPumaEnv(...))"
 
 
@@ -65,12 +69,15 @@ def _base_pose(value: Any) -> np.ndarray:
 
 
 class WheeledPumaEnv(gym.Env):
-    r"""Track a time-parameterised path with the end-effector of a wheeled PUMA 560.
+    r"""Track a time-parameterised path with the end-effector of a wheeled mobile manipulator.
 
     ## Description
-    A PUMA 560 arm (standard DH table of Corke & Armstrong-Helouvry, 0.2 m tool) stands on a two-wheel
-    differential-drive platform, its base P_c `mount_offset` = 0.1 m ahead of the axle centre P_0, its shoulder
-    0.6 m above the ground. The agent commands the speeds of the 6 arm joints and the 2 wheels; the task is to
+    An arm with n joints stands on a two-wheel differential-drive platform, its base P_c `mount_offset` = 0.1 m
+    ahead of the axle centre P_0. `robot` chooses it (`mobman_env.robots.sources`): `"puma560"` (default; the
+    standard DH table of Corke & Armstrong-Helouvry, 0.2 m tool, shoulder 0.6 m above the ground, n = 6),
+    `"ur5"` (n = 6, standard DH, 0.15 m tool), `"panda"` (n = 7, modified DH, the 0.103 m hand) or `"random"`
+    (a new 6-joint arm of `mobman_env.robots.random_arms`' family at every reset: the drawn design is the
+    episode's nominal robot). The agent commands the speeds of the n arm joints and the 2 wheels; the task is to
     keep the end-effector point r_a on a desired path r_d(t) that is fixed in the world and starts where the
     end-effector starts (the initial error is 0). This is the task of "Neural-Network-Based Control of Wheeled
     Mobile Manipulators with Unknown Kinematic Models" (section IV). Each reset draws a "worn" true robot whose
@@ -78,7 +85,8 @@ class WheeledPumaEnv(gym.Env):
     (relative std), so model-based controllers that use `nominal_params` make errors, as in the paper.
 
     ## Action Space
-    `Box(-1, 1, (8,), float32)`, scaled by `action_scale` (rad/s) to joint and wheel speeds:
+    `Box(-1, 1, (n + 2,), float32)`, scaled by `action_scale` (rad/s) to joint and wheel speeds; for the PUMA
+    (n = 6, 8 actuators):
 
     | index | actuator | scale (rad/s) |
     |---|---|---|
@@ -86,6 +94,10 @@ class WheeledPumaEnv(gym.Env):
     | 3-5 | arm joints 4-6 (joint 6 turns about the tool axis: it never moves the point) | 5.0 |
     | 6 | left wheel (+y side) | 10.0 (2 m/s rim speed) |
     | 7 | right wheel (-y side) | 10.0 |
+
+    Any robot: indices 0 to n-1 are the arm joints at the description's speed limits (UR5: 3.15 rad/s joints
+    1-3, 3.2 rad/s 4-6; Panda: 2.175 rad/s joints 1-4, 2.61 rad/s 5-7; random arms: the PUMA's), n and n + 1
+    the left and right wheel at 10 rad/s.
 
     Values outside [-1, 1] are clipped (`info["action_clipped"]`, `info["n_clipped"]`); NaN, inf or a wrong
     shape raise `ValueError`.
@@ -100,8 +112,8 @@ class WheeledPumaEnv(gym.Env):
     | arm_base_pos | (2,) | p_c, x-y of the arm mount (+ `obs_noise`) | m |
     | arm_base_vel | (2,) | p_c velocity (+ `obs_noise_vel`) | m/s |
     | base_yaw | (1,) | platform heading phi, continuous (not wrapped) | rad |
-    | joint_pos | (8,) | 6 arm joint angles, left and right wheel angles | rad |
-    | joint_vel | (8,) | their speeds (+ `obs_noise_joint_vel`) | rad/s |
+    | joint_pos | (n + 2,) | n arm joint angles, left and right wheel angles | rad |
+    | joint_vel | (n + 2,) | their speeds (+ `obs_noise_joint_vel`) | rad/s |
     | target_pos | (3,) | desired position r_d(t) | m |
     | target_vel | (3,) | desired velocity r_d_dot(t) | m/s |
     | time | (1,) | time since reset t | s |
@@ -114,8 +126,9 @@ class WheeledPumaEnv(gym.Env):
     `info["tracking_error"]` are always noise-free, undelayed and of the current (worn) robot.
 
     ## Robot wear
-    Each reset draws the episode's true robot (`model_error`). With `wear_rate` = w != 0 its lengths (a2, a3,
-    d3, d4, tool, wheel radius, half track, mount offset) then drift linearly during the episode:
+    Each reset draws the episode's true robot (`model_error`). With `wear_rate` = w != 0 its lengths (the
+    arm's non-zero DH a and d, e.g. the PUMA's a2, a3, d3, d4; tool, wheel radius, half track, mount offset)
+    then drift linearly during the episode:
     length(t) = length(0) (1 + w t), updated once per control step (the robot of time t_k acts during the step
     from t_k to t_k+1; the state at t is the forward kinematics of the robot of t). Kinematic mode only: a loaded
     PyBullet body cannot change its link lengths. Re-creating it mid-episode costs about 8.5 ms (a fresh world
@@ -131,10 +144,11 @@ class WheeledPumaEnv(gym.Env):
     normalised action after clipping). Weights from `reward_weights` (default tracking 1.0, effort 1e-3).
 
     ## Starting State
-    Arm at `arm_joint_pos` (default the paper's theta(0) = [0, pi/4, 0, 2pi/3, -pi/4, 0] rad), wheels at 0 rad,
+    Arm at `arm_joint_pos` (default the robot's start, `mobman_env.robots.starts.STARTS`: for the PUMA the
+    paper's theta(0) = [0, pi/4, 0, 2pi/3, -pi/4, 0] rad; a random arm starts where its draw says), wheels at 0 rad,
     platform at `base_pose` (x, y of P_0 in m, yaw in rad; default [0, 0, pi]), at rest. The path starts at the
     end-effector. Reset options override the constructor argument of the same name for one episode: `"path"`
-    (spec dict), `"arm_joint_pos"` (6 or 8 numbers), `"base_pose"` (3 numbers) and the conditions
+    (spec dict), `"arm_joint_pos"` (n or n + 2 numbers; not with `robot="random"`), `"base_pose"` (3 numbers) and the conditions
     `"model_error"`, `"obs_noise"`, `"obs_noise_vel"`, `"obs_noise_joint_vel"`, `"obs_delay"`, `"wear_rate"`
     (validated as in the constructor). `info["task"]` echoes the path spec, its start, the joint vector and the
     base pose; `info["true_params_hash"]` identifies the true robot.
@@ -148,7 +162,7 @@ class WheeledPumaEnv(gym.Env):
     | argument | default | meaning |
     |---|---|---|
     | path | None | path spec dict (see `mobman_env.paths`); None: the paper's circle |
-    | arm_joint_pos | None | 6 arm angles (or 8 with wheels), rad; None: the paper's theta(0) |
+    | arm_joint_pos | None | n arm angles (or n + 2 with wheels), rad; None: the robot's start (PUMA: the paper's theta(0)) |
     | base_pose | None | (x, y, yaw) of P_0, m and rad; None: (0, 0, pi) |
     | dynamics | "physics" | "physics" (PyBullet contact dynamics) or "kinematic" (the paper's ideal model) |
     | control_freq | 100.0 | control steps per second, Hz |
@@ -162,6 +176,7 @@ class WheeledPumaEnv(gym.Env):
     | reward_weights | None | dict with keys "tracking", "effort"; None: {"tracking": 1.0, "effort": 1e-3} |
     | error_bound | None | terminate when the tracking error exceeds this, m; None: never |
     | render_mode | None | None, "rgb_array" (headless TinyRenderer) or "human" (window; see Rendering) |
+    | robot | "puma560" | the arm: "puma560", "ur5", "panda" or "random" (a new arm per reset) |
 
     Numbers are checked by `mobman_env.validation`: bools, strings and complex numbers are refused. Also
     `control_freq` in (0, 10000] Hz and `n_substeps` in [1, 1000]; path specs have documented ranges
@@ -177,7 +192,8 @@ class WheeledPumaEnv(gym.Env):
     robot (about 8.5 ms per frame), so the picture is the true robot of that time.
 
     ## Privileged attributes
-    `nominal_params` (the catalogue robot: what a model-based method may know) and `true_params` (the current
+    `nominal_params` (the catalogue robot, or the episode's drawn design for `robot="random"`: what a
+    model-based method may know) and `true_params` (the current
     true robot: for oracles and tests only) are the documented doors to robot models. `sim` also holds the true
     robot (the PyBullet body, the kinematic state), so reading it goes through `true_params` too: a guard that
     makes `true_params` raise covers it. The generated URDF is deleted as soon as PyBullet has loaded it. Names
@@ -186,7 +202,8 @@ class WheeledPumaEnv(gym.Env):
     ## Version History
     * v0: initial release. Release 0.2 (same ids, bit-identical at the default options): `obs_noise_joint_vel`,
       `obs_delay`, `wear_rate`; conditions as reset options; `model_error` < 1/3; path ranges; render_fps =
-      control frequency; headless "human" warns instead of raising; step/reset after close() raise.
+      control frequency; headless "human" warns instead of raising; step/reset after close() raise; `robot`
+      (UR5, Panda, random arms: ids `Wheeled{UR5,Panda,RandomArm}-*-v0`; the PUMA ids unchanged).
     """
 
     # render_fps: the default control frequency; each instance assigns its own dict (its control frequency), the
@@ -210,7 +227,10 @@ class WheeledPumaEnv(gym.Env):
         reward_weights: dict | None = None,
         error_bound: float | None = None,
         render_mode: str | None = None,
+        robot: str = "puma560",
     ):
+        self._source: RobotSource = robot_source(robot)
+        self.robot = robot
         if dynamics not in DYNAMICS_MODES:
             raise ValueError(f"unknown dynamics mode {dynamics!r}; accepted: {', '.join(DYNAMICS_MODES)}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
@@ -238,7 +258,12 @@ class WheeledPumaEnv(gym.Env):
         self.error_bound = error_bound
         self.path_spec = validate_spec(PAPER_CIRCLE if path is None else path)
         self._check_wear(dynamics, self.wear_rate, _duration(self.path_spec))
-        self.arm_joint_pos = self._joint_vector(PAPER_ARM_JOINT_POS if arm_joint_pos is None else arm_joint_pos)
+        self._nominal_params = self._source.nominal
+        if arm_joint_pos is None:
+            start = self._source.default_start
+            self.arm_joint_pos = None if start is None else self._joint_vector(start, self._nominal_params)
+        else:
+            self.arm_joint_pos = self._joint_vector(arm_joint_pos, self._nominal_params)
         self.base_pose = _base_pose(PAPER_BASE_POSE if base_pose is None else base_pose)
         self.dynamics = dynamics
         self.control_freq = control_freq
@@ -248,12 +273,12 @@ class WheeledPumaEnv(gym.Env):
         # per instance, the class dict untouched: one frame per control step plays in real time
         self.metadata = {**type(self).metadata, "render_fps": control_freq}
 
-        self._nominal_params = RobotParams.nominal()
         self._true_params = self._nominal_params
         self._params0 = self._true_params  # the episode's true robot at t = 0 (wear drifts from it)
         self.action_scale = self._nominal_params.action_scale
-        self.action_space = spaces.Box(-1.0, 1.0, (8,), np.float32)
-        self.observation_space = self._make_observation_space()
+        self.n_actuators = self._nominal_params.n_actuators
+        self.action_space = spaces.Box(-1.0, 1.0, (self.n_actuators,), np.float32)
+        self.observation_space = self._make_observation_space(self.n_actuators)
         # one flat float32 vector per step, clipped once and handed out as views, in OBS_KEYS order
         self._obs_slices, self._obs_low, self._obs_high = _flat_layout(self.observation_space)
         window = _gui_window(render_mode)
@@ -284,27 +309,32 @@ class WheeledPumaEnv(gym.Env):
                 f"|wear_rate| * duration must stay below 1 (here |wear_rate| < {1.0 / duration:.4g} 1/s)"
             )
 
-    def _joint_vector(self, value: Any) -> np.ndarray:
+    def _joint_vector(self, value: Any, nominal: RobotParams) -> np.ndarray:
+        if self._source.start_is_drawn:
+            raise ValueError(
+                f"arm_joint_pos={value!r}: robot={self.robot!r} draws each arm with its own start (away from "
+                "singularities and limits); leave arm_joint_pos unset, or use a fixed robot such as 'ur5'"
+            )
+        n = nominal.n_joints
+        example = self._source.default_start or PAPER_ARM_JOINT_POS
         arr = vector(
             "arm_joint_pos",
             value,
-            sizes=(6, 8),
-            hint="6 arm angles or 8 (arm + left, right wheel) in rad, e.g. "
-            f"{np.round(PAPER_ARM_JOINT_POS, 4).tolist()}",
+            sizes=(n, n + 2),
+            hint=f"{n} arm angles or {n + 2} (arm + left, right wheel) in rad, e.g. {np.round(example, 4).tolist()}",
         )
-        if arr.shape == (6,):
+        if arr.shape == (n,):
             arr = np.concatenate([arr, [0.0, 0.0]])
-        p = RobotParams.nominal()
-        lo, hi = np.array(p.joint_lower), np.array(p.joint_upper)
-        if np.any(arr[:6] < lo) or np.any(arr[:6] > hi):
+        lo, hi = np.array(nominal.joint_lower), np.array(nominal.joint_upper)
+        if np.any(arr[:n] < lo) or np.any(arr[:n] > hi):
             raise ValueError(
-                f"arm_joint_pos {arr[:6].tolist()} is outside the joint limits: lower {np.round(lo, 4).tolist()}, "
-                f"upper {np.round(hi, 4).tolist()} (rad)"
+                f"arm_joint_pos {arr[:n].tolist()} is outside the joint limits of {nominal.arm.name}: lower "
+                f"{np.round(lo, 4).tolist()}, upper {np.round(hi, 4).tolist()} (rad)"
             )
         return arr
 
     @staticmethod
-    def _make_observation_space() -> spaces.Dict:
+    def _make_observation_space(n_act: int = 8) -> spaces.Dict:
         f32 = np.float32
         big_pos, big_vel = 1000.0, 100.0  # m and m/s: wide enough for any physics overshoot or drive-away
 
@@ -318,8 +348,8 @@ class WheeledPumaEnv(gym.Env):
                 "arm_base_pos": box(2, big_pos),
                 "arm_base_vel": box(2, big_vel),
                 "base_yaw": box(1, 1e5),
-                "joint_pos": box(8, 1e5),
-                "joint_vel": box(8, 1e3),
+                "joint_pos": box(n_act, 1e5),
+                "joint_vel": box(n_act, 1e3),
                 "target_pos": box(3, big_pos),
                 "target_vel": box(3, big_vel),
                 "time": spaces.Box(0.0, 1e5, (1,), f32),
@@ -346,7 +376,10 @@ class WheeledPumaEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, RESET_OPTIONS))}")
         spec = validate_spec(options["path"]) if "path" in options else self.path_spec
-        q0 = self._joint_vector(options["arm_joint_pos"]) if "arm_joint_pos" in options else self.arm_joint_pos
+        if "arm_joint_pos" in options:
+            q0 = self._joint_vector(options["arm_joint_pos"], self._nominal_params)
+        else:
+            q0 = self.arm_joint_pos
         pose = _base_pose(options["base_pose"]) if "base_pose" in options else self.base_pose
         cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
         self._check_wear(self.dynamics, cond["wear_rate"], _duration(spec))
@@ -354,7 +387,12 @@ class WheeledPumaEnv(gym.Env):
             cond["obs_noise"], cond["obs_noise_vel"], cond["obs_noise_joint_vel"], int(cond["obs_delay"])
         )
         self._wear = cond["wear_rate"]
-        # one RNG stream, in a fixed order: true robot, then the path's own seed, then sensor noise
+        # one RNG stream, in a fixed order: the arm and its start (random family only), the true robot, then the
+        # path's own seed, then sensor noise
+        drawn = self._source.draw(self.np_random)
+        if drawn is not None:
+            self._nominal_params, start = drawn
+            q0 = np.concatenate([start, [0.0, 0.0]])
         self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
         self._sim.reset(self._true_params, q0, pose)
         state = self._sim.state()
@@ -396,13 +434,14 @@ class WheeledPumaEnv(gym.Env):
         a = np.asarray(action)
         if a.dtype.kind not in "fiu":
             raise ValueError(
-                f"action must be real numbers (a float array of shape (8,)), got dtype {a.dtype} "
+                f"action must be real numbers (a float array of shape ({self.n_actuators},)), got dtype {a.dtype} "
                 f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
             )
         a = a.astype(np.float64, copy=False)
-        if a.shape != (8,):
+        if a.shape != (self.n_actuators,):
             raise ValueError(
-                f"action must have shape (8,) (6 arm joints, left wheel, right wheel), got shape {a.shape}"
+                f"action must have shape ({self.n_actuators},) ({self.n_actuators - 2} arm joints, left wheel, "
+                f"right wheel), got shape {a.shape}"
             )
         if not np.all(np.isfinite(a)):
             raise ValueError(
@@ -483,7 +522,8 @@ class WheeledPumaEnv(gym.Env):
     # --- the documented doors to robot models ----------------------------------------------------------
     @property
     def nominal_params(self) -> RobotParams:
-        """The catalogue robot (`RobotParams.nominal()`): what a model-based controller may know."""
+        """The catalogue robot (`RobotParams.nominal(arm)`; for `robot="random"` the episode's drawn design):
+        what a model-based controller may know."""
         return self._nominal_params
 
     @property

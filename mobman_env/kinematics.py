@@ -1,4 +1,4 @@
-"""Kinematics of the wheeled PUMA 560, pure numpy (no PyBullet, no state).
+"""Kinematics of the wheeled mobile manipulator (any arm of `RobotParams`), pure numpy (no PyBullet, no state).
 
 Frames and symbols (the paper's, section II):
 
@@ -6,9 +6,16 @@ Frames and symbols (the paper's, section II):
   heading phi (continuous, not wrapped).
 * P_c, where the arm is mounted, lies `mount_offset` (d) ahead of P_0: p_c = P_0 + d [cos phi, sin phi].
 * The arm's DH frame 0 sits at (p_c, h) rotated by phi about z; its x axis points along the heading.
-* The end-effector point r_a is frame 6's origin plus `tool` along z6.
+* The end-effector point r_a is frame n's origin plus `tool` along z_n (n = `params.n_joints`).
 
-Actuators, in this order everywhere: u = [theta_dot_1..6, wheel_left_dot, wheel_right_dot] (rad/s).
+Actuators, in this order everywhere: u = [theta_dot_1..n, wheel_left_dot, wheel_right_dot] (rad/s).
+
+The arm is either DH convention of `mobman_env.robots.description`: standard, A_i = Rz(theta) Tz(d) Tx(a)
+Rx(alpha), joint i turning about z_{i-1} through o_{i-1}; or modified (Craig), A_i = Rx(alpha) Tx(a) Rz(theta)
+Tz(d), joint i turning about z_i through o_i; theta_i = q_i + theta_offset_i. The numbers are dense 4 x 4
+products, the same operations in the same order as release 0.1's PUMA-only code for a standard-DH arm without
+offsets (so the PUMA ids keep their results bit for bit); `mobman_env.robots.kinematics` is the faster kernel
+of the same maps (equal to 1e-12, tested).
 Platform: v = r/2 (w_l + w_r), phi_dot = r/(2b) (w_r - w_l) (eq. (5)).
 
 `paper_jacobian` is the paper's J of eq. (6): r_a_dot = [p_c_dot; 0] + J u, so its wheel columns act only
@@ -23,28 +30,33 @@ import numpy as np
 
 from mobman_env.params import RobotParams
 
-N_ARM = 6
-N_ACT = 8
-
 
 def dh_transforms(params: RobotParams, q: np.ndarray) -> np.ndarray:
-    """The 6 link transforms A_i = Rz(theta_i) Tz(d_i) Tx(a_i) Rx(alpha_i), shape (6, 4, 4)."""
-    ct, st = np.cos(q[:N_ARM]), np.sin(q[:N_ARM])
+    """The n link transforms A_i of the arm's convention at joint angles q (the first n entries), (n, 4, 4)."""
+    n = params.n_joints
+    th = q[:n] if params.theta_offset is None else q[:n] + params.theta_offset
+    ct, st = np.cos(th), np.sin(th)
     a, d, ca, sa = params.dh_constants
-    A = np.zeros((N_ARM, 4, 4))
-    A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
-    A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
-    A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
+    A = np.zeros((n, 4, 4))
+    if params.arm.modified:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 3] = ct, -st, a
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st * ca, ct * ca, -sa, -sa * d
+        A[:, 2, 0], A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = st * sa, ct * sa, ca, ca * d
+    else:  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
+        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
+        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
     A[:, 3, 3] = 1.0
     return A
 
 
 def dh_frames(params: RobotParams, q: np.ndarray) -> np.ndarray:
-    """The 7 homogeneous frames T_0^0 .. T_0^6 of the arm in its base frame 0, shape (7, 4, 4)."""
+    """The n + 1 homogeneous frames T_0^0 .. T_0^n of the arm in its base frame 0, shape (n + 1, 4, 4)."""
     A = dh_transforms(params, q)
-    frames = np.empty((7, 4, 4))
+    n = len(A)
+    frames = np.empty((n + 1, 4, 4))
     frames[0] = np.eye(4)
-    for i in range(N_ARM):
+    for i in range(n):
         np.matmul(frames[i], A[i], out=frames[i + 1])
     return frames
 
@@ -56,14 +68,16 @@ def arm_point(params: RobotParams, q: np.ndarray) -> np.ndarray:
 
 
 def arm_point_and_jacobian(params: RobotParams, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """f(theta) (3,) and d f / d theta (3, 6) in frame 0, from one pass over the DH frames.
+    """f(theta) (3,) and d f / d theta (3, n) in frame 0, from one pass over the DH frames.
 
-    Column i is z_{i-1} x (p - o_{i-1}); column 6 is zero: joint 6 turns about the tool axis.
+    Column i is z x (p - o) of joint i's axis: frame i-1's (standard DH) or frame i's (modified DH). A last
+    joint that turns about the tool axis has a zero column (the PUMA's joint 6).
     """
     frames = dh_frames(params, q)
     p = frames[-1, :3, 3] + params.tool * frames[-1, :3, 2]
-    z = frames[:6, :3, 2]
-    v = p - frames[:6, :3, 3]
+    axes = frames[1:] if params.arm.modified else frames[:-1]
+    z = axes[:, :3, 2]
+    v = p - axes[:, :3, 3]
     # the cross product written out: np.cross costs ~10x more for these tiny arrays
     J = np.array(
         [
@@ -76,7 +90,7 @@ def arm_point_and_jacobian(params: RobotParams, q: np.ndarray) -> tuple[np.ndarr
 
 
 def arm_jacobian(params: RobotParams, q: np.ndarray) -> np.ndarray:
-    """d f / d theta in frame 0, shape (3, 6). Column 6 is zero: joint 6 turns about the tool axis."""
+    """d f / d theta in frame 0, shape (3, n)."""
     return arm_point_and_jacobian(params, q)[1]
 
 
@@ -92,7 +106,7 @@ def arm_base_xy(params: RobotParams, base_pose: np.ndarray) -> np.ndarray:
 
 
 def ee_position(params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray) -> np.ndarray:
-    """r_a in the world frame (m) from the 6 arm angles and the platform pose (x, y, yaw) of P_0."""
+    """r_a in the world frame (m) from the n arm angles and the platform pose (x, y, yaw) of P_0."""
     pc = arm_base_xy(params, base_pose)
     g = _rot_z(base_pose[2]) @ arm_point(params, q_arm)
     return np.array([pc[0] + g[0], pc[1] + g[1], params.shoulder_height + g[2]])
@@ -116,21 +130,22 @@ def _wheel_maps(params: RobotParams, yaw: float) -> tuple[np.ndarray, np.ndarray
 
 
 def _paper_parts(params: RobotParams, q_arm: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """g = R(phi) f(theta) (3,), the paper's J (3, 8) and d p_c_dot / d u (2, 8), from one FK pass."""
+    """g = R(phi) f(theta) (3,), the paper's J (3, n + 2) and d p_c_dot / d u (2, n + 2), from one FK pass."""
     R = _rot_z(yaw)
     f, J_arm = arm_point_and_jacobian(params, q_arm)
     g = R @ f
     dphi, dpc = _wheel_maps(params, yaw)
-    J = np.empty((3, N_ACT))
-    J[:, :N_ARM] = R @ J_arm
-    J[:, N_ARM:] = np.outer([-g[1], g[0], 0.0], dphi)  # d g / d phi * d phi_dot / d w
-    J_pc = np.zeros((2, N_ACT))
-    J_pc[:, N_ARM:] = dpc
+    n = params.n_joints
+    J = np.empty((3, n + 2))
+    J[:, :n] = R @ J_arm
+    J[:, n:] = np.outer([-g[1], g[0], 0.0], dphi)  # d g / d phi * d phi_dot / d w
+    J_pc = np.zeros((2, n + 2))
+    J_pc[:, n:] = dpc
     return g, J, J_pc
 
 
 def paper_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
-    """The paper's J of eq. (6), shape (3, 8): r_a_dot = [p_c_dot; 0] + J u.
+    """The paper's J of eq. (6), shape (3, n + 2): r_a_dot = [p_c_dot; 0] + J u.
 
     Arm columns: R(phi) df/dtheta. Wheel columns: d g / d phi * d phi_dot / d w, with g = R(phi) f(theta).
     """
@@ -138,14 +153,15 @@ def paper_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.nda
 
 
 def arm_base_jacobian(params: RobotParams, yaw: float) -> np.ndarray:
-    """d p_c_dot / d u, shape (2, 8): only the wheel columns are non-zero."""
-    J = np.zeros((2, N_ACT))
-    J[:, N_ARM:] = _wheel_maps(params, yaw)[1]
+    """d p_c_dot / d u, shape (2, n + 2): only the wheel columns are non-zero."""
+    n = params.n_joints
+    J = np.zeros((2, n + 2))
+    J[:, n:] = _wheel_maps(params, yaw)[1]
     return J
 
 
 def whole_body_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
-    """The whole-body Jacobian, shape (3, 8): r_a_dot = J_wb u (platform translation included)."""
+    """The whole-body Jacobian, shape (3, n + 2): r_a_dot = J_wb u (platform translation included)."""
     _, J, J_pc = _paper_parts(params, q_arm, yaw)
     J[:2] += J_pc
     return J
@@ -167,7 +183,7 @@ def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds:
 def ee_and_jacobian(
     params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """r_a (3,), the whole-body Jacobian (3, 8) and d p_c_dot / d u (2, 8) from one FK pass (the hot path of
+    """r_a (3,), the whole-body Jacobian (3, n + 2) and d p_c_dot / d u (2, n + 2) from one FK pass (the hot path of
     the kinematic simulation)."""
     g, J, J_pc = _paper_parts(params, q_arm, float(base_pose[2]))
     J[:2] += J_pc

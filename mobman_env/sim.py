@@ -131,8 +131,8 @@ class RobotState:
     arm_base_pos: np.ndarray  # (2,) m, p_c
     arm_base_vel: np.ndarray  # (2,) m/s
     base_pose: np.ndarray  # (3,) x, y of P_0 (m), yaw (rad, continuous)
-    joint_pos: np.ndarray  # (8,) rad: 6 arm joints, left wheel, right wheel
-    joint_vel: np.ndarray  # (8,) rad/s
+    joint_pos: np.ndarray  # (n + 2,) rad: n arm joints, left wheel, right wheel
+    joint_vel: np.ndarray  # (n + 2,) rad/s
     roll_pitch: tuple[float, float]  # rad, of the platform
 
 
@@ -168,13 +168,14 @@ class Sim:
         self._marker_shape: int | None = None
         self._params = RobotParams.nominal()  # replaced by reset(); no body exists before it
         self._has_robot = False
-        #: torque limits of the 8 actuators (6 arm joints, left, right wheel), N m: the same for every robot
+        #: torque limits of the n + 2 actuators (n arm joints, left, right wheel), N m (set by reset)
         self.torque_limits: list[float] = []
         self._build_world()
-        # kinematic-mode state
-        self._q = np.zeros(8)
+        # kinematic-mode state (sized by reset for the robot's n + 2 actuators)
+        self._n = self._params.n_joints
+        self._q = np.zeros(self._n + 2)
         self._pose = np.zeros(3)
-        self._u = np.zeros(8)
+        self._u = np.zeros(self._n + 2)
         self._yaw = 0.0  # continuous yaw tracked in physics mode
         self._synced = False
 
@@ -243,7 +244,7 @@ class Sim:
             info = self.client.getJointInfo(self.body, j)
             names[info[1].decode()] = j
             names["link:" + info[12].decode()] = j
-        self.arm_ids = [names[n] for n in urdf.ARM_JOINTS]
+        self.arm_ids = [names[n] for n in urdf.arm_joints(params.n_joints)]
         self.wheel_ids = [names[n] for n in urdf.WHEEL_JOINTS]
         self.act_ids = self.arm_ids + self.wheel_ids
         self.ee_id = names["link:" + urdf.EE_LINK]
@@ -257,11 +258,15 @@ class Sim:
             self.client.changeDynamics(self.body, j, linearDamping=0.0, angularDamping=0.0, jointDamping=0.0)
         # free the motors' default velocity motors (they would hold the wheels otherwise)
         self.client.setJointMotorControlArray(
-            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=[0.0] * 8, forces=[0.0] * 8
+            self.body,
+            self.act_ids,
+            pybullet.VELOCITY_CONTROL,
+            targetVelocities=[0.0] * len(self.act_ids),
+            forces=[0.0] * len(self.act_ids),
         )
 
     def set_state(self, q: np.ndarray, base_pose: np.ndarray) -> None:
-        """Put the body at joint angles `q` (8) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
+        """Put the body at joint angles `q` (n + 2) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
         p = self._params
         quat = self.client.getQuaternionFromEuler([0.0, 0.0, float(base_pose[2])])
         self.client.resetBasePositionAndOrientation(
@@ -272,15 +277,16 @@ class Sim:
             self.client.resetJointState(self.body, j, float(angle), 0.0)
 
     def reset(self, params: RobotParams, q0: np.ndarray, base_pose: np.ndarray) -> None:
-        """Start an episode with the robot `params` at joint angles `q0` (8) and platform pose (3)."""
+        """Start an episode with the robot `params` at joint angles `q0` (n + 2) and platform pose (3)."""
         self._params = params
+        self._n = params.n_joints
         self._has_robot = True
         self.torque_limits = [*params.arm_torque_limit, params.wheel_torque_limit, params.wheel_torque_limit]
         self._lower = np.array(params.joint_lower)
         self._upper = np.array(params.joint_upper)
         self._q = np.asarray(q0, dtype=float).copy()
         self._pose = np.asarray(base_pose, dtype=float).copy()
-        self._u = np.zeros(8)
+        self._u = np.zeros(self._n + 2)
         self._yaw = float(base_pose[2])
         self._synced = False
         if self.dynamics == "physics":
@@ -299,30 +305,32 @@ class Sim:
     # --- stepping --------------------------------------------------------------------------------------
     def _limit(self, q_arm: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, int]:
         """Zero the arm speeds that would push a joint past its limit; returns (u, number zeroed)."""
-        push = ((q_arm >= self._upper) & (u[:6] > 0)) | ((q_arm <= self._lower) & (u[:6] < 0))
+        n = self._n
+        push = ((q_arm >= self._upper) & (u[:n] > 0)) | ((q_arm <= self._lower) & (u[:n] < 0))
         if not push.any():
             return u, 0
         u = u.copy()
-        u[:6][push] = 0.0
+        u[:n][push] = 0.0
         return u, int(push.sum())
 
     def step(self, u: np.ndarray) -> int:
-        """Apply the joint/wheel speeds `u` (8, rad/s) for one control step; returns joint-limit hits."""
+        """Apply the joint/wheel speeds `u` (n + 2, rad/s) for one control step; returns joint-limit hits."""
         if self.dynamics == "kinematic":
             return self._step_kinematic(u)
         return self._step_physics(u)
 
     def _step_kinematic(self, u: np.ndarray) -> int:
-        u, hits = self._limit(self._q[:6], u)
+        n = self._n
+        u, hits = self._limit(self._q[:n], u)
         q = self._q + u * self.dt
-        over = (q[:6] > self._upper) | (q[:6] < self._lower)
+        over = (q[:n] > self._upper) | (q[:n] < self._lower)
         if over.any():
-            q[:6] = np.clip(q[:6], self._lower, self._upper)
+            q[:n] = np.clip(q[:n], self._lower, self._upper)
             u = u.copy()
             # the joint reached its limit inside the step: it stops there
-            u[:6][over] = 0.0
+            u[:n][over] = 0.0
             hits += int(over.sum())
-        self._pose = K.integrate_unicycle(self._params, self._pose, u[6:], self.dt)
+        self._pose = K.integrate_unicycle(self._params, self._pose, u[n:], self.dt)
         self._q = q
         self._u = u
         self._synced = False
@@ -347,7 +355,7 @@ class Sim:
 
     def _state_kinematic(self) -> RobotState:
         p, q, pose, u = self._params, self._q, self._pose, self._u
-        ee_pos, J, J_pc = K.ee_and_jacobian(p, q[:6], pose)
+        ee_pos, J, J_pc = K.ee_and_jacobian(p, q[: self._n], pose)
         return RobotState(
             ee_pos=ee_pos,
             ee_vel=J @ u,

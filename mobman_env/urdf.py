@@ -1,5 +1,6 @@
-"""Write the URDF of the wheeled PUMA 560 from `RobotParams`, so the simulation and `kinematics.py` share
-one source of numbers (a test checks PyBullet's end-effector against the numpy FK).
+"""Write the URDF of the wheeled mobile manipulator from `RobotParams` (any arm: n joints, standard or modified
+DH), so the simulation and `kinematics.py` share one source of numbers (a test checks PyBullet's end-effector
+against the numpy FK for every robot).
 
 Layout (link names are looked up by name in `sim.py`):
 
@@ -9,10 +10,15 @@ Layout (link names are looked up by name in `sim.py`):
 * `wheel_left` (+y) and `wheel_right` (-y): driven wheels on continuous joints about y at +-b.
 * `caster_front`, `caster_rear`: passive casters, modelled as fixed spheres whose contact is made
   frictionless in `sim.py` (lateral friction 0), so they carry weight but never resist motion.
-* `link1`..`link6`: the arm. Standard DH puts the joint rotation first (A_i = Rz(theta) Tz(d) Tx(a) Rx(alpha)),
-  URDF puts a fixed transform first, so joint i's origin is the fixed part (Tz Tx Rx) of link i-1 and link i's
-  frame is DH frame i-1 turned by theta_i.
-* `ee`: massless, at `tool` along z6; its inertial origin is its link origin, so `getLinkState(...)[0]` is the
+* `link1`..`linkn` on `joint1`..`jointn`: the arm, its mount frame DH frame 0 at (`mount_offset`, 0,
+  `shoulder_height` - r) in `base_link`. Standard DH puts the joint rotation first (A_i = Rz(theta) Tz(d) Tx(a)
+  Rx(alpha)), URDF puts a fixed transform first, so joint i's origin is the fixed part (Tz Tx Rx) of link i-1
+  and link i's frame is DH frame i-1 turned by theta_i (centres of mass and inertias, given in DH frame i, are
+  moved into it). Modified DH (A_i = Rx(alpha) Tx(a) Rz(theta) Tz(d)) is URDF's order: joint i's origin is
+  Rx(alpha_i) Tx(a_i) Tz(d_i) and link i's frame is DH frame i. A theta offset is appended to joint i's origin as
+  Rz(offset_i) (it commutes with the joint's rotation), so PyBullet's joint angle is q. This is the mapping of
+  `mobman_env.robots.arm_urdf`, with the platform and the visuals.
+* `ee`: massless, at `tool` along z_n; its inertial origin is its link origin, so `getLinkState(...)[0]` is the
   end-effector point.
 """
 
@@ -24,8 +30,16 @@ from pathlib import Path
 import numpy as np
 
 from mobman_env.params import RobotParams
+from mobman_env.robots.arm_urdf import rpy
 
-ARM_JOINTS = tuple(f"joint{i}" for i in range(1, 7))
+
+def arm_joints(n: int) -> tuple[str, ...]:
+    """The names of the n arm joints: joint1 .. jointn."""
+    return tuple(f"joint{i}" for i in range(1, n + 1))
+
+
+#: the PUMA's six arm joints (release 0.1's constant; `arm_joints(n)` for any arm)
+ARM_JOINTS = arm_joints(6)
 WHEEL_JOINTS = ("wheel_left_joint", "wheel_right_joint")
 EE_LINK = "ee"
 CASTER_LINKS = ("caster_front", "caster_rear")
@@ -43,10 +57,12 @@ def _f(values) -> str:
 
 
 def _inertial(mass: float, xyz=(0, 0, 0), rpy=(0, 0, 0), diag=(0, 0, 0)) -> str:
-    ixx, iyy, izz = diag
+    """An inertial block; `diag` is (ixx, iyy, izz) or the full (ixx, iyy, izz, ixy, ixz, iyz), kg m^2."""
+    ixx, iyy, izz, ixy, ixz, iyz = (*diag, 0.0, 0.0, 0.0)[:6]
     return (
         f'<inertial><origin xyz="{_f(xyz)}" rpy="{_f(rpy)}"/><mass value="{mass:.10g}"/>'
-        f'<inertia ixx="{ixx:.10g}" iyy="{iyy:.10g}" izz="{izz:.10g}" ixy="0" ixz="0" iyz="0"/></inertial>'
+        f'<inertia ixx="{ixx:.10g}" iyy="{iyy:.10g}" izz="{izz:.10g}" ixy="{ixy:.10g}" ixz="{ixz:.10g}" '
+        f'iyz="{iyz:.10g}"/></inertial>'
     )
 
 
@@ -75,22 +91,22 @@ def _dh_fixed(a: float, d: float, alpha: float) -> tuple[tuple, tuple]:
 
 def urdf_string(params: RobotParams) -> str:
     """The URDF text of the robot with these parameters: the platform (deck, two driven wheels, two passive
-    casters), the six arm links from the DH table, and the massless end-effector link."""
+    casters), the n arm links from the DH table, and the massless end-effector link."""
     arm, ee_xyz, ee_rpy = _arm(params)
     parts = [
         '<?xml version="1.0"?>',
-        '<robot name="wheeled_puma560">',
+        f'<robot name="wheeled_{params.arm.name}">',
         *MATERIALS,
         *_base_link(params),
         *_wheels(params),
         *_casters(params),
         *arm,
-        # end-effector: the point `tool` along z6, oriented like DH frame 6
+        # end-effector: the point `tool` along z_n, oriented like DH frame n
         f'<link name="{EE_LINK}">',
         _inertial(0.0),
         '<visual><geometry><sphere radius="0.02"/></geometry><material name="tool"/></visual>',
         "</link>",
-        f'<joint name="ee_joint" type="fixed"><parent link="link6"/><child link="{EE_LINK}"/>'
+        f'<joint name="ee_joint" type="fixed"><parent link="link{params.n_joints}"/><child link="{EE_LINK}"/>'
         f'<origin xyz="{_f(ee_xyz)}" rpy="{_f(ee_rpy)}"/></joint>',
         "</robot>",
     ]
@@ -171,43 +187,79 @@ def _casters(params: RobotParams) -> list[str]:
     return parts
 
 
+def _rx(t: float) -> np.ndarray:
+    c, s = math.cos(t), math.sin(t)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _with_offset(frpy: tuple, alpha: float, offset: float) -> tuple:
+    """rpy of Rx(alpha) Rz(offset): a joint origin with its theta offset appended (`frpy` when offset = 0)."""
+    if offset == 0.0:
+        return frpy
+    c, s = math.cos(offset), math.sin(offset)
+    return rpy(_rx(alpha) @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]))
+
+
 def _arm(params: RobotParams) -> tuple[list[str], np.ndarray, tuple[float, float, float]]:
-    """The six arm links and revolute joints from the DH table; the mount frame is DH frame 0 (at P_c, shoulder
-    height, x along the heading). Returns the parts and the end-effector's origin in link6 (xyz, rpy)."""
+    """The n arm links and revolute joints from the DH table; the mount frame is DH frame 0 (at P_c, shoulder
+    height, x along the heading). Returns the parts and the end-effector's origin in link n (xyz, rpy)."""
+    arm = params.arm
+    n = arm.n_joints
     a, d, alpha = params.dh_a, params.dh_d, params.dh_alpha
+    mount = np.array([params.mount_offset, 0.0, params.shoulder_height - params.wheel_radius])
     parts: list[str] = []
     parent = "base_link"
-    origin_xyz, origin_rpy = (params.mount_offset, 0.0, params.shoulder_height - params.wheel_radius), (0.0, 0.0, 0.0)
+    origin_xyz: tuple | np.ndarray = tuple(mount)
+    origin_alpha = 0.0
     ee_xyz = np.zeros(3)
-    for i in range(6):
+    ee_rpy: tuple = (0.0, 0.0, 0.0)
+    joint_ball = f'<visual><geometry><sphere radius="{ARM_RADIUS * 1.3}"/></geometry><material name="joint"/></visual>'
+    for i in range(n):
         name = f"link{i + 1}"
-        fx, frpy = _dh_fixed(a[i], d[i], alpha[i])
-        # this link's frame: DH frame i-1 turned by theta_i; DH frame i is Tz(d) Tx(a) Rx(alpha) from it
-        com_i = np.asarray(params.coms[i])
-        ca, sa = math.cos(alpha[i]), math.sin(alpha[i])
-        Rx = np.array([[1, 0, 0], [0, ca, -sa], [0, sa, ca]])
-        com = np.asarray(fx) + Rx @ com_i
-        end = np.asarray(fx)
-        visuals = _segment((0, 0, 0), (0, 0, d[i]), ARM_RADIUS, "arm") + _segment((0, 0, d[i]), end, ARM_RADIUS, "arm")
-        if i == 5:  # link6 carries the tool: frame 6 plus `tool` along z6
-            ee_xyz = np.asarray(fx) + Rx @ np.array([0.0, 0.0, params.tool])
-            visuals += _segment(end, ee_xyz, ARM_RADIUS * 0.5, "tool")
-        joint_ball = (
-            f'<visual><geometry><sphere radius="{ARM_RADIUS * 1.3}"/></geometry><material name="joint"/></visual>'
-        )
+        if arm.modified:
+            # joint i's origin: Rx(alpha_i) Tx(a_i) Tz(d_i) from link i-1 (the mount for joint 1); link i = frame i
+            origin_xyz = (mount if i == 0 else np.zeros(3)) + _rx(alpha[i]) @ np.array([a[i], 0.0, d[i]])
+            origin_alpha = alpha[i]
+            com, frpy = np.asarray(arm.coms[i]), (0.0, 0.0, 0.0)
+            if i + 1 < n:
+                end = _rx(alpha[i + 1]) @ np.array([a[i + 1], 0.0, d[i + 1]])
+                visuals = _segment((0, 0, 0), end, ARM_RADIUS, "arm")
+            else:
+                ee_xyz = np.array([0.0, 0.0, params.tool])
+                visuals = _segment((0, 0, 0), ee_xyz, ARM_RADIUS * 0.5, "tool")
+            inertial = _inertial(params.arm.masses[i], com, frpy, arm.inertias[i])
+        else:
+            fx, frpy = _dh_fixed(a[i], d[i], alpha[i])
+            # this link's frame: DH frame i-1 turned by theta_i; DH frame i is Tz(d) Tx(a) Rx(alpha) from it
+            com_i = np.asarray(arm.coms[i])
+            Rx = _rx(alpha[i])
+            com = np.asarray(fx) + Rx @ com_i
+            end = np.asarray(fx)
+            visuals = _segment((0, 0, 0), (0, 0, d[i]), ARM_RADIUS, "arm") + _segment(
+                (0, 0, d[i]), end, ARM_RADIUS, "arm"
+            )
+            if i == n - 1:  # link n carries the tool: frame n plus `tool` along z_n
+                ee_xyz = np.asarray(fx) + Rx @ np.array([0.0, 0.0, params.tool])
+                ee_rpy = frpy
+                visuals += _segment(end, ee_xyz, ARM_RADIUS * 0.5, "tool")
+            inertial = _inertial(arm.masses[i], com, frpy, arm.inertias[i])
+        joint_rpy = _with_offset((origin_alpha, 0.0, 0.0), origin_alpha, arm.theta_offset[i])
         parts += [
             f'<link name="{name}">',
-            _inertial(params.masses[i], com, frpy, params.inertias[i]),
+            inertial,
             joint_ball,
             visuals,
             "</link>",
             f'<joint name="joint{i + 1}" type="revolute"><parent link="{parent}"/><child link="{name}"/>'
-            f'<origin xyz="{_f(origin_xyz)}" rpy="{_f(origin_rpy)}"/><axis xyz="0 0 1"/>'
-            f'<limit lower="{params.joint_lower[i]:.10g}" upper="{params.joint_upper[i]:.10g}" '
-            f'effort="{params.arm_torque_limit[i]}" velocity="{params.arm_speed_limit[i]}"/></joint>',
+            f'<origin xyz="{_f(origin_xyz)}" rpy="{_f(joint_rpy)}"/><axis xyz="0 0 1"/>'
+            f'<limit lower="{arm.joint_lower[i]:.10g}" upper="{arm.joint_upper[i]:.10g}" '
+            f'effort="{arm.torque_limit[i]}" velocity="{arm.speed_limit[i]}"/></joint>',
         ]
-        parent, origin_xyz, origin_rpy = name, fx, frpy
-    return parts, ee_xyz, origin_rpy
+        if not arm.modified:
+            parent, origin_xyz, origin_alpha = name, fx, alpha[i]
+        else:
+            parent = name
+    return parts, ee_xyz, ee_rpy
 
 
 def write_urdf(params: RobotParams, path: str | Path) -> Path:

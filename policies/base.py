@@ -80,12 +80,20 @@ class _VecEnvView:
         return self._venv.get_attr(name, indices=[0])[0]
 
 
+def current_model(model: Any) -> Any:
+    """The robot model a model-based controller inverts this episode: `model` itself (a `RobotParams`) or, for a
+    callable (the registry's provider of the env's nominal robot, which changes per reset for the random arm
+    family), what it returns now. Called at every episode start."""
+    return model() if callable(model) else model
+
+
 @dataclass(frozen=True)
 class EnvFacts:
     """What a model-free controller may know about the env: nothing about the robot's geometry.
 
-    dt: control period, s. action_scale: speed limits of the 8 actuators, rad/s (action = u / action_scale).
-    obs_keys: the observation dict's keys.
+    dt: control period, s. action_scale: speed limits of the n + 2 actuators (n arm joints, left, right wheel),
+    rad/s (action = u / action_scale); its length is the actuator count `n_actuators` (8 for the PUMA, 9 for
+    the Panda), so facts pickled by release 0.1 keep their meaning. obs_keys: the observation dict's keys.
     """
 
     dt: float
@@ -109,6 +117,16 @@ class EnvFacts:
     @property
     def scale(self) -> np.ndarray:
         return np.asarray(self.action_scale, dtype=float)
+
+    @property
+    def n_actuators(self) -> int:
+        """The number of actuators: n arm joints + 2 wheels, the action's length."""
+        return len(self.action_scale)
+
+    @property
+    def n_arm(self) -> int:
+        """The number of arm joints n (the actuators less the two wheels)."""
+        return len(self.action_scale) - 2
 
 
 def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dict, bool]:
@@ -158,7 +176,7 @@ class ControllerPolicy:
     def jacobian_estimate(self) -> np.ndarray | None:
         """The controller's current estimate of the Jacobian, or None (no estimate, or none yet).
 
-        A 3 x 8 float array in the action's physical units: actuator speeds u (rad/s: 6 arm joints, left wheel,
+        A 3 x (n + 2) float array in the action's physical units: actuator speeds u (rad/s: n arm joints, left wheel,
         right wheel) to end-effector velocity (m/s), for the state of the last observation given to `predict`;
         `jacobian_kind` names the Jacobian. Eval compares it with the true robot's Jacobian (computed by eval,
         never by the policy) and records the relative error and the row-space angle. Model-based controllers

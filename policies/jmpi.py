@@ -1,7 +1,7 @@
 """Model-based baselines: JMPI (the paper's comparison, open loop on the nominal model), CLIK (the
 practitioner's closed loop on the nominal model) and the oracle (the same closed loop on the true model).
 
-Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:6]`, `base_yaw`), and
+Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:n]`, `base_yaw`), and
 invert it with the same damped pseudo-inverse as NNBC (`policies.nnbc.damped_pinv_apply`; the damping is zero
 away from singularities, so these are the plain pseudo-inverse methods on this task).
 
@@ -39,7 +39,7 @@ import numpy as np
 
 from mobman_env import kinematics as K
 from mobman_env.validation import number
-from policies.base import ControllerPolicy, EnvFacts
+from policies.base import ControllerPolicy, EnvFacts, current_model
 from policies.nnbc import damped_pinv_apply
 
 #: The benchmark's task-space feedback gain for every closed-loop law, 1/s (DESIGN, Release 0.2).
@@ -98,7 +98,8 @@ class _ModelPolicy(ControllerPolicy):
         super().__init__(facts, seed)
         self.config = config
         self._jac = K.whole_body_jacobian if config.full else K.paper_jacobian
-        self.params: Any = None  # the RobotParams the law inverts (set by the subclass or at reset)
+        self.params: Any = None  # the RobotParams the law inverts (set at every episode start)
+        self._n_arm = facts.n_arm
         self.uses_keys = self._keys + (("target_pos", "ee_pos") if config.gamma > 0 else ())
 
     def _act(self, obs: dict) -> np.ndarray:
@@ -109,7 +110,7 @@ class _ModelPolicy(ControllerPolicy):
             v = obs["target_vel"].copy()
         if not self.config.full:
             v[:2] -= obs["arm_base_vel"]
-        J = self._jac(self.params, obs["joint_pos"][:6], float(obs["base_yaw"][0]))
+        J = self._jac(self.params, obs["joint_pos"][: self._n_arm], float(obs["base_yaw"][0]))
         return damped_pinv_apply(J, v, self.config.damping, self.config.sigma_threshold)
 
 
@@ -135,12 +136,16 @@ class JMPI(_ModelPolicy):
         if extra:
             raise TypeError(f"{cls} got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
         if nominal_params is None:
-            raise ValueError(f"{cls} needs nominal_params (a RobotParams: the catalogue model it inverts)")
+            raise ValueError(
+                f"{cls} needs nominal_params (a RobotParams: the catalogue model it inverts, or a callable returning "
+                "the episode's nominal RobotParams)"
+            )
         super().__init__(facts, config or self.config_cls(), seed)
-        self.params = nominal_params
+        self._nominal = nominal_params
+        self.params = None if callable(nominal_params) else nominal_params
 
     def _reset(self, obs: dict) -> None:
-        pass
+        self.params = current_model(self._nominal)
 
 
 class CLIK(JMPI):

@@ -102,7 +102,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import ControllerPolicy, EnvFacts
+from policies.base import ControllerPolicy, EnvFacts, current_model
 
 #: Observation keys NNBC reads.
 NNBC_OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_vel", "target_pos", "target_vel")
@@ -301,9 +301,10 @@ class NNBC(ControllerPolicy):
             return self._J0.copy()
         from mobman_env import kinematics as K  # only for j0="nominal": model knowledge by choice
 
-        q, yaw = obs["joint_pos"][:6], float(obs["base_yaw"][0])
+        model = current_model(self._nominal)
+        q, yaw = obs["joint_pos"][: model.n_joints], float(obs["base_yaw"][0])
         fn = K.whole_body_jacobian if self._full else K.paper_jacobian
-        return fn(self._nominal, q, yaw)
+        return fn(model, q, yaw)
 
     # --- ControllerPolicy ----------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:

@@ -215,16 +215,17 @@ class EstimatingController(ControllerPolicy):
                 f"{cls} takes no extra arguments (it is model-free: EnvFacts and observations only), got "
                 f"{sorted(extra)}"
             )
-        if len(facts.action_scale) != N_ACT:
-            raise ValueError(f"{cls} drives {N_ACT} actuators, the env has {len(facts.action_scale)}")
         super().__init__(facts, seed=seed)
+        # the actuator count from the env's facts (n arm joints + 2 wheels), not the module's N_ACT (the PUMA's)
+        self._n_act = n_act = facts.n_actuators
+        self._n_probe = 2 * n_act
         if config is None:
             config = self.config_cls()
         if not isinstance(config, self.config_cls):
             raise TypeError(f"config must be a {self.config_cls.__name__}, got {type(config).__name__}")
         self.config = c = config
         self._dt = facts.dt
-        self._w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(N_ACT)
+        self._w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(n_act)
         self._damp = c.damping * np.eye(3)
         self._whole = c.formulation == "whole_body"
         self._use_vel = c.measurement == "velocity"
@@ -248,13 +249,13 @@ class EstimatingController(ControllerPolicy):
         """The estimated Jacobian (3 x 8, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
         of the last observation: the whole-body Jacobian, or the paper's J of eq. (6) with
         `formulation="paper"` (`jacobian_kind`). None before the probe has finished."""
-        return self.estimator.J.copy() if self._initialised and self._k > N_PROBE else None
+        return self.estimator.J.copy() if self._initialised and self._k > self._n_probe else None
 
     # --- episode start ---------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
         self._k = 0
         q = obs["joint_pos"]
-        self._q0 = q[:6].copy()
+        self._q0 = q[: self._n_act - 2].copy()
         self._probe_x: list[np.ndarray] = []
         self._probe_y: list[np.ndarray] = []
         self._prev_q = q.copy()
@@ -262,7 +263,7 @@ class EstimatingController(ControllerPolicy):
         self._s_f = self._prev_s.copy()
         self._prev_vd = obs["target_vel"].copy()
         self._td: np.ndarray = np.zeros(3)
-        self._signs: np.ndarray = np.empty((0, N_ACT))
+        self._signs: np.ndarray = np.empty((0, self._n_act))
         self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
@@ -304,9 +305,9 @@ class EstimatingController(ControllerPolicy):
         A = X @ X.T
         tr = np.trace(A)
         if tr > 0:
-            J0 = np.linalg.solve(A + 1e-9 * tr / N_ACT * np.eye(N_ACT), X @ Y.T).T
+            J0 = np.linalg.solve(A + 1e-9 * tr / self._n_act * np.eye(self._n_act), X @ Y.T).T
         else:  # no actuator moved during the probe (e.g. the same observation fed again and again): no information
-            J0 = np.zeros((3, N_ACT))
+            J0 = np.zeros((3, self._n_act))
         if self.config.j0_noise > 0:
             noise = self.rng.standard_normal(J0.shape)
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
@@ -318,13 +319,13 @@ class EstimatingController(ControllerPolicy):
         self._k = k + 1
         c = self.config
         x, y, _ = self._measure(obs)
-        if k <= N_PROBE:
+        if k <= self._n_probe:
             if k > 0:
                 self._probe_x.append(np.array(x, dtype=float))
                 self._probe_y.append(np.array(y, dtype=float))
-            if k < N_PROBE:
+            if k < self._n_probe:
                 self._prev_vd = obs["target_vel"].copy()
-                u = np.zeros(N_ACT)
+                u = np.zeros(self._n_act)
                 u[k // 2] = c.probe_speed if k % 2 == 0 else -c.probe_speed
                 return u
             self._finish_probe()
@@ -353,14 +354,14 @@ class EstimatingController(ControllerPolicy):
                 v += self._td
             else:
                 v -= self._td
-        z = np.zeros(N_ACT)
+        z = np.zeros(self._n_act)
         if c.dither > 0:
             if not len(self._signs):
-                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, N_ACT)) - 1.0
+                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self._n_act)) - 1.0
             z += c.dither * self._signs[0]
             self._signs = self._signs[1:]
         if c.posture_gain > 0:
-            z[:6] -= c.posture_gain * (obs["joint_pos"][:6] - self._q0)
+            z[: self._n_act - 2] -= c.posture_gain * (obs["joint_pos"][: self._n_act - 2] - self._q0)
         JW = Jc * self._w
         lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z)
         return z + JW.T @ lam
@@ -381,7 +382,7 @@ class NNBCPlus(EstimatingController):
         c = self.config
         assert isinstance(c, NNBCPlusConfig)
         return KalmanEstimator(
-            N_ACT,
+            self._n_act,
             self._dt,
             q_jacobian=c.q_jacobian,
             q_rate=c.q_rate,
@@ -393,7 +394,7 @@ class NNBCPlus(EstimatingController):
             forgetting=c.forgetting,
             p_max=c.p_max,
             midpoint=not self._use_vel,
-            sym_phase=N_PROBE + 1,
+            sym_phase=self._n_probe + 1,
         )
 
     @property

@@ -8,7 +8,8 @@ This module is that controller for the position-only task of this benchmark; it 
 
 The law (per control step, at the measured joint angles q (`joint_pos[:6]`) and heading (`base_yaw`))
 -------------------------------------------------------------------------------------------------------------
-Decision variable x = [u; s]: the 8 actuator speeds u (rad/s: 6 arm joints, left wheel, right wheel) and a task
+Decision variable x = [u; s]: the n + 2 actuator speeds u (rad/s: n arm joints, left wheel, right wheel; n from
+`EnvFacts`, 6 for the PUMA) and a task
 slack s (3, m/s).
 
     minimise    1/2 sum_i w_i (u_i - z_i)^2  +  1/2 slack_weight ||s||^2
@@ -21,7 +22,7 @@ slack s (3, m/s).
   `slack_weight` it stays near zero while the task is feasible (it acts like a damping of 1/slack_weight
   m^2/rad^2 of the pseudo-inverse, so it also bounds the speeds at a singularity).
 * w_i: 1 for the arm joints, `wheel_weight` for the wheels ((rad/s)^-2, relative). z: the posture term, a pull
-  of the 6 arm joints back to their angles at the episode start, z_arm = posture_gain (q_0 - q) (rad/s;
+  of the n arm joints back to their angles at the episode start, z_arm = posture_gain (q_0 - q) (rad/s;
   z_wheels = 0). Together they make the solution the speeds closest to the posture pull that track v: the
   arm keeps away from its reach limit and lets the platform drive and turn.
 * Bounds: the speed limits (the env's action scale, rad/s) and, for each arm joint within `influence` (rad) of
@@ -57,7 +58,6 @@ from policies.jmpi import DEFAULT_GAMMA
 
 #: QP backends accepted by `QPConfig.solver` (dense ones that `qpsolvers` drives; daqp is the default).
 SOLVERS = ("daqp", "proxqp", "osqp", "clarabel")
-N_ARM = 6
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,7 @@ class QPConfig:
     wheel_weight: float = 1.0
     """Cost weight of the two wheel speeds relative to the arm joints' (1 = the same per rad/s)."""
     posture_gain: float = 2.0
-    """Pull of the 6 arm joints towards their angles at the episode start, 1/s (0 turns it off)."""
+    """Pull of the n arm joints towards their angles at the episode start, 1/s (0 turns it off)."""
     influence: float = 0.5
     """Influence distance of the joint-limit dampers, rad: a damper acts within this distance of a limit."""
     stop: float = 0.03
@@ -106,7 +106,8 @@ class QP(ControllerPolicy):
     """Whole-body differential IK as a QP with joint-limit dampers; see the module docstring.
 
     `QP(facts, config=None, seed=None, *, nominal_params=None, params_provider=None)`: exactly one of the
-    two model sources: `nominal_params` (a `RobotParams`: the `qp` controller) or `params_provider` (a callable
+    two model sources: `nominal_params` (a `RobotParams`, or a callable returning the episode's nominal one: the
+    `qp` controller) or `params_provider` (a callable
     returning the current true `RobotParams`, called at every episode start: `qp-oracle`).
 
     Diagnostics: `last_slack` (s of the last step, m/s), `qp_failures` (steps this episode on which the solver
@@ -137,10 +138,6 @@ class QP(ControllerPolicy):
             )
         if params_provider is not None and not callable(params_provider):
             raise ValueError("QP's params_provider must be a callable returning the env's current true RobotParams")
-        if len(facts.action_scale) != N_ARM + 2:
-            raise ValueError(
-                f"QP drives {N_ARM + 2} actuators (6 arm joints, 2 wheels), the env has {len(facts.action_scale)}"
-            )
         super().__init__(facts, seed)
         import qpsolvers  # a core dependency; imported here so that importing `policies` stays light
 
@@ -149,10 +146,13 @@ class QP(ControllerPolicy):
         if params_provider is not None:
             self.name = "qp-oracle"
             self._provider: Callable[[], Any] = params_provider
+        elif callable(nominal_params):  # the nominal robot of each episode (a random arm per reset)
+            self._provider = nominal_params
         else:
             self._provider = lambda: nominal_params
-        n = N_ARM + 2
-        self._P = np.diag(np.r_[np.ones(N_ARM), np.full(2, c.wheel_weight), np.full(3, c.slack_weight)])
+        self._n_arm = facts.n_arm
+        n = self._n_arm + 2
+        self._P = np.diag(np.r_[np.ones(self._n_arm), np.full(2, c.wheel_weight), np.full(3, c.slack_weight)])
         self._w = np.diag(self._P)[:n].copy()
         self._A = np.zeros((3, n + 3))
         self._A[:, n:] = np.eye(3)
@@ -167,23 +167,29 @@ class QP(ControllerPolicy):
         self.params = self._provider()
         self._lower = np.asarray(self.params.joint_lower, float)
         self._upper = np.asarray(self.params.joint_upper, float)
-        self._q0 = obs["joint_pos"][:N_ARM].copy()
+        if self.params.n_actuators != self._n_arm + 2:
+            raise ValueError(
+                f"QP was built for {self._n_arm + 2} actuators (EnvFacts) but its model {self.params.arm.name} has "
+                f"{self.params.n_actuators}; build the policy from the env it drives (policies.make(spec, env))"
+            )
+        self._q0 = obs["joint_pos"][: self._n_arm].copy()
         self.last_slack = np.zeros(3)
         self.qp_failures = 0
 
     def bounds(self, q_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of u at the arm angles `q_arm` (rad): the speed limits tightened by the joint-limit dampers."""
         c = self.config
-        n = N_ARM + 2
+        m = self._n_arm
+        n = m + 2
         lb, ub = -self._scale.copy(), self._scale.copy()
         d_up = self._upper - q_arm
         d_lo = q_arm - self._lower
         near_up = d_up < c.influence
         near_lo = d_lo < c.influence
         if near_up.any():
-            ub[:N_ARM][near_up] = np.minimum(ub[:N_ARM][near_up], self._ramp * (d_up[near_up] - c.stop))
+            ub[:m][near_up] = np.minimum(ub[:m][near_up], self._ramp * (d_up[near_up] - c.stop))
         if near_lo.any():
-            lb[:N_ARM][near_lo] = np.maximum(lb[:N_ARM][near_lo], -self._ramp * (d_lo[near_lo] - c.stop))
+            lb[:m][near_lo] = np.maximum(lb[:m][near_lo], -self._ramp * (d_lo[near_lo] - c.stop))
         # inside the stop distance a damper pushes away; keep every box non-empty and within the speed limits
         ub = np.maximum(ub, -self._scale[:n])
         lb = np.minimum(lb, self._scale[:n])
@@ -191,13 +197,14 @@ class QP(ControllerPolicy):
 
     def _act(self, obs: dict) -> np.ndarray:
         c = self.config
-        n = N_ARM + 2
-        q = obs["joint_pos"][:N_ARM]
+        m = self._n_arm
+        n = m + 2
+        q = obs["joint_pos"][:m]
         J = K.whole_body_jacobian(self.params, q, float(obs["base_yaw"][0]))
         v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
         z = np.zeros(n)
         if c.posture_gain > 0:
-            z[:N_ARM] = c.posture_gain * (self._q0 - q)
+            z[:m] = c.posture_gain * (self._q0 - q)
         lb, ub = self.bounds(q)
         self._A[:, :n] = J
         self._lb[:n], self._ub[:n] = lb, ub

@@ -11,8 +11,8 @@ Spec grammar (one string, as the CLI takes it):
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
 
 Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `broyden`, `rls`, `zero`, `random`) are built from
-`EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive the env's
-`nominal_params`. The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
+`EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
+`nominal_params`, read at each episode start (a random-arm env draws a new nominal robot per reset). The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
 """
 
@@ -266,10 +266,21 @@ def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
     facts = EnvFacts.from_env(env)
     extra: dict[str, Any] = {}
     if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
-        extra["nominal_params"] = unwrap_env(env).nominal_params
+        extra["nominal_params"] = nominal_params_provider(env)
     elif entry.model == "true":
         extra["params_provider"] = true_params_provider(env)
     return cls(facts, config, seed, **extra)
+
+
+def nominal_params_provider(env: Any) -> Callable[[], Any]:
+    """A callable returning the env's current nominal robot: the catalogue robot, or for the random arm family
+    the episode's drawn design (it changes at every reset). Model-based policies call it at every episode start."""
+    base = unwrap_env(env)
+
+    def provider() -> Any:
+        return base.nominal_params
+
+    return provider
 
 
 def true_params_provider(env: Any) -> Callable[[], Any]:

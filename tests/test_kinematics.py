@@ -90,11 +90,11 @@ def test_perturbed_rule():
         ratios = np.array([getattr(p, name) / getattr(NOMINAL, name) for p in draws])
         assert ratios.min() >= 1 - 0.15 - 1e-12 and ratios.max() <= 1 + 0.15 + 1e-12
         assert 0.035 < ratios.std() < 0.065
-    # masses, limits and the shoulder height never change
-    unchanged = [f.name for f in dataclasses.fields(RobotParams) if f.name not in PERTURBED_FIELDS]
+    # masses, limits, twists and the shoulder height never change
     for p in draws[:5]:
-        for name in unchanged:
-            assert getattr(p, name) == getattr(NOMINAL, name)
+        for obj, ref, changed in _unchanged_fields(p, NOMINAL):
+            for name in changed:
+                assert getattr(obj, name) == getattr(ref, name), name
     assert NOMINAL.perturbed(rng, 0.0) == NOMINAL
     with pytest.raises(ValueError, match="rel_std"):
         NOMINAL.perturbed(rng, -0.1)
@@ -117,11 +117,20 @@ def test_perturbed_refuses_rel_std_at_which_a_length_can_reach_zero():
     assert ratios.min() == pytest.approx(0.1) and ratios.max() == pytest.approx(1.9)
 
 
+def _unchanged_fields(p, ref):
+    """(object, reference, names of the fields that perturbed/scaled leave alone) for the platform and the arm."""
+    platform = [f.name for f in dataclasses.fields(RobotParams) if f.name not in PERTURBED_FIELDS and f.name != "arm"]
+    arm = [f.name for f in dataclasses.fields(p.arm) if f.name not in ("a", "d", "tool", "mount_offset")]
+    return [(p, ref, platform), (p.arm, ref.arm, arm)]
+
+
 def test_scaled_multiplies_every_perturbed_length():
     p = NOMINAL.scaled(1.25)
-    for f in dataclasses.fields(RobotParams):
-        expected = getattr(NOMINAL, f.name) * (1.25 if f.name in PERTURBED_FIELDS else 1)
-        assert getattr(p, f.name) == expected, f.name
+    for name in PERTURBED_FIELDS:
+        assert getattr(p, name) == getattr(NOMINAL, name) * 1.25, name
+    for obj, ref, names in _unchanged_fields(p, NOMINAL):
+        for name in names:
+            assert getattr(obj, name) == getattr(ref, name), name
     with pytest.raises(ValueError, match="factor must be a finite number > 0"):
         NOMINAL.scaled(0.0)
 

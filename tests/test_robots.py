@@ -69,17 +69,18 @@ def _configs(arm: ArmDescription, n: int, seed: int) -> np.ndarray:
 
 
 # --- the PUMA: today's numbers, today's kinematics ---------------------------------------------------------
-def test_puma_description_has_the_numbers_of_robot_params():
+def test_puma_description_is_release_01s_robot():
+    """`RobotParams()` is the PUMA description on the platform, and its digest (a function of every number)
+    and a worn copy's are release 0.1's (computed with release 0.1's `RobotParams`, commit e52e574)."""
     p = RobotParams.nominal()
-    assert PUMA560.a == tuple(p.dh_a) and PUMA560.d == tuple(p.dh_d) and PUMA560.alpha == tuple(p.dh_alpha)
-    assert PUMA560.convention == "standard" and PUMA560.theta_offset == (0.0,) * 6
-    assert PUMA560.tool == p.tool
-    assert PUMA560.joint_lower == p.joint_lower and PUMA560.joint_upper == p.joint_upper
-    assert PUMA560.speed_limit == p.arm_speed_limit and PUMA560.torque_limit == p.arm_torque_limit
-    assert PUMA560.masses == p.masses and PUMA560.coms == p.coms
-    assert PUMA560.inertias == tuple((*diag, 0.0, 0.0, 0.0) for diag in p.inertias)
-    assert PUMA560.base_height == p.shoulder_height and PUMA560.mount_offset == p.mount_offset
-    assert PUMA560.n_actuators == len(p.action_scale) == 8
+    assert p.arm is PUMA560 and PUMA560.convention == "standard" and PUMA560.theta_offset == (0.0,) * 6
+    assert p.n_actuators == len(p.action_scale) == 8
+    assert p.hash() == "36aafecb4b8c9eb8"
+    assert p.perturbed(np.random.default_rng(10000), 0.05).hash() == "d30348a248dc3a5c"
+    assert p.perturbed(np.random.default_rng(7), 0.05).a2.hex() == "0x1.ba30bdd1fc525p-2"
+    assert (p.a2, p.a3, p.d3, p.d4, p.tool) == (0.4318, 0.0203, 0.15005, 0.4318, 0.2)
+    with pytest.raises(AttributeError, match="no DH length 'a7'"):
+        p.a7  # noqa: B018
 
 
 def test_puma_generic_kinematics_equal_todays():

@@ -135,10 +135,11 @@ def eval_command(cfg) -> str:
 
 
 class ZeroPolicy:
-    """Stand-still reference for the learning curve (the benchmark's `zero` floor)."""
+    """Stand-still reference for the learning curve (the benchmark's `zero` floor); the action has one entry per
+    actuator, sized from the observation's `joint_pos` (n arm joints + 2 wheels), batched like it."""
 
     def reset(self, obs, info=None, *, seed=None):
         pass
 
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
-        return np.zeros(8, dtype=np.float32), state
+        return np.zeros(np.shape(observation["joint_pos"]), dtype=np.float32), state

@@ -1,0 +1,84 @@
+"""Where an env's robot comes from: one `RobotSource` per robot name, so the env has no per-robot branch.
+
+A source gives the robot a model-based method may know (`nominal`, before the first reset) and, at every reset,
+the episode's nominal robot and start configuration drawn from the env's generator (`draw(rng)`):
+
+| name | robot | start | draws from the env's generator |
+|---|---|---|---|
+| `puma560` | `PUMA560` on the platform (release 0.1's robot) | the paper's theta(0) (`STARTS`) | nothing |
+| `ur5` | `UR5` | `STARTS["ur5"]` | nothing |
+| `panda` | `PANDA` | `STARTS["panda"]` | nothing |
+| `random` | a new arm of `random_arm`'s family per reset | the draw's start | the design, its start and redraws |
+
+Every start has heading pi (`mobman_env.env.PAPER_BASE_POSE`); `mobman_env.robots.starts` says how the named
+starts were chosen. A random arm is accepted when it passes the start rule of `random_arms` and the kinematic
+known-model ceiling `starts.kinematic_ceiling` (whole-body damped least squares on the drawn, nominal design
+tracks the paper's circle within 1 mm without meeting a joint limit; the measured acceptance is in
+`random_arms`' docstring: about 58% of the draws that pass the start rule, 3.9 draws per arm). It is checked on
+the circle for every task: the check costs about 0.2 s per candidate (2000 steps of numpy), the four tasks would
+cost four times that per reset. Before its first reset a `random` env's nominal robot is the first draw of
+`default_rng(0)` without the ceiling check (the spaces only need n and the speed limits, the same for the whole
+family).
+
+May import: numpy, the standard library, `mobman_env.params`, `mobman_env.robots.*`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mobman_env.params import RobotParams
+from mobman_env.robots.catalogue import ROBOTS
+from mobman_env.robots.description import ArmDescription
+from mobman_env.robots.random_arms import random_arm
+from mobman_env.robots.starts import STARTS, kinematic_ceiling
+
+__all__ = ["ROBOT_NAMES", "RobotSource", "robot_source"]
+
+#: The accepted values of the env's `robot` argument.
+ROBOT_NAMES = (*ROBOTS, "random")
+
+
+@dataclass(frozen=True)
+class RobotSource:
+    """The robot of an env: a fixed catalogue arm (`arm` set) or the random family (`arm` None)."""
+
+    name: str
+    arm: ArmDescription | None
+
+    @property
+    def start_is_drawn(self) -> bool:
+        """True when every reset draws the start with the arm (then `arm_joint_pos` cannot be given)."""
+        return self.arm is None
+
+    @property
+    def nominal(self) -> RobotParams:
+        """The nominal robot before the first reset (for the random family: a placeholder of the family)."""
+        if self.arm is not None:
+            return RobotParams.nominal(self.arm)
+        return RobotParams.nominal(random_arm(np.random.default_rng(0)).arm)
+
+    @property
+    def default_start(self) -> tuple[float, ...] | None:
+        """The start configuration (rad, n angles) of a fixed arm; None for the random family."""
+        return STARTS[self.name].q0 if self.arm is not None else None
+
+    def draw(self, rng: np.random.Generator) -> tuple[RobotParams, tuple[float, ...]] | None:
+        """The episode's nominal robot and its start (rad) drawn from `rng`; None for a fixed arm (nothing is
+        drawn: the constructor's nominal robot and start hold)."""
+        if self.arm is not None:
+            return None
+        draw = random_arm(rng, kinematic_ceiling)
+        return RobotParams.nominal(draw.arm), draw.q0
+
+
+def robot_source(name: str) -> RobotSource:
+    """The source of robot `name` (one of `ROBOT_NAMES`)."""
+    if not isinstance(name, str) or name not in ROBOT_NAMES:
+        raise ValueError(
+            f"unknown robot {name!r}; accepted: {', '.join(map(repr, ROBOT_NAMES))} (e.g. robot='ur5', or the "
+            f"registered ids Wheeled{{Puma,UR5,Panda,RandomArm}}-<task>-v0)"
+        )
+    return RobotSource(name, ROBOTS.get(name))
