@@ -389,7 +389,7 @@ class _JacobianRecorder:
                 f"{self._J_hat.shape[1:]} (3 x actuators)"
             )
         self._J_hat[k] = J_hat
-        q = np.asarray(obs["joint_pos"], float)[:6]
+        q = np.asarray(obs["joint_pos"], float)[:-2]  # the n arm angles (the last two are the wheels)
         self._J[k] = self._jacobian(self._base.true_params, q, float(obs["base_yaw"][0]))
 
     def finish(self, k: int) -> dict[str, Any]:

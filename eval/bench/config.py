@@ -160,7 +160,7 @@ class BenchConfig:
     """What one `mobman-eval bench` runs: robots x tasks x conditions x controllers x seeds."""
 
     robots: tuple[str, ...] = ("puma",)
-    """Robot names (`ROBOTS`); only those whose env ids are registered."""
+    """Robot names (`ROBOTS`), or ("all",) for every one; only those whose env ids are registered."""
     tasks: tuple[str, ...] = tuple(TASKS)
     """Task names (`TASKS`)."""
     conditions: tuple[str, ...] | None = None
@@ -186,6 +186,8 @@ class BenchConfig:
                 value = (value,)
             if value is not None:
                 object.__setattr__(self, name, tuple(value))
+        if self.robots == ("all",):  # `--robots all`: every robot of ROBOTS, in its order
+            object.__setattr__(self, "robots", tuple(ROBOTS))
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs or {}))
 
     @property
