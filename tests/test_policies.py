@@ -402,11 +402,23 @@ class _GuardedView:
         return getattr(self._env, name)
 
 
-@pytest.mark.parametrize(
-    "spec", ["nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random", "nnbc-plus", "broyden", "rls"]
+#: every robot's circle id; `broyden` and `rls` (policies.broyden_rls) still size their estimators from the
+#: PUMA's 8 actuators, so they are guarded on the 8-actuator robots only
+ROBOT_CIRCLES = (
+    "WheeledPuma-Circle-v0",
+    "WheeledUR5-Circle-v0",
+    "WheeledPanda-Circle-v0",
+    "WheeledRandomArm-Circle-v0",
 )
-def test_model_free_controllers_never_touch_the_model(spec):
-    env = _ModelGuard(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
+MODEL_FREE = ("nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "random", "nnbc-plus", "broyden", "rls")
+
+
+@pytest.mark.parametrize(
+    "spec, env_id",
+    [(s, e) for e in ROBOT_CIRCLES for s in MODEL_FREE if "Panda" not in e or s not in ("broyden", "rls")],
+)
+def test_model_free_controllers_never_touch_the_model(spec, env_id):
+    env = _ModelGuard(gym.make(env_id, dynamics="kinematic", path=SHORT_CIRCLE))
     try:
         pol = policies.make(spec, env, seed=0)
         rollout(env, pol, 0)
@@ -415,9 +427,10 @@ def test_model_free_controllers_never_touch_the_model(spec):
     assert env.touched == []
 
 
+@pytest.mark.parametrize("env_id", ROBOT_CIRCLES)
 @pytest.mark.parametrize("spec", ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle"])
-def test_the_guard_catches_model_based_controllers(spec):
-    env = _ModelGuard(gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE))
+def test_the_guard_catches_model_based_controllers(spec, env_id):
+    env = _ModelGuard(gym.make(env_id, dynamics="kinematic", path=SHORT_CIRCLE))
     try:
         with pytest.raises(AssertionError, match="model-free policy read"):
             pol = policies.make(spec, env, seed=0)

@@ -13,8 +13,13 @@ scorecard.json:
  "n_episodes", "n_expected", "n_failed", "wall_s",
  "rows": [ results.json aggregate rows (one per condition, env, policy) with "condition" ],
  "pooled": [ one row per (condition, policy) over every task of the bench: the same statistics, the IQM
-             interval bootstrapped within each task (strata = envs), "env": null ]}
+             interval bootstrapped within each task (strata = envs), "env": null ],
+ "by_robot": [ only for a bench of several robots: one row per (condition, robot, policy) over that robot's
+               tasks, as "pooled" ]}
 ```
+
+A bench of several robots (`--robots all`) adds the portability table to its README block: per robot and
+controller, the success rate [Wilson 95%] and the median max error over the robot's tasks, per condition.
 
 The episodes stay in the bench directory (`conditions/<name>/results.json`, one sweep per condition);
 the scorecard holds the statistics only, so a committed scorecard stays small.
@@ -33,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from eval import metrics as M
+from eval.bench.config import ROBOTS
 from eval.errors import EvalError
 from eval.output.files import to_jsonable
 from eval.output.precision import CHAOTIC, CHAOTIC_NOTE, SIGNIFICANT_DIGITS, format_mm, is_chaotic
@@ -55,15 +61,23 @@ def build_scorecard(
     """The scorecard dict from {condition name: that condition's results.json dict} (in scorecard order)."""
     rows: list[dict] = []
     pooled: list[dict] = []
+    by_robot: list[dict] = []
     n_episodes = n_failed = 0
+    several = len(protocol.get("robots") or ()) > 1
     for name, res in condition_results.items():
         eps = res["episodes"]
         n_episodes += len(eps)
         n_failed += sum(r.get("status") != "ok" for r in eps)
         for a in res["aggregate"]:
             rows.append({"condition": name, **a})
-        for a in M.aggregate(eps, group_keys=("policy", "dynamics", "model_error", "obs_noise"), strata_key="env"):
+        keys = ("policy", "dynamics", "model_error", "obs_noise")
+        for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
             pooled.append({"condition": name, "env": None, **a})
+        if several:
+            tagged = [{**r, "robot": robot_of(str(r["env"]))} for r in eps]
+            for a in M.aggregate(tagged, group_keys=("robot", *keys), strata_key="env"):
+                by_robot.append({"condition": name, "env": None, **a})
+    extra = {"by_robot": by_robot} if several else {}
     return to_jsonable(
         {
             "schema": SCHEMA,
@@ -81,17 +95,26 @@ def build_scorecard(
             "wall_s": wall_s,
             "rows": rows,
             "pooled": pooled,
+            **extra,
         }
     )
+
+
+def robot_of(env_id: str) -> str:
+    """The `--robots` name of an env id: "ur5" for "WheeledUR5-Circle-v0" (the id itself if it is none of
+    `ROBOTS`)."""
+    prefix = env_id.split("-", 1)[0]
+    return {v: k for k, v in ROBOTS.items()}.get(prefix, env_id)
 
 
 def scorecard_json_text(sc: dict) -> str:
     """scorecard.json's text: the header indented, each row of `rows` and `pooled` on one line (a 20-seed
     bench has a few hundred rows: one line each keeps the file small and its diffs readable)."""
     data = to_jsonable(sc)
-    head = {k: v for k, v in data.items() if k not in ("rows", "pooled")}
+    lists = [k for k in ("rows", "pooled", "by_robot") if k in data]
+    head = {k: v for k, v in data.items() if k not in lists}
     text = json.dumps(head, indent=2, allow_nan=False)[:-2]  # without the closing "\n}"
-    for key in ("rows", "pooled"):
+    for key in lists:
         lines = ",\n".join("    " + json.dumps(r, allow_nan=False, separators=(",", ":")) for r in data[key])
         text += f',\n  "{key}": [\n{lines}\n  ]'
     return text + "\n}\n"
@@ -156,18 +179,55 @@ def headline_tables(sc: dict) -> list[str]:
     return lines
 
 
+def portability_table(sc: dict) -> list[str]:
+    """The portability table of a bench of several robots: one row per robot and controller, per condition the
+    success rate [Wilson 95%] and the median max tracking error (mm) over the robot's tasks."""
+    conds = _conditions(sc)
+    cell = {(r["condition"], str(r["robot"]), str(r["policy"])): r for r in sc["by_robot"]}
+    robots = list(dict.fromkeys(str(r["robot"]) for r in sc["by_robot"]))
+    tol_mm = sc["protocol"]["tolerance"] * 1e3
+    body = []
+    for robot in robots:
+        for pol in _policies(sc):
+            row = [robot, pol]
+            for c in conds:
+                r = cell.get((c, robot, pol))
+                row += ["", ""] if r is None else [success_text(r), format_mm(r["max_error_m"]["median"], pol)]
+            body.append(row)
+    header = ["robot", "controller"]
+    for c in conds:
+        header += [f"{c}: success", f"{c}: median max error (mm)"]
+    return [
+        f"Portability: success rate, % [Wilson 95% interval] (max tracking error <= {tol_mm:g} mm) and median "
+        f"max tracking error per robot and controller, the robot's tasks ({', '.join(sc['protocol']['tasks'])}) "
+        "pooled:",
+        "",
+        markdown_table(header, body),
+        "",
+    ]
+
+
 def readme_markdown(sc: dict) -> str:
-    """The README block of a scorecard: what ran, on what, and the two headline tables."""
+    """The README block of a scorecard: what ran, on what, and the two headline tables (a bench of several
+    robots: the portability table instead, since pooling robots would hide what it compares)."""
     p = sc["protocol"]
     seeds = p["seeds"]
     prov = sc.get("provenance") or {}
+    if "by_robot" in sc:
+        what = f"{len(p['robots'])} robots ({', '.join(p['robots'])}) x {len(p['tasks'])} tasks"
+        tables = portability_table(sc)
+        if any(is_chaotic(q) for q in _policies(sc)):
+            tables += [CHAOTIC_NOTE + ".", ""]
+    else:
+        what = f"{len(p['envs'])} tasks"
+        tables = headline_tables(sc)
     lines = [
-        f"`mobman-eval bench` (protocol v{p['version']}): {len(p['envs'])} tasks ({', '.join(p['tasks'])}) x "
+        f"`mobman-eval bench` (protocol v{p['version']}): {what} ({', '.join(p['tasks'])}) x "
         f"{len(_conditions(sc))} conditions x {len(_policies(sc))} controllers x {len(seeds)} seeds "
         f"({seed_text(seeds)}); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
         f"{prov.get('cpu') or '?'}, {_blas_text(sc)}.",
         "",
-        *headline_tables(sc),
+        *tables,
     ]
     return "\n".join(lines).rstrip() + "\n"
 

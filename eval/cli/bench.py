@@ -58,7 +58,11 @@ def add_parser(sub) -> None:
         formatter_class=HelpFormatter,
     )
     p.add_argument(
-        "--robots", type=_list, action="extend", metavar="A,B", help=f"robots ({', '.join(ROBOTS)}, or all); default: puma"
+        "--robots",
+        type=_list,
+        action="extend",
+        metavar="A,B",
+        help=f"robots ({', '.join(ROBOTS)}, or all); default: puma",
     )
     p.add_argument(
         "--tasks", type=_list, action="extend", metavar="A,B", help=f"tasks ({', '.join(TASKS)}); default: all"
