@@ -2,8 +2,9 @@
 
 One `ArmDescription` per arm (DH convention and table, joint/speed/torque limits, masses, centres of mass,
 inertias, tool, mount) is the single source from which the kinematics, the URDF and the spaces are to be
-derived (issue 13, DESIGN.md "Release 0.2": Robots). This release ships the groundwork; the env, the sim, the
-URDF writer and the controllers are not wired to it yet.
+derived (issue 13, DESIGN.md "Release 0.2": Robots). `mobman_env.params.RobotParams` joins one description and
+the platform; the env, the sim, the URDF writer and the controllers derive everything from it (`sources` says
+which robot an env has).
 
 | module | what |
 |---|---|
@@ -14,9 +15,10 @@ URDF writer and the controllers are not wired to it yet.
 | `starts` | `STARTS` (q0 and heading per named arm) and the kinematic checks behind them |
 | `arm_urdf` | `arm_urdf_string(arm)`: the arm alone as URDF, the design note's frame mapping, checked in PyBullet |
 | `bench` | timing of the kinematics against numpy 4 x 4 products |
+| `sources` | `robot_source(name)`: the env's robot (fixed catalogue arm or a random arm per reset) and its start |
 | `__main__` | `python -m mobman_env.robots {table,select,acceptance,ceiling,bench}`: the quoted figures, regenerated |
 
-## Design note for the integration (later session)
+## Design note for the integration (done in issue 13's second session; kept as the record of the mapping)
 
 **URDF** (`mobman_env.urdf.urdf_string` to take an `ArmDescription`; all arm joints revolute, `<axis xyz="0 0
 1"/>`, one link per joint named `link1..linkn`, joints `joint1..jointn`, the mount frame = DH frame 0 at
@@ -54,10 +56,10 @@ same normals give the same bits as `RobotParams.perturbed` (still check `mobman-
 
 **Kinematics**: `mobman_env.kinematics.arm_point_and_jacobian(params, q)` is equal to
 `robots.kinematics.arm_point_and_jacobian(PUMA560, q)` to 1e-12 (tested), not bit for bit (different
-operation order). To keep the PUMA ids bit for bit, either keep the old numpy path for the PUMA until the
-paper results are regenerated, or regenerate `mobman-eval paper` with the new kernel and show the diff.
+operation order). The integration kept the old numpy path (dense 4 x 4 products) as the generic path of both
+conventions, so the PUMA's operations are release 0.1's; `mobman-eval paper` was compared field by field.
 
-**What is PUMA-specific today** (everything that assumes 6 arm joints or 8 actuators; `git grep` of 6, 8,
+**What was PUMA-specific** (all of it is generic now; everything that assumes 6 arm joints or 8 actuators; `git grep` of 6, 8,
 `range(6)`, `[:6]`, `[6:]`, shapes, 2026-12-01):
 
 * `mobman_env/kinematics.py`: module constants `N_ARM = 6`, `N_ACT = 8`; `dh_transforms`, `dh_frames`
@@ -89,8 +91,9 @@ paper results are regenerated, or regenerate `mobman-eval paper` with the new ke
 * `policies/simple.py` and `policies/base.py` already size everything from `len(action_scale)`: generic.
 
 May import: numpy, the standard library, `mobman_env.validation`, `mobman_env.paths` and `mobman_env.params`
-(in `starts` only: the task paths and the platform's wheel numbers). Nothing here imports the env, the sim,
-PyBullet or the controllers.
+(in `starts` and `sources` only: the task paths, the platform's wheel numbers, `RobotParams`; `params` imports
+`description` and `catalogue`, so this package's `__init__` does not import `starts` or `sources`). Nothing
+here imports the env, the sim, PyBullet or the controllers.
 """
 
 from __future__ import annotations
