@@ -261,7 +261,9 @@ class WheeledPumaEnv(gym.Env):
         self._nominal_params = self._source.nominal
         if arm_joint_pos is None:
             start = self._source.default_start
-            self.arm_joint_pos = None if start is None else self._joint_vector(start, self._nominal_params)
+            self.arm_joint_pos: np.ndarray | None = (
+                None if start is None else self._joint_vector(start, self._nominal_params)
+            )
         else:
             self.arm_joint_pos = self._joint_vector(arm_joint_pos, self._nominal_params)
         self.base_pose = _base_pose(PAPER_BASE_POSE if base_pose is None else base_pose)
@@ -376,6 +378,7 @@ class WheeledPumaEnv(gym.Env):
         if unknown:
             raise ValueError(f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, RESET_OPTIONS))}")
         spec = validate_spec(options["path"]) if "path" in options else self.path_spec
+        q0: np.ndarray | None
         if "arm_joint_pos" in options:
             q0 = self._joint_vector(options["arm_joint_pos"], self._nominal_params)
         else:
@@ -393,6 +396,7 @@ class WheeledPumaEnv(gym.Env):
         if drawn is not None:
             self._nominal_params, start = drawn
             q0 = np.concatenate([start, [0.0, 0.0]])
+        assert q0 is not None  # a fixed robot has its start (constructor); a drawn one got it just above
         self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
         self._sim.reset(self._true_params, q0, pose)
         state = self._sim.state()
