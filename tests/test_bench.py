@@ -266,3 +266,35 @@ def test_policy_lists_keep_specs_with_several_keys():
         "oracle:gamma=10",
     ]
     assert policy_list("zero,random") == ["zero", "random"]
+
+
+def test_robots_all_and_the_portability_rows():
+    """`--robots all` is every robot of the protocol; a bench of several robots gets one `by_robot` row per
+    (condition, robot, controller), pooled over that robot's tasks, and its README block is the portability table."""
+    from eval.bench.scorecard import build_scorecard, readme_markdown, robot_of
+
+    assert BC.BenchConfig(robots="all").robots == tuple(BC.ROBOTS) == ("puma", "ur5", "panda", "random-arm")
+    assert BC.BenchConfig(robots=("all",)).env_ids()[4] == "WheeledUR5-Circle-v0"
+    assert [robot_of(f"{p}-Line-v0") for p in BC.ROBOTS.values()] == list(BC.ROBOTS)
+
+    def ep(env, seed, err):
+        return {"env": env, "policy": "zero", "seed": seed, "dynamics": "kinematic", "model_error": 0.05,
+                "obs_noise": 0.0, "status": "ok", "success": err <= 0.006, "max_error_m": err}  # fmt: skip
+
+    eps = [
+        ep("WheeledPuma-Circle-v0", 0, 0.001),
+        ep("WheeledPuma-Line-v0", 0, 0.003),
+        ep("WheeledUR5-Circle-v0", 0, 0.5),
+    ]
+    protocol = {"version": 1, "robots": ["puma", "ur5"], "tasks": ["circle", "line"], "envs": [], "seeds": [0],
+                "tolerance": 0.006}  # fmt: skip
+    sc = build_scorecard(protocol, [], {"default": {"episodes": eps, "aggregate": []}}, n_expected=3)
+    rows = {(r["robot"], r["policy"]): r for r in sc["by_robot"]}
+    assert rows[("puma", "zero")]["n"] == 2 and rows[("puma", "zero")]["max_error_m"]["median"] == 0.002
+    assert rows[("ur5", "zero")]["success_rate"] == 0.0
+    text = readme_markdown(sc)
+    assert "2 robots (puma, ur5) x 2 tasks" in text and "| puma | zero | 100% [34-100] | 2.00 |" in text
+    single = build_scorecard(
+        {**protocol, "robots": ["puma"]}, [], {"default": {"episodes": eps[:2], "aggregate": []}}, n_expected=2
+    )
+    assert "by_robot" not in single
