@@ -130,12 +130,18 @@ def jobs(specs: list[str], conditions: list[str], seeds: list[int], tasks: list[
     return out
 
 
-def run(specs, conditions, seeds, workers, tasks=None, modes=None) -> list[dict]:
+def run(specs, conditions, seeds, workers, tasks=None, modes=None, progress: Path | None = None) -> list[dict]:
+    """Every episode of the grid, in grid order; each record is also appended to `progress` (JSON lines) as it
+    arrives, so an interrupted run keeps what it did."""
     todo = [j for j in jobs(specs, conditions, seeds, tasks) if not modes or j[3] in modes]
-    if workers <= 1:
-        return [episode(j) for j in todo]
-    with ProcessPoolExecutor(workers) as pool:
-        return list(pool.map(episode, todo, chunksize=4))
+    out = []
+    with ProcessPoolExecutor(max(workers, 1)) as pool:
+        for rec in pool.map(episode, todo, chunksize=2):
+            out.append(rec)
+            if progress is not None:
+                with progress.open("a") as f:
+                    f.write(json.dumps(rec) + "\n")
+    return out
 
 
 def _git() -> str:
@@ -190,7 +196,9 @@ def main(argv: list[str] | None = None) -> None:
             p.error(f"unknown condition(s) {unknown}; accepted: {list(CONDITIONS)}")
         seeds = list(range(a.seeds[0], a.seeds[0] + a.seeds[1]))
         t0 = time.time()
-        recs = run(a.policy or ["nnbc-plus"], a.conditions, seeds, a.workers, a.tasks, a.modes)
+        progress = Path(a.out + ".progress.jsonl")
+        progress.unlink(missing_ok=True)
+        recs = run(a.policy or ["nnbc-plus"], a.conditions, seeds, a.workers, a.tasks, a.modes, progress)
         meta = {
             "command": " ".join(sys.argv),
             "git": _git(),
@@ -200,6 +208,7 @@ def main(argv: list[str] | None = None) -> None:
             "machine": platform.processor() or platform.machine(),
         }
         Path(a.out).write_text(json.dumps({"meta": meta, "records": recs}, indent=1) + "\n")
+        progress.unlink()
         print(table(recs))
     else:
         data = json.loads(Path(a.results).read_text())
