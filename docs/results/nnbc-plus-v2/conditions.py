@@ -22,7 +22,12 @@ Usage (from the repository root; seeds 0-999 for development, >= 10,000 for repo
 
     PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py run --seeds 10000 20 --workers 2 \
         --out docs/results/nnbc-plus-v2/results.json
-    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py summary docs/results/nnbc-plus-v2/results.json
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py summary docs/results/nnbc-plus-v2/results.json \
+        --out docs/results/nnbc-plus-v2/summary.md
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py run --ablation --seeds 0 3 --workers 2 \
+        --out docs/results/nnbc-plus-v2/ablation.json
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py summary docs/results/nnbc-plus-v2/ablation.json \
+        --title Ablation --out docs/results/nnbc-plus-v2/ablation.md
 
 `run` writes one record per episode (condition, task, mode, seed, max error, success, predict time, joint-limit
 hits); `summary` writes summary.md next to it (the README's generated block copies its sections).
@@ -72,6 +77,17 @@ CONDITIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...], dict[str, Any], st
 }
 
 
+#: The ablation (development seeds): each v2 mechanism switched off on the conditions it targets, beside v2.
+ABLATION: dict[str, tuple[str, ...]] = {
+    "nnbc-plus": ("noise", "joint-vel-noise", "delay2", "circle-5s", "circle-0.5m", "random-start"),
+    "nnbc-plus:noise_rate=0": ("noise", "joint-vel-noise"),
+    "nnbc-plus:max_delay=0": ("delay2",),
+    "nnbc-plus:probe_tracking=false": ("circle-5s",),
+    "nnbc-plus:sing_threshold=0": ("circle-0.5m",),
+    "nnbc-plus:block_release=0": ("random-start",),
+}
+
+
 def random_start(seed: int) -> list[float]:
     """theta(0) of the random-start condition for episode seed `seed` (see the module docstring)."""
     from mobman_env.env import PAPER_ARM_JOINT_POS
@@ -117,10 +133,12 @@ def episode(job: tuple[str, str, str, int, str]) -> dict[str, Any]:
     }
 
 
-def jobs(specs: list[str], conditions: list[str], seeds: list[int], tasks: list[str] | None = None) -> list[tuple]:
+def jobs(
+    specs: list[str], conditions: list[str], seeds: list[int], tasks: list[str] | None = None, ablation: bool = False
+) -> list[tuple]:
     out = []
     for spec in specs:
-        for cond in conditions:
+        for cond in ABLATION[spec] if ablation else conditions:
             ctasks, modes, _, _ = CONDITIONS[cond]
             for task in ctasks:
                 if tasks and task not in tasks:
@@ -130,10 +148,12 @@ def jobs(specs: list[str], conditions: list[str], seeds: list[int], tasks: list[
     return out
 
 
-def run(specs, conditions, seeds, workers, tasks=None, modes=None, progress: Path | None = None) -> list[dict]:
+def run(
+    specs, conditions, seeds, workers, tasks=None, modes=None, progress: Path | None = None, ablation: bool = False
+) -> list[dict]:
     """Every episode of the grid, in grid order; each record is also appended to `progress` (JSON lines) as it
     arrives, so an interrupted run keeps what it did."""
-    todo = [j for j in jobs(specs, conditions, seeds, tasks) if not modes or j[3] in modes]
+    todo = [j for j in jobs(specs, conditions, seeds, tasks, ablation) if not modes or j[3] in modes]
     out = []
     with ProcessPoolExecutor(max(workers, 1)) as pool:
         for rec in pool.map(episode, todo, chunksize=2):
@@ -185,6 +205,7 @@ def main(argv: list[str] | None = None) -> None:
     r.add_argument("--seeds", nargs=2, type=int, metavar=("START", "N"), required=True)
     r.add_argument("--workers", type=int, default=1)
     r.add_argument("--out", required=True)
+    r.add_argument("--ablation", action="store_true", help="run the ABLATION table (its policies and conditions)")
     s = sub.add_parser("summary")
     s.add_argument("results")
     s.add_argument("--title", default="Conditions", help="section title of the Markdown file written")
@@ -198,7 +219,8 @@ def main(argv: list[str] | None = None) -> None:
         t0 = time.time()
         progress = Path(a.out + ".progress.jsonl")
         progress.unlink(missing_ok=True)
-        recs = run(a.policy or ["nnbc-plus"], a.conditions, seeds, a.workers, a.tasks, a.modes, progress)
+        specs = list(ABLATION) if a.ablation else (a.policy or ["nnbc-plus"])
+        recs = run(specs, a.conditions, seeds, a.workers, a.tasks, a.modes, progress, a.ablation)
         meta = {
             "command": " ".join(sys.argv),
             "git": _git(),
