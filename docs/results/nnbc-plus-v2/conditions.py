@@ -38,6 +38,7 @@ from __future__ import annotations
 import argparse
 import json
 import platform
+import signal
 import statistics
 import subprocess
 import sys
@@ -136,15 +137,17 @@ def episode(job: tuple[str, str, str, int, str]) -> dict[str, Any]:
 def jobs(
     specs: list[str], conditions: list[str], seeds: list[int], tasks: list[str] | None = None, ablation: bool = False
 ) -> list[tuple]:
+    """The grid in seed-major order (every cell gets its first seed before any gets its second), so a run
+    stopped early (SIGTERM) still covers every cell evenly."""
     out = []
-    for spec in specs:
-        for cond in ABLATION[spec] if ablation else conditions:
-            ctasks, modes, _, _ = CONDITIONS[cond]
-            for task in ctasks:
-                if tasks and task not in tasks:
-                    continue
-                for mode in modes:
-                    out.extend((spec, cond, task, mode, s) for s in seeds)
+    for s in seeds:
+        for spec in specs:
+            for cond in ABLATION[spec] if ablation else conditions:
+                ctasks, modes, _, _ = CONDITIONS[cond]
+                for task in ctasks:
+                    if tasks and task not in tasks:
+                        continue
+                    out.extend((spec, cond, task, mode, s) for mode in modes)
     return out
 
 
@@ -154,13 +157,18 @@ def run(
     """Every episode of the grid, in grid order; each record is also appended to `progress` (JSON lines) as it
     arrives, so an interrupted run keeps what it did."""
     todo = [j for j in jobs(specs, conditions, seeds, tasks, ablation) if not modes or j[3] in modes]
-    out = []
-    with ProcessPoolExecutor(max(workers, 1)) as pool:
-        for rec in pool.map(episode, todo, chunksize=2):
+    out: list[dict] = []
+    pool = ProcessPoolExecutor(max(workers, 1))
+    try:
+        for rec in pool.map(episode, todo):
             out.append(rec)
             if progress is not None:
                 with progress.open("a") as f:
                     f.write(json.dumps(rec) + "\n")
+    except (KeyboardInterrupt, SystemExit):  # stopped: keep the episodes done (the summary says how many)
+        print(f"stopped after {len(out)} of {len(todo)} episodes", file=sys.stderr)
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
     return out
 
 
@@ -217,6 +225,7 @@ def main(argv: list[str] | None = None) -> None:
             p.error(f"unknown condition(s) {unknown}; accepted: {list(CONDITIONS)}")
         seeds = list(range(a.seeds[0], a.seeds[0] + a.seeds[1]))
         t0 = time.time()
+        signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
         progress = Path(a.out + ".progress.jsonl")
         progress.unlink(missing_ok=True)
         specs = list(ABLATION) if a.ablation else (a.policy or ["nnbc-plus"])
@@ -256,7 +265,7 @@ def markdown(data: dict, title: str, source: str) -> str:
     body = (
         f"{len(recs)} episodes ({failed} failed), seeds {seeds[0]}-{seeds[-1]} ({len(seeds)} per task, condition "
         f"and mode), success = max tracking error <= {TOLERANCE * 1e3:.0f} mm; conditions defined in "
-        f"[conditions.py](docs/results/nnbc-plus-v2/conditions.py).\n\n" + table(recs) + "\n"
+        f"`docs/results/nnbc-plus-v2/conditions.py`.\n\n" + table(recs) + "\n"
         f"`predict`, median over episodes of the per-episode median: {statistics.median(us):.0f} us (all "
         f"episodes, run {meta['workers']} at a time on a shared machine; `mobman-eval speed` times it alone).\n"
     )
