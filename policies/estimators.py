@@ -107,7 +107,7 @@ class KalmanEstimator:
         # its probe length + 1, the phase its results were first published with)
         self._sym_phase = sym_phase
         self.X = np.zeros((3, ns))
-        self._set_P(self._P0.copy())
+        self.P = self._P0.copy()
         self._innov_ms: float = INNOV_MS0
         self._m = 0
 
@@ -119,13 +119,9 @@ class KalmanEstimator:
     def Jdot(self) -> np.ndarray:
         return self.X[:, self._n :]
 
-    def _set_P(self, P: np.ndarray) -> None:
-        self.P = P
-        self._diag = P.reshape(-1)[:: P.shape[0] + 1]  # a view of P's diagonal (P is updated in place)
-
     def reset(self) -> None:
         self.X = np.zeros((3, 2 * self._n))
-        self._set_P(self._P0.copy())
+        self.P = self._P0.copy()
         self._innov_ms = INNOV_MS0
         self._r = self._r_est = self._r0
         self._m = 0
@@ -149,7 +145,8 @@ class KalmanEstimator:
         if self._inv_lambda != 1.0:
             P *= self._inv_lambda
         if self._q is not None:
-            self._diag += self._q
+            diag = P.reshape(-1)[:: 2 * n + 1]  # a view of P's diagonal (made here: a kept view would not
+            diag += self._q  # survive copy.deepcopy or pickling of the estimator)
         h = self._h
         h[:n] = x
         if self._midpoint:

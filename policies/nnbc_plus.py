@@ -28,7 +28,7 @@ right wheel. Nothing else about the robot is assumed.
    h P h^T (covariance matching), never below `meas_std`^2. Without noise R stays at meas_std^2 = 1e-6 (m/s)^2
    and J follows fast changes; with 0.01 m/s on `ee_vel` (or 0.01 rad/s on `joint_vel`, which reaches y as
    J times it) R rises to about 1e-4 and the filter averages over more steps, instead of following the noise
-   (v1 with a fixed R: relative J_hat errors up to 4.9 and physics episodes lost). Exponential `forgetting` is
+   (v1 with a fixed R lost most physics episodes with velocity noise: `v1-dev.md`, condition `noise`). Exponential `forgetting` is
    available instead of (or with) the process noise; it was measured worse in physics mode.
 3. **Excite** the directions the task does not use: a random-sign dither (`dither`, rad/s) projected into the
    null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it the
@@ -54,8 +54,8 @@ right wheel. Nothing else about the robot is assumed.
      position and arm angles are predicted forward by J_hat times the d commands issued since the observation.
      The (x, y) pairs stay consistent (both are equally old), so the estimator needs no change.
 5. **Probe while tracking** (`probe_tracking`, v2): J_hat(0) comes from a 2n-step probe (each actuator in turn
-   at +probe_speed for one step, then -probe_speed: back to where it was). v1 stood still during it; a 5 s
-   circle moves 6.3 mm in those 16 steps. v2 runs the control law during the probe with the ridge-regularised
+   at +probe_speed for one step, then -probe_speed: back to where it was). v1 stood still during it, and a 5 s
+   circle left the 6 mm tolerance during those 16 steps in every v1 episode (`v1-dev.md`). v2 runs the control law during the probe with the ridge-regularised
    least-squares fit of the pairs so far (an actuator not probed yet has a zero column, so the pseudo-inverse
    does not use it) and adds the probe on top; at the end the fit (tiny ridge) is J_hat(0), J_dot_hat(0) = 0,
    and the Kalman filter takes over. `j0_noise` perturbs J_hat(0) by a random matrix of that fraction of its
@@ -143,7 +143,7 @@ class ModelFreeConfig:
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
     task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
     posture_gain: float = 2.0
-    """Null-space pull of the 6 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
+    """Null-space pull of the n - 2 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
     weighting: str = "none"
     """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
     "scale" (W = diag(action_scale^2) / max: fast actuators, i.e. the wheels, take more of the motion; measured
@@ -153,7 +153,7 @@ class ModelFreeConfig:
     probe_tracking: bool = True
     """Track while probing: during the 2n probe steps the control law runs with the least-squares fit of the
     pairs so far (an actuator not probed yet has a zero column, so it is not used) and the probe is added on
-    top; False stands still during the probe (v1: the path runs away, 6.3 mm on a 5 s circle)."""
+    top; False stands still during the probe, as v1 did (a fast path then runs away during it)."""
     j0_noise: float = 0.0
     """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
     test); drawn from the controller's RNG."""
@@ -169,7 +169,9 @@ class ModelFreeConfig:
     sqrt(det / e2) of J_c W J_c^T) falls below sing_threshold, up to `sing_damping` more damping is added,
     growing as (1 - sigma_min^2 / sing_threshold^2) (0 turns it off)."""
     sing_damping: float = 0.0005
-    """Largest extra damping near a singularity of the estimate, m^2/rad^2 (see `sing_threshold`)."""
+    """Largest extra damping near a singularity of the estimate, m^2/rad^2 (see `sing_threshold`). Chosen on
+    development seeds 0-2 (condition `circle-0.5m`, both modes): 0.0005 beside 0.002 and 0.01, whose damping
+    leaves a steady error of several mm in the weak direction."""
     accel_time: float = 0.0
     """Bounded acceleration, s: the command may change per step by at most action_scale * dt / accel_time
     (the time from standstill to full speed; 0 turns it off)."""
@@ -239,7 +241,9 @@ class NNBCPlusConfig(ModelFreeConfig):
     """Adaptive measurement noise: per-step weight of the running estimate of the sensor noise variance from
     the innovations (covariance matching: the innovation's mean square minus its predicted part h P h^T), used
     as R when it exceeds meas_std^2 (0 turns it off: R = meas_std^2). The controller is not told the sensor's
-    noise; with `obs_noise_vel` = 0.01 m/s this finds R near 1e-4 (m/s)^2 within a second."""
+    noise; with `obs_noise_vel` = 0.01 m/s the estimate tends to (0.01 m/s)^2 with a time constant of
+    1 / noise_rate steps. Chosen on development seeds 0-2 (condition `noise`, four tasks, both modes): 0.003
+    beside 0.01 (faster, follows its own innovation bursts)."""
     innov_rate: float = 0.05
     """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
     p0_jacobian: float = 1.0
@@ -247,7 +251,7 @@ class NNBCPlusConfig(ModelFreeConfig):
     p0_rate: float = 1.0
     """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
     p_max: float = 1.0
-    """Upper bound on the covariance trace (divided by the 16 states), applied when forgetting < 1: stops the
+    """Upper bound on the covariance trace (divided by the 2n states), applied when forgetting < 1: stops the
     forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
 
     def __post_init__(self):
@@ -486,12 +490,10 @@ class EstimatingController(ControllerPolicy):
         # --- control: u = z + J_c^+ (v - J_c z)
         J = self.J_hat
         vd = obs["target_vel"]
-        if c.lookahead and not probing:
+        Jc, v = J, vd.copy()
+        if c.lookahead and not probing:  # (the probe's fit has no rate; r_d_dot has no history at the reset)
             Jc = J + (0.5 * self._dt) * self.estimator.Jdot
             v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
-        else:
-            Jc = J
-            v = vd.copy()
         self._prev_vd = vd.copy()
         s_d = obs["target_pos"]
         if not self._whole:
@@ -543,7 +545,7 @@ class EstimatingController(ControllerPolicy):
 class NNBCPlus(EstimatingController):
     """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
 
-    After each step: `J_hat` (3x8) and `Jdot_hat` (3x8) are the current estimates, `P` the shared 16x16
+    After each step: `J_hat` (3 x n) and `Jdot_hat` (3 x n) are the current estimates, `P` the shared 2n x 2n
     covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
     """
 
@@ -573,10 +575,10 @@ class NNBCPlus(EstimatingController):
 
     @property
     def P(self) -> np.ndarray:
-        """The Kalman filter's shared 16 x 16 covariance."""
+        """The Kalman filter's shared 2n x 2n covariance."""
         return self.estimator.P  # type: ignore[attr-defined]
 
     @property
     def X(self) -> np.ndarray:
-        """[J_hat | J_dot_hat] (3 x 16), the Kalman filter's state."""
+        """[J_hat | J_dot_hat] (3 x 2n), the Kalman filter's state."""
         return self.estimator.X  # type: ignore[attr-defined]
