@@ -262,10 +262,25 @@ def markdown(data: dict, title: str, source: str) -> str:
         f"# nnbc-plus v2: {title.lower()}\n\nFrom `{source}` (`{meta['command']}`, git {meta['git']}, "
         f"{meta['machine']}); written by `conditions.py summary`.\n\n"
     )
+    cells: dict[tuple, int] = {}
+    for r in recs:
+        key = (r["policy"], r["condition"], r["task"], r["dynamics"])
+        cells[key] = cells.get(key, 0) + 1
+    per = (
+        f"{min(cells.values())}"
+        if min(cells.values()) == max(cells.values())
+        else (f"{min(cells.values())}-{max(cells.values())}")
+    )
+    stopped = (
+        f" The run was stopped at the deadline after {len(recs)} episodes (the grid is seed-major, so every cell"
+        " has its first seeds)."
+        if meta.get("stopped")
+        else ""
+    )
     body = (
-        f"{len(recs)} episodes ({failed} failed), seeds {seeds[0]}-{seeds[-1]} ({len(seeds)} per task, condition "
-        f"and mode), success = max tracking error <= {TOLERANCE * 1e3:.0f} mm; conditions defined in "
-        f"`docs/results/nnbc-plus-v2/conditions.py`.\n\n" + table(recs) + "\n"
+        f"{len(recs)} episodes ({failed} failed), seeds {seeds[0]}-{seeds[-1]}, {per} per task, condition, mode "
+        f"and controller; success = max tracking error <= {TOLERANCE * 1e3:.0f} mm; conditions defined in "
+        f"`docs/results/nnbc-plus-v2/conditions.py`.{stopped}\n\n" + table(recs) + "\n"
         f"`predict`, median over episodes of the per-episode median: {statistics.median(us):.0f} us (all "
         f"episodes, run {meta['workers']} at a time on a shared machine; `mobman-eval speed` times it alone).\n"
     )
