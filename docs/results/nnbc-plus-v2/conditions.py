@@ -229,6 +229,7 @@ def main(argv: list[str] | None = None) -> None:
         progress = Path(a.out + ".progress.jsonl")
         progress.unlink(missing_ok=True)
         specs = list(ABLATION) if a.ablation else (a.policy or ["nnbc-plus"])
+        planned = sum(not a.modes or j[3] in a.modes for j in jobs(specs, a.conditions, seeds, a.tasks, a.ablation))
         recs = run(specs, a.conditions, seeds, a.workers, a.tasks, a.modes, progress, a.ablation)
         meta = {
             "command": " ".join(sys.argv),
@@ -236,10 +237,12 @@ def main(argv: list[str] | None = None) -> None:
             "seeds": [seeds[0], seeds[-1]],
             "wall_s": round(time.time() - t0, 1),
             "workers": a.workers,
+            "planned": planned,
+            "stopped": len(recs) < planned,
             "machine": platform.processor() or platform.machine(),
         }
         Path(a.out).write_text(json.dumps({"meta": meta, "records": recs}, indent=1) + "\n")
-        progress.unlink()
+        progress.unlink(missing_ok=True)
         print(table(recs))
     else:
         data = json.loads(Path(a.results).read_text())
