@@ -241,7 +241,7 @@ def main(argv: list[str] | None = None) -> None:
             "stopped": len(recs) < planned,
             "machine": platform.processor() or platform.machine(),
         }
-        Path(a.out).write_text(json.dumps({"meta": meta, "records": recs}, indent=1) + "\n")
+        Path(a.out).write_text(json.dumps({"meta": meta, "episodes": recs}, indent=1) + "\n")
         progress.unlink(missing_ok=True)
         print(table(recs))
     else:
@@ -256,7 +256,7 @@ def main(argv: list[str] | None = None) -> None:
 def markdown(data: dict, title: str, source: str) -> str:
     """The Markdown file of one results file: a header (provenance) and one section `## title` with the table
     and the predict time."""
-    recs = data["records"]
+    recs = data["episodes"]
     meta = data["meta"]
     seeds = sorted({r["seed"] for r in recs})
     us = [r["predict_us_median"] for r in recs if r["predict_us_median"] is not None]
