@@ -225,6 +225,7 @@ def main(argv: list[str] | None = None) -> None:
             p.error(f"unknown condition(s) {unknown}; accepted: {list(CONDITIONS)}")
         seeds = list(range(a.seeds[0], a.seeds[0] + a.seeds[1]))
         t0 = time.time()
+        git = _git()  # the code the episodes run (read at the start: later commits must not be credited)
         signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
         progress = Path(a.out + ".progress.jsonl")
         progress.unlink(missing_ok=True)
@@ -233,7 +234,7 @@ def main(argv: list[str] | None = None) -> None:
         recs = run(specs, a.conditions, seeds, a.workers, a.tasks, a.modes, progress, a.ablation)
         meta = {
             "command": " ".join(sys.argv),
-            "git": _git(),
+            "git": git,
             "seeds": [seeds[0], seeds[-1]],
             "wall_s": round(time.time() - t0, 1),
             "workers": a.workers,
