@@ -3,13 +3,13 @@
 Uncalibrated visual servoing and model-free resolved-rate control have estimated the Jacobian online for
 decades with two textbook estimators (Jagersand, Fuentes & Nelson, ICRA 1997; Hosoda & Asada, IROS 1994;
 Piepmeier, McMurray & Lipkin, T-RA 2004). They are built here into the *same* controller as `nnbc-plus`
-(`policies.nnbc_plus.EstimatingController`: the 16-step probe for J_hat(0), the measurement y = J x of the
+(`policies.nnbc_plus.EstimatingController`: the 2n-step probe for J_hat(0) while tracking, the measurement y = J x of the
 measured task velocity against the measured actuator speeds, the null-space and task-space dither, the posture
 pull, the damped pseudo-inverse control law with gain gamma = 20 1/s), so that a comparison with `nnbc-plus`
 (a Kalman filter over J and its rate) isolates the estimator. They model no rate: J_dot_hat = 0, so the
 half-step lookahead extrapolates only r_d_dot.
 
-With x the measured actuator speeds (rad/s, 8) and y the measured task velocity (m/s, 3) at step k:
+With x the measured actuator speeds (rad/s, n = 8 on the PUMA) and y the measured task velocity (m/s, 3) at step k:
 
 * `broyden` - Broyden's secant update with step gating:
 
@@ -22,7 +22,7 @@ With x the measured actuator speeds (rad/s, 8) and y the measured task velocity 
 * `rls` - recursive least squares with exponential forgetting (lambda) and an optional random-walk covariance:
 
       K = P x / (lambda + x^T P x),   J_k = J_{k-1} + (y - J_{k-1} x) K^T,
-      P <- (P - K x^T P) / lambda + q_jacobian I,   trace(P) <= p_max * 8
+      P <- (P - K x^T P) / lambda + q_jacobian I,   trace(P) <= p_max * n
 
   J_k minimises sum_j lambda^(k-j) ||y_j - J x_j||^2 (plus a prior that fades): a window of about
   1 / (1 - lambda) steps. The trace bound stops the covariance from winding up when the excitation is poor.
@@ -37,7 +37,7 @@ from dataclasses import dataclass
 
 from mobman_env.validation import number
 from policies.estimators import BroydenEstimator, RLSEstimator
-from policies.nnbc_plus import N_ACT, EstimatingController, ModelFreeConfig
+from policies.nnbc_plus import EstimatingController, ModelFreeConfig
 
 
 @dataclass(frozen=True)
@@ -70,7 +70,7 @@ class RLSConfig(ModelFreeConfig):
     p0: float = 1.0
     """Initial covariance P = p0 I at J_hat(0) (how far the probed J_hat(0) is trusted)."""
     p_max: float = 100.0
-    """Bound on trace(P) / 8, applied after every update (no wind-up under poor excitation)."""
+    """Bound on trace(P) / n, applied after every update (no wind-up under poor excitation)."""
 
     def __post_init__(self):
         number("RLSConfig.forgetting", self.forgetting, low=0.0, open_low=True, high=1.0)
@@ -89,12 +89,12 @@ class Broyden(EstimatingController):
     def _make_estimator(self) -> BroydenEstimator:
         c = self.config
         assert isinstance(c, BroydenConfig)
-        return BroydenEstimator(N_ACT, step=c.step, min_speed=c.min_speed)
+        return BroydenEstimator(self.n_act, step=c.step, min_speed=c.min_speed)
 
 
 class RLS(EstimatingController):
     """`nnbc-plus`'s scaffolding with recursive least squares and forgetting (see the module docstring).
-    `estimator.P` is the shared 8 x 8 covariance."""
+    `estimator.P` is the shared n x n covariance (n actuators)."""
 
     name = "rls"
     config_cls = RLSConfig
@@ -102,4 +102,4 @@ class RLS(EstimatingController):
     def _make_estimator(self) -> RLSEstimator:
         c = self.config
         assert isinstance(c, RLSConfig)
-        return RLSEstimator(N_ACT, forgetting=c.forgetting, q_jacobian=c.q_jacobian, p0=c.p0, p_max=c.p_max)
+        return RLSEstimator(self.n_act, forgetting=c.forgetting, q_jacobian=c.q_jacobian, p0=c.p0, p_max=c.p_max)

@@ -63,7 +63,10 @@ class KalmanEstimator:
     that running mean square; innov_clip = 0 turns it off). p0_jacobian, p0_rate: initial covariances.
     forgetting: covariance divided by it per step (1 = off), with the trace bounded by p_max per state.
     midpoint: the measurement is a finite difference over the last step, which holds at the interval's
-    middle, so the regressor gets -dt/2 x on the rate states.
+    middle, so the regressor gets -dt/2 x on the rate states. noise_rate > 0: the measurement noise R is
+    estimated online by covariance matching (a running mean, with that per-step weight, of the (clipped)
+    innovation's mean square per component minus its predicted part h P h^T), never below meas_std^2; 0 keeps
+    R = meas_std^2.
     """
 
     def __init__(
@@ -82,20 +85,20 @@ class KalmanEstimator:
         p_max: float,
         midpoint: bool,
         sym_phase: int = 0,
+        noise_rate: float = 0.0,
     ):
         self._n = n
         self._dt = dt
         ns = 2 * n
-        F = np.eye(ns)
-        F[:n, n:] = dt * np.eye(n)
-        self._F, self._FT = F, F.T.copy()
         self._inv_lambda = 1.0 / forgetting
-        self._r = meas_std**2
+        self._r0 = self._r = meas_std**2
+        self._noise_rate = noise_rate
+        self._r_est = self._r0
         self._trace_max = p_max * ns
         self._midpoint = midpoint
         self._h = np.zeros(ns)
         q = np.r_[np.full(n, q_jacobian), np.full(n, q_rate)]
-        self._q = np.diag(q) if q.any() else None
+        self._q = q if q.any() else None
         self._clip = innov_clip
         self._clip2 = innov_clip**2
         self._rate = innov_rate
@@ -120,6 +123,7 @@ class KalmanEstimator:
         self.X = np.zeros((3, 2 * self._n))
         self.P = self._P0.copy()
         self._innov_ms = INNOV_MS0
+        self._r = self._r_est = self._r0
         self._m = 0
 
     def init(self, J0: np.ndarray) -> None:
@@ -128,40 +132,48 @@ class KalmanEstimator:
 
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
         """Predict [J | J_dot] one step (constant rate, process noise, forgetting), then update all rows with
-        y = J x (the same regressor h for the three rows: one gain)."""
+        y = J x (the same regressor h for the three rows: one gain). P is updated in place: F P F^T by the
+        block structure of F = [[I, dt I], [0, I]] (rows, then columns), the process noise on its diagonal."""
         n = self._n
+        dt = self._dt
         self._m += 1
         X = self.X
-        X[:, :n] += self._dt * X[:, n:]
-        P = self._F @ self.P @ self._FT
+        X[:, :n] += dt * X[:, n:]
+        P = self.P
+        P[:n] += dt * P[n:]
+        P[:, :n] += dt * P[:, n:]
         if self._inv_lambda != 1.0:
             P *= self._inv_lambda
         if self._q is not None:
-            P += self._q
+            diag = P.reshape(-1)[:: 2 * n + 1]  # a view of P's diagonal (made here: a kept view would not
+            diag += self._q  # survive copy.deepcopy or pickling of the estimator)
         h = self._h
         h[:n] = x
         if self._midpoint:
-            h[n:] = -0.5 * self._dt * x  # a finite difference over the last step holds at its middle
+            h[n:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
         Ph = P @ h
-        K = Ph / (h @ Ph + self._r)
+        hPh = float(h @ Ph)
+        K = Ph / (hPh + self._r)
         innov = y - X @ h
+        n2 = float(innov @ innov)
         if self._clip > 0:
-            n2 = float(innov @ innov)
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
                 innov *= (lim2 / n2) ** 0.5
                 n2 = lim2
             self._innov_ms += self._rate * (n2 - self._innov_ms)
+        if self._noise_rate > 0:  # covariance matching: E[innov_i^2] = h P h + R per component
+            self._r_est += self._noise_rate * (n2 / 3.0 - hPh - self._r_est)
+            self._r = max(self._r0, self._r_est)
         X += innov[:, None] * K
         P -= K[:, None] * Ph
         if (self._m + self._sym_phase) % 64 == 0:  # P is symmetric in exact arithmetic; remove the round-off
-            P += P.T
+            P += P.T.copy()
             P *= 0.5
         if self._inv_lambda != 1.0:
             tr = P.trace()
             if tr > self._trace_max:
                 P *= self._trace_max / tr
-        self.P = P
 
 
 class BroydenEstimator:

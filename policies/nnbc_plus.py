@@ -7,10 +7,13 @@ u = J_hat^+ v lies in the row space of J_hat, and eq. (15) adds only multiples o
 space fixed by J_hat(0) never changes: only the direction of the current u is ever re-learnt, the others go
 stale as the arm moves, and J_hat's smallest singular value collapses while the true one does not.
 
-What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
--------------------------------------------------------------------------------
+What this controller does (per control step, numpy on 3 x n and 2n x 2n matrices; n actuators)
+-------------------------------------------------------------------------------------------------
+n = len(facts.action_scale) (8 on the PUMA and the UR5, 9 on the Panda): n - 2 arm joints, then the left and
+right wheel. Nothing else about the robot is assumed.
+
 1. **Measure** one linear equation per task axis: y = J(t_k) x, with x the measured actuator speeds
-   (`joint_vel`, 8) and y the measured end-effector velocity (`ee_vel`, 3; minus `[arm_base_vel; 0]` in the
+   (`joint_vel`, n) and y the measured end-effector velocity (`ee_vel`, 3; minus `[arm_base_vel; 0]` in the
    paper's formulation). Nothing is differentiated, so position noise never reaches the estimator. With
    `measurement="position"` they are finite differences of `joint_pos` and `ee_pos` over the last step
    instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt, which holds at the interval's
@@ -18,31 +21,56 @@ What this controller does (per control step, numpy on 3x8 and 16x16 matrices)
    is 0.14 m/s on y).
 2. **Estimate** J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
    Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)) driven by random-walk process
-   noise (`q_jacobian`, `q_rate`); the three rows see the same regressor, so they share one 16x16 covariance
-   and one gain. Every direction of J follows the arm, not only the current u's. Exponential `forgetting` is
-   available instead of (or with) the process noise; it was measured worse in physics mode (module README).
-   A robust update (`innov_clip`) shortens single-step outliers of the innovation.
+   noise (`q_jacobian`, `q_rate`); the three rows see the same regressor, so they share one 2n x 2n covariance
+   and one gain. Every direction of J follows the arm, not only the current u's. A robust update
+   (`innov_clip`) shortens single-step outliers of the innovation. **The measurement noise is estimated, not
+   told** (`noise_rate`, v2): R is a slow running mean of the innovations' mean square minus its predicted part
+   h P h^T (covariance matching), never below `meas_std`^2. Without noise R stays at meas_std^2 = 1e-6 (m/s)^2
+   and J follows fast changes; with 0.01 m/s on `ee_vel` (or 0.01 rad/s on `joint_vel`, which reaches y as
+   J times it) R rises to about 1e-4 and the filter averages over more steps, instead of following the noise
+   (v1 with a fixed R lost most physics episodes with velocity noise: `v1-dev.md`, condition `noise`). Exponential `forgetting` is
+   available instead of (or with) the process noise; it was measured worse in physics mode.
 3. **Excite** the directions the task does not use: a random-sign dither (`dither`, rad/s) projected into the
    null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it the
    unexcited directions of J go stale and the estimate fails (measured). `task_dither` excites J's row space
    too, with a zero-mean two-step task-space excitation (+d on one step, -d on the next, so the end-effector
-   comes back): at 2 mm/s it costs no measurable tracking error and keeps the row-space estimate within a few
-   percent of the true J (without it the path's own motion leaves 20-50% errors there, which the feedback
-   hides but which leave less margin).
+   comes back).
 4. **Control** with the estimate extrapolated half a step (the command is held over [t_k, t_k+1]):
    u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_hat_a), J_c = J_hat + dt/2 J_dot_hat,
-   J_c^+ a damped (`damping`) pseudo-inverse, z the null-space motion: dither plus a pull of the 6 arm joints
-   back to their angles at the episode start (`posture_gain`). The pull keeps the arm away from its reach
-   limit, its joint limits and the singularities around them and lets the platform drive (Line-v0 is 3 m
-   long): without it joint 1 runs into its limit on some circles. r_hat_a is the measured ee_pos after a
-   complementary filter (`pos_filter`) that advances it by the measured motion and pulls it towards the
-   measurement, so position noise is attenuated in the feedback.
-5. **J_hat(0)** comes from a short probe at the start: each actuator in turn at +probe_speed for one step,
-   then -probe_speed (back to where it was), 16 steps = 0.16 s at 100 Hz, counted in the episode like every
-   other step; J_hat(0) is the least-squares fit of the measured (x, y) pairs. `j0_noise` perturbs it by a
-   random matrix of that fraction of its Frobenius norm, drawn from the controller's own RNG (robustness test).
+   J_c^+ a damped (`damping`) pseudo-inverse, z the null-space motion: dither plus a pull of the n - 2 arm
+   joints back to their angles at the episode start (`posture_gain`; keeps joint 1 off its stop and lets the
+   platform drive). r_hat_a is the measured ee_pos after a complementary filter (`pos_filter`) that advances
+   it by the measured motion and pulls it towards the measurement (attenuates `obs_noise` in the feedback).
+   * **Singularities seen through the estimate** (v2, `sing_threshold`, `sing_damping`): the controller cannot
+     compute the true manipulability, but it has J_c: the smallest eigenvalue of J_c W J_c^T is estimated for
+     free from the 3 x 3 solve's cofactors (det / e2, a lower bound, tight near a singularity), and when
+     sigma_min(J_c) falls below `sing_threshold` the damping grows (Nakamura/Chiaverini's singularity-robust
+     inverse). Near the stretched-arm configurations of a 0.5 m circle the undamped law commands wheel and
+     wrist speeds the physics cannot follow (wheel slip, y = J x breaks, the estimate and the episode
+     diverge); the extra damping bounds those speeds at the price of a few mm in the weak direction.
+   * **Delay compensation** (v2, `max_delay`, `delay_rate`): with observations d steps old, the measured x
+     equals the command issued d + 1 steps before. The controller keeps its last max_delay + 1 commands,
+     tracks the running mismatch of each lag with x and takes the best lag as d (`delay_estimate`); the fed-back
+     position and arm angles are predicted forward by J_hat times the d commands issued since the observation.
+     The (x, y) pairs stay consistent (both are equally old), so the estimator needs no change.
+5. **Probe while tracking** (`probe_tracking`, v2): J_hat(0) comes from a 2n-step probe (each actuator in turn
+   at +probe_speed for one step, then -probe_speed: back to where it was). v1 stood still during it, and a 5 s
+   circle left the 6 mm tolerance during those 16 steps in every v1 episode (`v1-dev.md`). v2 runs the control law during the probe with the ridge-regularised
+   least-squares fit of the pairs so far (an actuator not probed yet has a zero column, so the pseudo-inverse
+   does not use it) and adds the probe on top; at the end the fit (tiny ridge) is J_hat(0), J_dot_hat(0) = 0,
+   and the Kalman filter takes over. `j0_noise` perturbs J_hat(0) by a random matrix of that fraction of its
+   Frobenius norm, drawn from the controller's own RNG (robustness test).
 
-The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics.
+The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics, no
+sensor settings (noise and delay are estimated).
+
+Ablation (development seeds) and conditions (reported seeds)
+-------------------------------------------------------------
+Every v2 mechanism was switched off on the condition it targets, on development seeds, both dynamics modes:
+`docs/results/nnbc-plus-v2/ablation.md` (from `ablation.json`; command in its header), copied into the README
+by `mobman-eval readme`. The v1 baseline on the same development seeds is `v1-dev.json`; the reported-seed
+sweep over every condition of issue 16 is `results.json` / `summary.md` in the same folder (the conditions
+and the random-start rule are defined in `docs/results/nnbc-plus-v2/conditions.py`).
 
 One scaffolding, several estimators
 -----------------------------------
@@ -53,7 +81,7 @@ estimator object behind the interface of `policies.estimators` (`reset`, `init(J
 comparisons between them isolate the estimator. The shared options are the fields of `ModelFreeConfig`;
 `NNBCPlusConfig` adds the Kalman filter's.
 
-The estimate is exposed as `jacobian_estimate` (3 x 8, m/rad: joint_vel in rad/s to task velocity in m/s):
+The estimate is exposed as `jacobian_estimate` (3 x n, m/rad: joint_vel in rad/s to task velocity in m/s):
 the whole-body Jacobian d r_a / d u (formulation "whole_body") or the paper's J of eq. (6), the map to
 r_a_dot - [p_c_dot; 0] ("paper"); `jacobian_kind` says which. None during the probe.
 """
@@ -73,9 +101,20 @@ FORMULATIONS = ("whole_body", "paper")
 MEASUREMENTS = ("velocity", "position")
 
 
+#: The PUMA's actuator count (6 arm joints, 2 wheels) and probe length; the controllers size everything from
+#: `len(facts.action_scale)` (n actuators: n - 2 arm joints, then the left and right wheel), so these two are
+#: only the PUMA's values, kept for callers that need them.
 N_ACT = 8
 N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
+#: Observation keys the controllers read (only these are converted on the hot path).
+USES_KEYS = ("ee_pos", "ee_vel", "arm_base_pos", "arm_base_vel", "joint_pos", "joint_vel", "target_pos", "target_vel")
 _SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
+BLOCK_SPEED = 0.05  # rad/s: a command at least this fast that does not move the actuator marks it blocked
+BLOCK_CHECKS = 2  # consecutive checks
+BLOCK_EVERY = 4  # steps between checks
+BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
+DELAY_SETTLE = 200  # steps during which the delay estimate is refreshed every step
+DELAY_EVERY = 10  # afterwards, every this many steps
 
 
 @dataclass(frozen=True)
@@ -104,13 +143,17 @@ class ModelFreeConfig:
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
     task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
     posture_gain: float = 2.0
-    """Null-space pull of the 6 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
+    """Null-space pull of the n - 2 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
     weighting: str = "none"
     """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
     "scale" (W = diag(action_scale^2) / max: fast actuators, i.e. the wheels, take more of the motion; measured
     much worse: the platform's slow-to-steer motion then does most of the tracking)."""
     probe_speed: float = 0.05
     """Probe amplitude, rad/s (one step at + then one at - per actuator)."""
+    probe_tracking: bool = True
+    """Track while probing: during the 2n probe steps the control law runs with the least-squares fit of the
+    pairs so far (an actuator not probed yet has a zero column, so it is not used) and the probe is added on
+    top; False stands still during the probe, as v1 did (a fast path then runs away during it)."""
     j0_noise: float = 0.0
     """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
     test); drawn from the controller's RNG."""
@@ -121,6 +164,31 @@ class ModelFreeConfig:
     filters sensor noise (`obs_noise`) out of the feedback."""
     lookahead: bool = True
     """Control with J_hat and r_d_dot extrapolated half a step (the command is held for the whole step)."""
+    sing_threshold: float = 0.1
+    """Singularity-robust damping, m/rad: when the smallest singular value of the estimate J_c (its estimate
+    sqrt(det / e2) of J_c W J_c^T) falls below sing_threshold, up to `sing_damping` more damping is added,
+    growing as (1 - sigma_min^2 / sing_threshold^2) (0 turns it off)."""
+    sing_damping: float = 0.0005
+    """Largest extra damping near a singularity of the estimate, m^2/rad^2 (see `sing_threshold`). Chosen on
+    development seeds 0-2 (condition `circle-0.5m`, both modes): 0.0005 beside 0.002 and 0.01, whose damping
+    leaves a steady error of several mm in the weak direction."""
+    accel_time: float = 0.0
+    """Bounded acceleration, s: the command may change per step by at most action_scale * dt / accel_time
+    (the time from standstill to full speed; 0 turns it off)."""
+    block_release: float = 0.05
+    """Blocked actuators (joint stops), rad: an actuator that was commanded (at least `BLOCK_SPEED` rad/s, for
+    `BLOCK_CHECKS` checks in a row, one check every `BLOCK_EVERY` steps) but did not move (measured speed in
+    the commanded direction below a tenth of the command) is marked blocked in that direction: its weight in
+    the pseudo-inverse drops to `BLOCK_WEIGHT` (the other actuators take over the task) and it is never
+    commanded further into the stop, so the null-space pull moves it away; it is released once it has moved
+    block_release away from where it stopped (0 turns the mechanism off)."""
+    max_delay: int = 3
+    """Largest observation delay the controller looks for, control steps (0 turns the compensation off): the
+    measured actuator speeds are compared with the last max_delay + 1 commands, the best-matching lag is taken
+    as the delay d, and the fed-back position and joint angles are predicted forward by the d commands issued
+    since the observation was taken."""
+    delay_rate: float = 0.05
+    """Per-step weight of the newest mismatch in the running mean squares that pick the delay."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -134,6 +202,11 @@ class ModelFreeConfig:
             if f.type in ("float", float):  # spec strings may give ints ("gamma=20"): stored as float
                 object.__setattr__(self, f.name, number(f"{name}.{f.name}", getattr(self, f.name), low=0.0))
         number(f"{name}.pos_filter", self.pos_filter, low=0.0, open_low=True, high=1.0)
+        number(f"{name}.delay_rate", self.delay_rate, low=0.0, open_low=True, high=1.0)
+        if isinstance(self.max_delay, bool) or not isinstance(self.max_delay, int) or not 0 <= self.max_delay <= 10:
+            raise ValueError(
+                f"{name}.max_delay must be an integer from 0 to 10 (control steps), got {self.max_delay!r}"
+            )
 
 
 @dataclass(frozen=True)
@@ -164,6 +237,13 @@ class NNBCPlusConfig(ModelFreeConfig):
     Single-step violations of y = J x (a platform jolt in physics mode: seen as 20-30 mm/s one-step residuals)
     are damped, while a truly changed J (the RMS grows quickly) is still learnt. A safeguard: no measured effect
     on the development seeds."""
+    noise_rate: float = 0.003
+    """Adaptive measurement noise: per-step weight of the running estimate of the sensor noise variance from
+    the innovations (covariance matching: the innovation's mean square minus its predicted part h P h^T), used
+    as R when it exceeds meas_std^2 (0 turns it off: R = meas_std^2). The controller is not told the sensor's
+    noise; with `obs_noise_vel` = 0.01 m/s the estimate tends to (0.01 m/s)^2 with a time constant of
+    1 / noise_rate steps. Chosen on development seeds 0-2 (condition `noise`, four tasks, both modes): 0.003
+    beside 0.01 (faster, follows its own innovation bursts)."""
     innov_rate: float = 0.05
     """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
     p0_jacobian: float = 1.0
@@ -171,7 +251,7 @@ class NNBCPlusConfig(ModelFreeConfig):
     p0_rate: float = 1.0
     """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
     p_max: float = 1.0
-    """Upper bound on the covariance trace (divided by the 16 states), applied when forgetting < 1: stops the
+    """Upper bound on the covariance trace (divided by the 2n states), applied when forgetting < 1: stops the
     forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
 
     def __post_init__(self):
@@ -179,10 +259,22 @@ class NNBCPlusConfig(ModelFreeConfig):
         super().__post_init__()
 
 
-def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve the 3x3 system A x = rhs by cofactors in plain floats (several times faster than np.linalg.solve
-    at this size; A = J W J^T + damping I is symmetric positive definite)."""
+def _solve3(A: np.ndarray, rhs: np.ndarray, eps2: float = 0.0, extra: float = 0.0) -> np.ndarray:
+    """Solve (A + d I) x = rhs for the symmetric positive definite 3x3 A by cofactors in plain floats (several
+    times faster than np.linalg.solve at this size). d = 0, unless eps2 > 0 and A's smallest eigenvalue
+    (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that is tight when one
+    eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate / eps2), the
+    singularity-robust damping of `ModelFreeConfig.sing_damping`."""
     (a, b, c), (d, e, f), (g, h, i) = A.tolist()
+    if eps2 > 0.0:
+        e2 = (e * i - f * h) + (a * i - c * g) + (a * e - b * d)
+        det = a * (e * i - f * h) + b * (f * g - d * i) + c * (d * h - e * g)
+        low = det / e2 if e2 > 0.0 else 0.0
+        if low < eps2:
+            add = extra * (1.0 - max(low, 0.0) / eps2)
+            a += add
+            e += add
+            i += add
     p, q, r = rhs.tolist()
     c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
     c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
@@ -200,13 +292,16 @@ def _solve3(A: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 class EstimatingController(ControllerPolicy):
     """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator.
 
-    Subclasses set `config_cls` and implement `_make_estimator()`; everything else is shared. After each step:
-    `J_hat` and `Jdot_hat` (3 x 8) are the estimator's current J and J_dot, `estimator` the estimator object,
-    `last_u` the issued command (rad/s), `jacobian_estimate` a copy of J_hat (None during the probe).
+    Subclasses set `config_cls` and implement `_make_estimator()`; everything else is shared. n actuators
+    (`len(facts.action_scale)`, at least 3): n - 2 arm joints, then the two wheels. After each step: `J_hat` and
+    `Jdot_hat` (3 x n) are the estimator's current J and J_dot, `estimator` the estimator object, `last_u` the
+    issued command (rad/s), `jacobian_estimate` a copy of J_hat (None during the probe), `delay_estimate` the
+    observation delay (control steps) the controller currently compensates.
     """
 
     name = "estimating-controller"
     config_cls: type[ModelFreeConfig] = ModelFreeConfig
+    uses_keys = USES_KEYS
 
     def __init__(self, facts: EnvFacts, config: ModelFreeConfig | None = None, seed: int | None = None, **extra: Any):
         cls = type(self).__name__
@@ -215,30 +310,40 @@ class EstimatingController(ControllerPolicy):
                 f"{cls} takes no extra arguments (it is model-free: EnvFacts and observations only), got "
                 f"{sorted(extra)}"
             )
+        n = len(facts.action_scale)
+        if n < 3:
+            raise ValueError(
+                f"{cls} drives n - 2 arm joints and 2 wheels: it needs at least 3 actuators, the env has {n} "
+                f"(facts.action_scale = {facts.action_scale})"
+            )
         super().__init__(facts, seed=seed)
-        # the actuator count from the env's facts (n arm joints + 2 wheels), not the module's N_ACT (the PUMA's)
-        self._n_act = n_act = facts.n_actuators
-        self._n_probe = 2 * n_act
         if config is None:
             config = self.config_cls()
         if not isinstance(config, self.config_cls):
             raise TypeError(f"config must be a {self.config_cls.__name__}, got {type(config).__name__}")
         self.config = c = config
+        self.n_act = n
+        self.n_arm = n - 2
+        self.n_probe = 2 * n
         self._dt = facts.dt
-        self._w = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(n_act)
+        self._w0 = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(n)
+        self._w = self._w0
         self._damp = c.damping * np.eye(3)
+        self._eps2 = c.sing_threshold**2
+        self._du = self._scale * (self._dt / c.accel_time) if c.accel_time > 0 else None
         self._whole = c.formulation == "whole_body"
         self._use_vel = c.measurement == "velocity"
         self.jacobian_kind = "whole_body" if self._whole else "paper"
         self.estimator: JacobianEstimator = self._make_estimator()
         self._k = 0
+        self.delay_estimate = 0
 
     def _make_estimator(self) -> JacobianEstimator:
         raise NotImplementedError
 
     @property
     def J_hat(self) -> np.ndarray:
-        return self.estimator.J
+        return self._J_probe if self._k <= self.n_probe else self.estimator.J
 
     @property
     def Jdot_hat(self) -> np.ndarray:
@@ -246,24 +351,38 @@ class EstimatingController(ControllerPolicy):
 
     @property
     def jacobian_estimate(self) -> np.ndarray | None:
-        """The estimated Jacobian (3 x 8, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
+        """The estimated Jacobian (3 x n, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
         of the last observation: the whole-body Jacobian, or the paper's J of eq. (6) with
         `formulation="paper"` (`jacobian_kind`). None before the probe has finished."""
-        return self.estimator.J.copy() if self._initialised and self._k > self._n_probe else None
+        return self.estimator.J.copy() if self._initialised and self._k > self.n_probe else None
 
     # --- episode start ---------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
+        n = self.n_act
         self._k = 0
         q = obs["joint_pos"]
-        self._q0 = q[: self._n_act - 2].copy()
-        self._probe_x: list[np.ndarray] = []
-        self._probe_y: list[np.ndarray] = []
+        self._q0 = q[: self.n_arm].copy()
+        self._probe_A = np.zeros((n, n))
+        self._probe_B = np.zeros((3, n))
+        self._J_probe = np.zeros((3, n))
         self._prev_q = q.copy()
         self._prev_s = self._task_pos(obs)
         self._s_f = self._prev_s.copy()
         self._prev_vd = obs["target_vel"].copy()
         self._td: np.ndarray = np.zeros(3)
-        self._signs: np.ndarray = np.empty((0, self._n_act))
+        self._signs: np.ndarray = np.empty((0, n + 3))
+        # the last max_delay + 1 commands in a ring (row k % m holds the command issued at step k - 1) and the
+        # running mismatch of each lag with x
+        m = self.config.max_delay + 1
+        self._hist = np.zeros((m, n))
+        self._lags = [np.array([(i - j) % m for j in range(m)]) for i in range(m)]  # ring rows, newest first
+        self._lag_ms = np.zeros(self.config.max_delay + 1)
+        self.delay_estimate = 0
+        self._block_count = np.zeros(n)
+        self._blocked = np.zeros(n)  # +1 / -1: blocked in that direction, 0: free
+        self._block_q = np.zeros(n)
+        self._any_blocked = False
+        self._w = self._w0
         self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
@@ -274,9 +393,9 @@ class EstimatingController(ControllerPolicy):
         pc = obs["arm_base_pos"]
         return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
 
-    def _measure(self, obs: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(x, y, ds): actuator speeds (8) and task velocity (3) with y = J x (see `measurement`), and the task
-        motion over the last step for the position filter."""
+    def _measure(self, obs: dict, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(x, y): actuator speeds (n) and task velocity (3) with y = J x (see `measurement`); advances the
+        position filter by the measured motion."""
         q = obs["joint_pos"]
         s = self._task_pos(obs)
         if self._use_vel:
@@ -290,24 +409,56 @@ class EstimatingController(ControllerPolicy):
             dq = q - self._prev_q
             x = dq / self._dt
             y = (s - self._prev_s) / self._dt
-            ds = self.estimator.J @ dq
+            ds = J @ dq
         self._prev_q = q.copy()
         self._prev_s = s
         a = self.config.pos_filter
         self._s_f += ds
         self._s_f += a * (s - self._s_f)
-        return x, y, ds
+        return x, y
+
+    def _track_delay(self, x: np.ndarray, newest_first: np.ndarray) -> None:
+        """Which of the last commands the measured actuator speeds x match best: the observation delay. A
+        sensor's delay does not change within an episode: refreshed every step for the first `DELAY_SETTLE`
+        steps, then every `DELAY_EVERY`-th step."""
+        k = self._k
+        if k < 2 or (k > DELAY_SETTLE and k % DELAY_EVERY):
+            return
+        diff = self._hist[newest_first] - x
+        self._lag_ms += self.config.delay_rate * (np.einsum("ij,ij->i", diff, diff) - self._lag_ms)
+        self.delay_estimate = int(self._lag_ms.argmin())
+
+    def _check_blocked(self, x: np.ndarray, commanded: np.ndarray, q: np.ndarray) -> None:
+        """Mark the actuators that were commanded but did not move, release those that moved away (see
+        `block_release`)."""
+        stuck = (commanded * (x - 0.1 * commanded) < 0.0) & (commanded * commanded > BLOCK_SPEED**2)
+        self._block_count = np.where(stuck, self._block_count + 1, 0.0)
+        new = (self._block_count >= BLOCK_CHECKS) & (self._blocked == 0.0)
+        if new.any():
+            self._blocked[new] = np.sign(commanded[new])
+            self._block_q[new] = q[new]
+        if self._any_blocked or new.any():
+            free = np.abs(q - self._block_q) > self.config.block_release
+            self._blocked[free] = 0.0
+            self._any_blocked = bool(self._blocked.any())
+            self._w = np.where(self._blocked != 0.0, BLOCK_WEIGHT, self._w0)
+
+    def _probe_fit(self, x: np.ndarray, y: np.ndarray, final: bool) -> None:
+        """J_hat during the probe: least squares over the (x, y) pairs so far, ridge-regularised so that an
+        actuator not probed yet keeps a zero column (final: the tiny ridge of the finished probe, J_hat(0))."""
+        n = self.n_act
+        self._probe_A += np.outer(x, x)
+        self._probe_B += np.outer(y, x)
+        A = self._probe_A
+        tr = np.trace(A)
+        if tr <= 0:  # no actuator moved (e.g. the same observation fed again and again): no information
+            return
+        ridge = 1e-9 * tr / n if final else 0.1 * self.config.probe_speed**2
+        self._J_probe = np.linalg.solve(A + ridge * np.eye(n), self._probe_B.T).T
 
     def _finish_probe(self) -> None:
-        """J_hat(0): least squares over the probe's (x, y) pairs; J_dot_hat(0) = 0."""
-        X = np.array(self._probe_x).T  # (8, n)
-        Y = np.array(self._probe_y).T  # (3, n)
-        A = X @ X.T
-        tr = np.trace(A)
-        if tr > 0:
-            J0 = np.linalg.solve(A + 1e-9 * tr / self._n_act * np.eye(self._n_act), X @ Y.T).T
-        else:  # no actuator moved during the probe (e.g. the same observation fed again and again): no information
-            J0 = np.zeros((3, self._n_act))
+        """J_hat(0): the probe's least-squares fit (plus `j0_noise`); J_dot_hat(0) = 0."""
+        J0 = self._J_probe
         if self.config.j0_noise > 0:
             noise = self.rng.standard_normal(J0.shape)
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
@@ -318,28 +469,31 @@ class EstimatingController(ControllerPolicy):
         k = self._k
         self._k = k + 1
         c = self.config
-        x, y, _ = self._measure(obs)
-        if k <= self._n_probe:
+        n_probe = self.n_probe
+        hist = self._hist
+        ring = k % len(hist)
+        hist[ring] = self.last_u  # the command issued at step k - 1
+        probing = k < n_probe
+        x, y = self._measure(obs, self.J_hat)
+        if c.max_delay > 0:
+            self._track_delay(x, self._lags[ring])
+        if c.block_release > 0 and k > 1 and k % BLOCK_EVERY == 0:
+            lag = self._lags[ring][min(self.delay_estimate, len(hist) - 1)]
+            self._check_blocked(x, hist[lag], obs["joint_pos"])
+        if k <= n_probe:
             if k > 0:
-                self._probe_x.append(np.array(x, dtype=float))
-                self._probe_y.append(np.array(y, dtype=float))
-            if k < self._n_probe:
-                self._prev_vd = obs["target_vel"].copy()
-                u = np.zeros(self._n_act)
-                u[k // 2] = c.probe_speed if k % 2 == 0 else -c.probe_speed
-                return u
-            self._finish_probe()
+                self._probe_fit(x, y, final=k == n_probe)
+            if k == n_probe:
+                self._finish_probe()
         else:
             self.estimator.update(x, y)
         # --- control: u = z + J_c^+ (v - J_c z)
-        J, Jdot = self.estimator.J, self.estimator.Jdot
+        J = self.J_hat
         vd = obs["target_vel"]
-        if c.lookahead:
-            Jc = J + (0.5 * self._dt) * Jdot
+        Jc, v = J, vd.copy()
+        if c.lookahead and not probing:  # (the probe's fit has no rate; r_d_dot has no history at the reset)
+            Jc = J + (0.5 * self._dt) * self.estimator.Jdot
             v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
-        else:
-            Jc = J
-            v = vd.copy()
         self._prev_vd = vd.copy()
         s_d = obs["target_pos"]
         if not self._whole:
@@ -347,30 +501,51 @@ class EstimatingController(ControllerPolicy):
             s_d = np.array([s_d[0] - pc[0], s_d[1] - pc[1], s_d[2]])
             v[0] -= pv[0]
             v[1] -= pv[1]
-        v += c.gamma * (s_d - self._s_f)
-        if c.task_dither > 0:
-            if k % 2 == 0:
-                self._td = c.task_dither * (2.0 * self.rng.integers(0, 2, 3) - 1.0)
-                v += self._td
-            else:
-                v -= self._td
-        z = np.zeros(self._n_act)
-        if c.dither > 0:
-            if not len(self._signs):
-                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self._n_act)) - 1.0
-            z += c.dither * self._signs[0]
-            self._signs = self._signs[1:]
+        s_fb = self._s_f
+        q_arm = obs["joint_pos"][: self.n_arm]
+        d = self.delay_estimate
+        if d > 0:  # the observation is d steps old: predict it forward by the commands issued since
+            moved = hist[self._lags[ring][:d]].sum(axis=0) * self._dt
+            s_fb = s_fb + J @ moved
+            q_arm = q_arm + moved[: self.n_arm]
+        v += c.gamma * (s_d - s_fb)
+        z = np.zeros(self.n_act)
         if c.posture_gain > 0:
-            z[: self._n_act - 2] -= c.posture_gain * (obs["joint_pos"][: self._n_act - 2] - self._q0)
+            z[: self.n_arm] -= c.posture_gain * (q_arm - self._q0)
+        if not probing:
+            if not len(self._signs):  # random signs, one row per step: n for the dither, 3 for the task dither
+                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
+            signs = self._signs[0]
+            self._signs = self._signs[1:]
+            if c.task_dither > 0:
+                if k % 2 == 0:
+                    self._td = c.task_dither * signs[self.n_act :]
+                    v += self._td
+                else:
+                    v -= self._td
+            if c.dither > 0:
+                z += c.dither * signs[: self.n_act]
+        if probing and not c.probe_tracking:
+            v = np.zeros(3)
+            z = np.zeros(self.n_act)
         JW = Jc * self._w
-        lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z)
-        return z + JW.T @ lam
+        lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z, self._eps2, c.sing_damping)
+        u = z + JW.T @ lam
+        if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
+            u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
+        if self._any_blocked:  # never further into a stop
+            b = self._blocked
+            u = np.where(b * u > 0.0, 0.0, u)
+        if self._du is not None:  # bounded acceleration: u moves from the last command by at most _du
+            last = self.last_u
+            u = np.minimum(np.maximum(u, last - self._du), last + self._du)
+        return u
 
 
 class NNBCPlus(EstimatingController):
     """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
 
-    After each step: `J_hat` (3x8) and `Jdot_hat` (3x8) are the current estimates, `P` the shared 16x16
+    After each step: `J_hat` (3 x n) and `Jdot_hat` (3 x n) are the current estimates, `P` the shared 2n x 2n
     covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
     """
 
@@ -382,7 +557,7 @@ class NNBCPlus(EstimatingController):
         c = self.config
         assert isinstance(c, NNBCPlusConfig)
         return KalmanEstimator(
-            self._n_act,
+            self.n_act,
             self._dt,
             q_jacobian=c.q_jacobian,
             q_rate=c.q_rate,
@@ -394,15 +569,16 @@ class NNBCPlus(EstimatingController):
             forgetting=c.forgetting,
             p_max=c.p_max,
             midpoint=not self._use_vel,
-            sym_phase=self._n_probe + 1,
+            sym_phase=self.n_probe + 1,
+            noise_rate=c.noise_rate,
         )
 
     @property
     def P(self) -> np.ndarray:
-        """The Kalman filter's shared 16 x 16 covariance."""
+        """The Kalman filter's shared 2n x 2n covariance."""
         return self.estimator.P  # type: ignore[attr-defined]
 
     @property
     def X(self) -> np.ndarray:
-        """[J_hat | J_dot_hat] (3 x 16), the Kalman filter's state."""
+        """[J_hat | J_dot_hat] (3 x 2n), the Kalman filter's state."""
         return self.estimator.X  # type: ignore[attr-defined]

@@ -100,11 +100,93 @@ def test_position_noise_of_1mm_keeps_the_true_error_within_6mm():
     assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
 
 
-def test_velocity_sensor_noise_is_tolerated():
-    """Beyond the issue: 0.01 m/s of noise on ee_vel and arm_base_vel too (the estimator's measurements), with
-    the filter told so (meas_std = the sensor's noise)."""
-    results = run_seeds("Circle", NNBCPlusConfig(meas_std=0.01), obs_noise=0.001, obs_noise_vel=0.01)
+def test_velocity_sensor_noise_is_tolerated_without_being_told():
+    """Issue 16: 1 mm on positions and 0.01 m/s on ee_vel and arm_base_vel with the default gains (v1 needed
+    meas_std = the sensor's noise): the Kalman filter estimates its measurement noise from its innovations."""
+    results = run_seeds("Circle", obs_noise=0.001, obs_noise_vel=0.01)
     assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_joint_speed_noise_is_tolerated():
+    """Issue 16: 0.01 rad/s of noise on the measured actuator speeds (the estimator's regressor)."""
+    results = run_seeds("Lemniscate", obs_noise_joint_vel=0.01)
+    assert all(r["max"] <= TOLERANCE for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_observation_delay_is_found_and_compensated():
+    """Issue 16: observations 2 control steps old. The controller finds the delay (its measured actuator speeds
+    match the command of 3 steps before) and predicts the fed-back position forward by the commands since:
+    the error stays at the delay-free level (v1: 4.2 mm median, development seeds), and off it is larger."""
+    env = make_env("Circle", obs_delay=2)
+    try:
+        facts = EnvFacts.from_env(env)
+        policy = NNBCPlus(facts)
+        on = [rollout(env, policy, seed) for seed in REPORTED_SEEDS[:3]]
+        assert policy.delay_estimate == 2
+        off = rollout(env, NNBCPlus(facts, NNBCPlusConfig(max_delay=0)), REPORTED_SEEDS[0])
+    finally:
+        env.close()
+    assert all(r["max"] <= 1.5e-3 for r in on), [round(r["max"] * 1e3, 2) for r in on]
+    assert off["max"] > 2 * on[0]["max"], (off["max"], on[0]["max"])
+
+
+def test_a_5_second_circle_is_tracked_while_probing():
+    """Issue 16: the paper's circle in 5 s moves 6.3 mm during a 16-step probe that stands still (v1: 0/25);
+    the probe now runs on top of the tracking, which uses each actuator as soon as it has been probed."""
+    path = {**mobman_env.env.PAPER_CIRCLE, "duration": 5.0}
+    results = run_seeds("Circle", path=path)
+    assert all(r["max"] <= 3e-3 for r in results), [round(r["max"] * 1e3, 2) for r in results]
+
+
+def test_an_actuator_at_its_stop_is_taken_out_of_the_pseudo_inverse():
+    """Issue 16, random starts: a start with joint 4 near its stop (2.967 rad). The joint is commanded and does
+    not move; the controller marks it blocked, lets the other actuators do the task and the pull move it off the
+    stop. Without (block_release=0) it keeps commanding the stuck joint (measured on this episode: 5.8 mm, 531 stop
+    hits, against 1.9 mm and 21)."""
+    q0 = list(mobman_env.env.PAPER_ARM_JOINT_POS)
+    q0[3] = 2.92
+    env = make_env("Lemniscate", arm_joint_pos=q0)
+    try:
+        facts, seed = EnvFacts.from_env(env), REPORTED_SEEDS[0]
+        policy = NNBCPlus(facts)
+        on = rollout(env, policy, seed)
+        off = rollout(env, NNBCPlus(facts, NNBCPlusConfig(block_release=0.0)), seed)
+    finally:
+        env.close()
+    assert on["max"] <= 3e-3 and off["max"] > 1.5 * on["max"], (on["max"], off["max"])
+    assert on["info"]["joint_limit_hits"] < 0.5 * off["info"]["joint_limit_hits"]
+
+
+def test_any_number_of_actuators_on_a_linear_plant():
+    """n-generic (issue 13's UR5 has 8 actuators, the Panda 9): the controller sizes itself from
+    len(facts.action_scale). On a plant r_dot = J u with a constant random 3 x 9 J it learns J and tracks."""
+    n, dt = 9, 0.01
+    facts = EnvFacts(dt=dt, action_scale=(3.0,) * 7 + (10.0, 10.0), obs_keys=mobman_env.OBS_KEYS)
+    rng = np.random.default_rng(5)
+    J = 0.3 * rng.standard_normal((3, n))
+    policy = NNBCPlus(facts, seed=1)
+    assert policy.n_act == 9 and policy.n_arm == 7 and policy.n_probe == 18
+    q, r, u = np.zeros(n), np.zeros(3), np.zeros(n)
+    errors = []
+    for k in range(600):
+        t = k * dt
+        target = 0.05 * np.array([np.sin(t), 1.0 - np.cos(t), 0.5 * np.sin(2 * t)])
+        target_vel = 0.05 * np.array([np.cos(t), np.sin(t), np.cos(2 * t)])
+        obs = {
+            "ee_pos": r.copy(), "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
+            "joint_pos": q.copy(), "joint_vel": u.copy(), "target_pos": target, "target_vel": target_vel,
+            "base_yaw": np.zeros(1), "time": np.array([t]),
+        }  # fmt: skip
+        action, _ = policy.predict(obs)
+        assert action.shape == (n,)
+        u = np.asarray(action, float) * facts.scale
+        q = q + dt * u
+        r = r + dt * J @ u
+        errors.append(
+            np.linalg.norm(r - 0.05 * np.array([np.sin(t + dt), 1 - np.cos(t + dt), 0.5 * np.sin(2 * t + 2 * dt)]))
+        )
+    assert np.linalg.norm(policy.J_hat - J) < 0.05 * np.linalg.norm(J)
+    assert max(errors[100:]) < 1e-3, max(errors[100:])
 
 
 def test_position_filter_reduces_the_effect_of_noise():
@@ -186,7 +268,7 @@ def test_same_seed_same_actions_and_episode_start_reinitialises():
         obs, _ = env.reset(seed=4)
         batched = {k: v[None] for k, v in obs.items()}
         action, _ = policy.predict(batched, episode_start=np.array([True]))
-        expected = np.zeros(8, dtype=np.float32)
+        expected = np.zeros(8, dtype=np.float32)  # the probe's first step; nothing else moves yet
         expected[0] = policy.config.probe_speed / facts.action_scale[0]
         np.testing.assert_allclose(action, expected[None], rtol=1e-6)
         assert not policy.J_hat.any()

@@ -90,8 +90,8 @@ MUTANTS = (
     Mutant(
         "nnbc-plus-lookahead-removed",
         "policies/nnbc_plus.py",
-        "        if c.lookahead:\n",
-        "        if False:\n",
+        "        if c.lookahead and not probing:",
+        "        if False:",
         ("tests/test_mutants_nnbc_plus.py",),
     ),
     Mutant(
