@@ -2,6 +2,7 @@
 
     mobman-train --algo sac --env WheeledPuma-Circle-v0 --timesteps 100000 --seed 0 --out runs/sac-circle
     mobman-train --resume runs/sac-circle [--timesteps 200000]
+    mobman-train report runs/ppo-s0 runs/ppo-s1 ... --out docs/results/rl-v2   # several seeds: train.report
 
 Every argument is checked (and the envs built once) before training starts. Exit codes: 0 done, 2 bad
 arguments, 1 trained but the final evaluation failed (the
@@ -172,6 +173,11 @@ def require_rl() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["report"]:
+        from train.report_cli import main as report_main
+
+        return report_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
