@@ -1,7 +1,7 @@
 """`SB3Policy`: a trained Stable-Baselines3 agent behind the same interface as the controllers.
 
-`policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias `sb3:sac-circle`) reads a run
-folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
+`policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias of a shipped model, `ALIASES`:
+`sb3:sac-circle`, `sb3:ppo-circle`, `sb3:ppo-circle-physics`) reads a run folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
 `VecNormalize.save("DIR/vec_normalize.pkl")`) or by rl-baselines3-zoo (see below):
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
@@ -79,7 +79,13 @@ from policies.sb3_files import (
 
 #: Aliases of models shipped as package data: name -> path inside this package (`policies/models/`), found
 #: through this file's own location, so a user's `train.py` or `policies.py` beside their script cannot hide it.
-ALIASES = {"sac-circle": "models/sac-circle/model.zip"}
+#: One entry per folder of `policies/models/` (a test keeps the two equal); each folder has a README.md that
+#: says how the model was trained and selected.
+ALIASES = {
+    "sac-circle": "models/sac-circle/model.zip",
+    "ppo-circle": "models/ppo-circle/model.zip",
+    "ppo-circle-physics": "models/ppo-circle-physics/model.zip",
+}
 
 #: What `sb3:` policies need, and how to install it.
 INSTALL_HINT = 'pip install "mobman[rl]"'
@@ -115,7 +121,7 @@ ZOO_NEUTRAL = ("train.wrappers.AliveBonus", "gymnasium.wrappers.FlattenObservati
 
 
 def resolve_model_path(text: str) -> Path:
-    """`sac-circle` -> the packaged model; a folder -> its model (`model.zip`, or rl-zoo's `<ENV>.zip`); else
+    """`ppo-circle` (an alias of `ALIASES`) -> the packaged model; a folder -> its model (`model.zip`, or rl-zoo's `<ENV>.zip`); else
     the path itself (must exist)."""
     return resolve_run(text).model
 

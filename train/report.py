@@ -40,7 +40,7 @@ import hashlib
 import io
 import json
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from eval.metrics import DEFAULT_TOLERANCE
@@ -85,6 +85,9 @@ class ReportConfig:
     """Controller specs evaluated on the same episodes, in every dynamics mode of the runs."""
     tolerance: float = DEFAULT_TOLERANCE
     """Success threshold on the max tracking error, m (the paper's 6 mm)."""
+    env_kwargs: dict = field(default_factory=dict)
+    """Env arguments of every evaluation on top of the bench condition's (e.g. a `path`); a run trained on a
+    task-defining argument (its config.json's `eval_env_kwargs`) must find it here with the same value."""
     train_commit: str | None = None
     """Git commit of the code that trained the runs (recorded as given; a run folder does not hold it)."""
     workers: int = 1
@@ -95,6 +98,7 @@ class ReportConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "runs", tuple(str(r) for r in self.runs))
         object.__setattr__(self, "controllers", tuple(self.controllers))
+        object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
         integer("episodes", self.episodes, low=1, hint="e.g. --episodes 20")
         integer("seed", self.seed, low=10_000, hint="reported seeds start at 10000; tune on 0-999")
         integer("workers", self.workers, low=1, hint="e.g. --workers 1")
@@ -105,7 +109,7 @@ class ReportConfig:
         d = asdict(self)
         d["runs"] = list(self.runs)
         d["controllers"] = list(self.controllers)
-        return d
+        return json.loads(json.dumps(d))
 
 
 # --- reading run folders ---------------------------------------------------------------------------------
@@ -161,6 +165,7 @@ def read_run(path: str | Path) -> dict:
         "target_steps": int(cfg["timesteps"]),
         "wall_s": float(summary["wall_s"]) if done else float(curve[-1]["wall_s"]) if curve else 0.0,
         "config": {k: cfg.get(k) for k in FAMILY_KEYS},
+        "eval_env_kwargs": {k: v for k, v in cfg.get("eval_env_kwargs", {}).items() if k != "dynamics"},
         "hyperparams": cfg.get("hyperparams_resolved", cfg.get("hyperparams", {})),
         "versions": cfg.get("versions", {}),
         "curve": curve,
@@ -197,8 +202,8 @@ def group_families(runs: list[dict]) -> dict[str, list[dict]]:
 # --- evaluations ---------------------------------------------------------------------------------------------
 
 
-def condition_kwargs(dynamics: str) -> dict:
-    """`EvalConfig` fields of the bench condition of `dynamics` (`BENCH_CONDITION`)."""
+def condition_kwargs(dynamics: str, extra: dict | None = None) -> dict:
+    """`EvalConfig` fields of the bench condition of `dynamics` (`BENCH_CONDITION`), plus env arguments `extra`."""
     from eval.bench.config import CONDITIONS
 
     c = CONDITIONS[BENCH_CONDITION[dynamics]]
@@ -206,8 +211,21 @@ def condition_kwargs(dynamics: str) -> dict:
         "dynamics": (c.dynamics,),
         "model_error": c.model_error,
         "obs_noise": c.obs_noise,
-        "env_kwargs": dict(c.env_kwargs),
+        "env_kwargs": {**c.env_kwargs, **(extra or {})},
     }
+
+
+def check_task(config: ReportConfig, run: dict) -> None:
+    """A run trained on task-defining env arguments is evaluated on that task or refused (never silently
+    evaluated on another one)."""
+    cond = condition_kwargs(run["config"]["dynamics"], config.env_kwargs)
+    flat = {"model_error": cond["model_error"], "obs_noise": cond["obs_noise"], **cond["env_kwargs"]}
+    differ = {k: v for k, v in run["eval_env_kwargs"].items() if k not in flat or flat[k] != v}
+    if differ:
+        raise ValueError(
+            f"{run['name']} was trained on env arguments {differ}, which the report's evaluation "
+            f"({flat}) does not use; pass them with --env-kwargs, or leave the run out"
+        )
 
 
 def _eval_config(config: ReportConfig, env_id: str, policies: tuple[str, ...], dynamics: str, out: Path):
@@ -225,7 +243,7 @@ def _eval_config(config: ReportConfig, env_id: str, policies: tuple[str, ...], d
         plots=False,
         save_arrays="none",
         progress=False,
-        **condition_kwargs(dynamics),
+        **condition_kwargs(dynamics, config.env_kwargs),
     )
 
 
@@ -319,6 +337,8 @@ def build_report(config: ReportConfig) -> dict:
     out.mkdir(parents=True, exist_ok=True)
 
     for r in runs:
+        check_task(config, r)
+    for r in runs:
         if r["status"] == "done":
             r.update(evaluate_run(config, r, out / "evals" / r["name"]))
     modes = sorted({r["config"]["dynamics"] for r in runs}, key=list(BENCH_CONDITION).index)
@@ -354,7 +374,7 @@ def build_report(config: ReportConfig) -> dict:
         "config": config.to_dict(),
         "env_id": env_id,
         "bench_condition": {m: BENCH_CONDITION[m] for m in modes},
-        "condition_kwargs": {m: {k: v for k, v in condition_kwargs(m).items()} for m in modes},
+        "condition_kwargs": {m: condition_kwargs(m, config.env_kwargs) for m in modes},
         "train_commit": config.train_commit,
         "report_git": git_rev(),
         "provenance": provenance(),

@@ -4,6 +4,7 @@ report of `train.report`. Exit codes: 0 written, 2 bad arguments or run folders.
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 
 from train.report import DEFAULT_CONTROLLERS, ReportConfig
@@ -29,6 +30,12 @@ def build_parser() -> argparse.ArgumentParser:
         "'' for none)",
     )
     p.add_argument("--tolerance", type=float, default=d.tolerance, metavar="M", help="success threshold, m")
+    p.add_argument(
+        "--env-kwargs",
+        default="{}",
+        metavar="JSON",
+        help="env arguments of every evaluation beyond the bench condition",
+    )
     p.add_argument("--train-commit", metavar="SHA", help="git commit of the code that trained the runs (recorded)")
     p.add_argument("--workers", type=int, default=d.workers, metavar="K", help="parallel episodes per evaluation")
     p.add_argument("--no-plots", action="store_true", help="do not draw curves.png")
@@ -41,6 +48,9 @@ def main(argv: list[str] | None = None) -> int:
     from train.report import build_report
 
     try:
+        env_kwargs = json.loads(args.env_kwargs)
+        if not isinstance(env_kwargs, dict):
+            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
         config = ReportConfig(
             runs=tuple(args.runs),
             out=args.out,
@@ -48,6 +58,7 @@ def main(argv: list[str] | None = None) -> int:
             seed=args.seed,
             controllers=tuple(c for c in args.controllers.split(",") if c),
             tolerance=args.tolerance,
+            env_kwargs=env_kwargs,
             train_commit=args.train_commit,
             workers=args.workers,
             plots=not args.no_plots,
