@@ -143,7 +143,14 @@ def test_report_on_synthetic_runs(tmp_path, monkeypatch):
     runs.append(_run_folder(tmp_path, "ppo-phys-s0", "ppo", 0, dynamics="physics"))
     runs.append(_run_folder(tmp_path, "ppo-phys-s1", "ppo", 1, dynamics="physics", done=False))
     out = tmp_path / "report"
-    cfg = R.ReportConfig(runs=tuple(map(str, runs)), out=str(out), episodes=4, controllers=("jmpi", "zero"), plots=True)
+    cfg = R.ReportConfig(
+        runs=tuple(map(str, runs)),
+        out=str(out),
+        episodes=4,
+        controllers=("jmpi", "zero"),
+        ship=(("my-ppo", "ppo-kinematic"),),
+        models_dir=str(tmp_path / "models"),
+    )
     results = R.build_report(cfg)
     assert {f for f in R.REPORT_FILES} <= {p.name for p in out.iterdir()}
     # only finished runs are evaluated; controllers once per mode
@@ -174,6 +181,19 @@ def test_report_on_synthetic_runs(tmp_path, monkeypatch):
     from train.report_text import summary_markdown
 
     assert summary_markdown(saved) == text
+    # the shipped model is the median seed's, with a README generated from the results
+    shipped = tmp_path / "models" / "my-ppo"
+    assert (shipped / "model.zip").read_bytes() == b"model ppo-kin-s1"
+    from train.report_text import model_readme
+
+    readme = (shipped / "README.md").read_text()
+    assert readme == model_readme(saved, "ppo-kinematic", "my-ppo", str(out / "results.json"))
+    assert "**median-seed model** of the `ppo-kinematic` family: of its 3 training seeds (0, 1, 2)" in readme
+    assert (
+        "mobman-train --algo ppo --env WheeledPuma-Circle-v0 --dynamics kinematic --timesteps 2000 --seed 1" in readme
+    )
+    with pytest.raises(ValueError, match=r"no finished run of family 'sac-kinematic'; families: \['ppo-kinematic'"):
+        R.build_report(cfg.__class__(**{**cfg.__dict__, "ship": (("x", "sac-kinematic"),)}))
     curves = (out / "curves_iqm.csv").read_text().splitlines()
     assert curves[0].startswith("family,timesteps,n_seeds,median_max_error_m_iqm")
 

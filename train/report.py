@@ -94,11 +94,17 @@ class ReportConfig:
     """Parallel episodes of each evaluation (`eval.run`'s workers)."""
     plots: bool = True
     """Write curves.png (matplotlib)."""
+    ship: tuple[tuple[str, str], ...] = ()
+    """(alias, family) pairs: copy the family's median-seed model to `models_dir/alias/` with a generated
+    README.md (e.g. ("ppo-circle", "ppo-kinematic")); `policies.sb3.ALIASES` must name it to be `sb3:alias`."""
+    models_dir: str = "policies/models"
+    """Where `ship` puts the models (the folder of the shipped `sb3:` aliases)."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "runs", tuple(str(r) for r in self.runs))
         object.__setattr__(self, "controllers", tuple(self.controllers))
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
+        object.__setattr__(self, "ship", tuple((str(a), str(f)) for a, f in self.ship))
         integer("episodes", self.episodes, low=1, hint="e.g. --episodes 20")
         integer("seed", self.seed, low=10_000, hint="reported seeds start at 10000; tune on 0-999")
         integer("workers", self.workers, low=1, hint="e.g. --workers 1")
@@ -109,6 +115,7 @@ class ReportConfig:
         d = asdict(self)
         d["runs"] = list(self.runs)
         d["controllers"] = list(self.controllers)
+        d["ship"] = [list(pair) for pair in self.ship]
         return json.loads(json.dumps(d))
 
 
@@ -167,12 +174,34 @@ def read_run(path: str | Path) -> dict:
         "config": {k: cfg.get(k) for k in FAMILY_KEYS},
         "eval_env_kwargs": {k: v for k, v in cfg.get("eval_env_kwargs", {}).items() if k != "dynamics"},
         "hyperparams": cfg.get("hyperparams_resolved", cfg.get("hyperparams", {})),
+        "hyperparams_overrides": cfg.get("hyperparams", {}),
+        "train_command": train_command(cfg, f"runs/{d.name}"),
         "versions": cfg.get("versions", {}),
         "curve": curve,
     }
     if done:
         run["model_sha256"] = sha256(d / "model.zip")
     return run
+
+
+def train_command(cfg: dict, out: str) -> str:
+    """The `mobman-train` command line that trains a run of this config.json into `out` (hyperparameters other
+    than the defaults: `--hyperparams HP.json` with the run's `hyperparams` entry as that file)."""
+    import shlex
+
+    from train.config import LEARNING_ENV_KWARGS, TrainConfig
+
+    d = TrainConfig()
+    parts = ["mobman-train", "--algo", cfg["algo"], "--env", cfg["env_id"], "--dynamics", cfg["dynamics"]]
+    parts += ["--timesteps", str(cfg["timesteps"]), "--seed", str(cfg["seed"])]
+    for key in ("n_envs", "eval_freq", "eval_episodes", "final_eval_episodes", "checkpoint_freq", "alive_bonus"):
+        if key in cfg and cfg[key] != getattr(d, key):
+            parts += ["--" + key.replace("_", "-"), str(cfg[key])]
+    if cfg.get("env_kwargs", LEARNING_ENV_KWARGS) != LEARNING_ENV_KWARGS:
+        parts += ["--env-kwargs", json.dumps(cfg["env_kwargs"], sort_keys=True)]
+    if cfg.get("hyperparams"):
+        parts += ["--hyperparams", "HP.json"]
+    return " ".join(shlex.quote(p) for p in [*parts, "--out", out])
 
 
 def group_families(runs: list[dict]) -> dict[str, list[dict]]:
@@ -348,8 +377,7 @@ def build_report(config: ReportConfig) -> dict:
     for fam, members in families.items():
         finished = [r for r in members if r["status"] == "done"]
         for r in finished:
-            stats = family_row(fam, [r])
-            r["final"] = {k: stats[k] for k in ("max_error_m", "success_rate", "n_failed", "n_tipped_over")}
+            r["final"] = run_final(r["episodes"])
         if finished:
             family_rows.append(
                 {**family_row(fam, finished), "dynamics": finished[0]["config"]["dynamics"], **_budget(finished)}
@@ -395,7 +423,47 @@ def build_report(config: ReportConfig) -> dict:
         from eval.output.files import atomic_save_figure
 
         atomic_save_figure(curves_figure(results, {r["name"]: r["curve"] for r in runs}), out / "curves.png")
+    for alias, family in config.ship:
+        ship_model(results, family, alias, Path(config.models_dir), out / "results.json")
     return results
+
+
+#: Files of a run folder that a shipped model keeps (vecnormalize.pkl when the run normalised observations).
+SHIPPED_FILES = ("model.zip", "vecnormalize.pkl", "config.json")
+
+
+def ship_model(results: dict, family: str, alias: str, models_dir: Path, results_file: Path) -> Path:
+    """Copy `family`'s median-seed model into `models_dir/alias/` and write its README.md (generated from
+    `results`, which `results_file` holds); the copied model.zip must have the SHA-256 the report evaluated."""
+    import shutil
+
+    from eval.output.files import atomic_write_text
+    from train.report_text import model_readme
+
+    medians = results["median_seed_models"]
+    if family not in medians:
+        raise ValueError(f"--ship {alias}={family}: no finished run of family {family!r}; families: {sorted(medians)}")
+    run = next(r for r in results["runs"] if r["name"] == medians[family]["run"])
+    src, dest = Path(run["path"]), models_dir / alias
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in SHIPPED_FILES:
+        if (src / name).is_file():
+            shutil.copyfile(src / name, dest / name)
+    if sha256(dest / "model.zip") != run["model_sha256"]:
+        raise ValueError(f"{src / 'model.zip'} changed since the report evaluated it; rerun the report")
+    atomic_write_text(dest / "README.md", model_readme(results, family, alias, str(results_file)))
+    return dest
+
+
+def run_final(episodes: list[dict]) -> dict:
+    """One run's final figures over its reported episodes, as `eval.metrics.aggregate` gives a controller's:
+    IQM max error with its bootstrap interval over the episodes, median, success rate with its Wilson
+    interval, failed and tipped-over episodes."""
+    from eval import metrics as M
+
+    row = M.aggregate(episodes, group_keys=(), metrics=("max_error_m",))[0]
+    keys = ("n", "n_failed", "n_tipped_over", "success_rate", "success_rate_ci95", "max_error_m")
+    return {k: row[k] for k in keys}
 
 
 def _final_iqm(run: dict) -> float:

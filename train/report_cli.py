@@ -38,8 +38,23 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--train-commit", metavar="SHA", help="git commit of the code that trained the runs (recorded)")
     p.add_argument("--workers", type=int, default=d.workers, metavar="K", help="parallel episodes per evaluation")
+    p.add_argument(
+        "--ship",
+        action="append",
+        default=[],
+        metavar="ALIAS=FAMILY",
+        help="copy FAMILY's median-seed model to MODELS_DIR/ALIAS with a generated README (repeatable)",
+    )
+    p.add_argument("--models-dir", default=d.models_dir, metavar="DIR", help=f"where --ship writes ({d.models_dir})")
     p.add_argument("--no-plots", action="store_true", help="do not draw curves.png")
     return p
+
+
+def _pair(text: str) -> tuple[str, str]:
+    alias, sep, family = text.partition("=")
+    if not sep or not alias or not family:
+        raise ValueError(f"--ship {text!r}: expected ALIAS=FAMILY, e.g. --ship ppo-circle=ppo-kinematic")
+    return alias, family
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -62,6 +77,8 @@ def main(argv: list[str] | None = None) -> int:
             train_commit=args.train_commit,
             workers=args.workers,
             plots=not args.no_plots,
+            ship=tuple(_pair(s) for s in args.ship),
+            models_dir=args.models_dir,
         )
         results = build_report(config)
     except (ValueError, EvalError) as exc:
