@@ -27,7 +27,11 @@ from typing import Any
 from mkdocs.structure.files import File, Files
 
 #: Files outside docs/ published as pages at the same path (relative to the repository root).
-REPO_PAGES = ("policies/models/sac-circle/README.md",)
+REPO_PAGES = (
+    "policies/models/ppo-circle/README.md",
+    "policies/models/ppo-circle-physics/README.md",
+    "policies/models/sac-circle/README.md",
+)
 #: Notebooks in docs/ rendered as Markdown pages next to them.
 NOTEBOOKS = ("tutorials/benchmark-your-controller.ipynb",)
 POLICY_TABLE = "<!-- mobman:policy-table -->"
