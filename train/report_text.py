@@ -199,9 +199,11 @@ def curves_figure(results: dict, run_curves: dict[str, list[dict]]) -> Any:
 
     metric = results["curve_metric"]
     fams = list(dict.fromkeys(c["family"] for c in results["curves"]))
+    from matplotlib.ticker import FuncFormatter
+
     fig = Figure(figsize=(4.6 * max(len(fams), 1), 4.0), dpi=110)
-    for i, fam in enumerate(fams):
-        ax = fig.add_subplot(1, len(fams), i + 1)
+    axes = fig.subplots(1, max(len(fams), 1), sharey=True, squeeze=False)[0]
+    for i, (fam, ax) in enumerate(zip(fams, axes)):
         for r in (r for r in results["runs"] if r["family"] == fam):
             rows = run_curves.get(r["name"], [])
             ax.plot(
@@ -226,7 +228,9 @@ def curves_figure(results: dict, run_curves: dict[str, list[dict]]) -> Any:
         ax.axhline(1e3 * results["config"]["tolerance"], color="g", ls=":", label="success tolerance")
         ax.set_yscale("log")
         ax.set_xlabel("env steps")
-        ax.set_ylabel("median max error, development seeds (mm)")
+        ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v / 1e3:g}k" if v else "0"))
+        if i == 0:
+            ax.set_ylabel("median max error, development seeds (mm)")
         ax.set_title(family_title(fam))
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
