@@ -45,6 +45,8 @@ from pathlib import Path
 
 from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer
+from train.curve import read_curve
+from train.evaluation import eval_command
 from train.report_stats import CURVE_METRIC, curve_rows, family_row, median_run
 
 #: Bench condition (`eval.bench.config.CONDITIONS`) whose env arguments the final evaluation uses, per mode.
@@ -130,14 +132,6 @@ def _json(path: Path) -> dict:
     if not isinstance(data, dict):
         raise ValueError(f"{path} holds {type(data).__name__}, expected a JSON object")
     return data
-
-
-def read_curve(path: Path) -> list[dict]:
-    """Rows of a run's `learning_curve.csv` (floats), [] when there is none yet."""
-    if not path.is_file():
-        return []
-    with open(path, newline="") as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
 
 
 def sha256(path: Path) -> str:
@@ -299,24 +293,6 @@ def cached_evaluation(cfg, extra: dict) -> list[dict]:
     result = eval_run(cfg)
     atomic_write_json(out / "inputs.json", inputs)
     return list(result.results["episodes"])
-
-
-def eval_command(cfg) -> str:
-    """The `mobman-eval run` command that reproduces an evaluation of the report."""
-    import shlex
-
-    parts = ["mobman-eval", "run", "--env", cfg.envs[0]]
-    for p in cfg.policies:
-        parts += ["--policy", p]
-    parts += ["--episodes", str(cfg.episodes), "--seed", str(cfg.seed), "--dynamics", cfg.dynamics[0]]
-    parts += ["--model-error", repr(cfg.model_error)]
-    if cfg.obs_noise:
-        parts += ["--obs-noise", repr(cfg.obs_noise)]
-    if cfg.env_kwargs:
-        parts += ["--env-kwargs", json.dumps(cfg.env_kwargs)]
-    if cfg.tolerance != DEFAULT_TOLERANCE:
-        parts += ["--tolerance", repr(cfg.tolerance)]
-    return " ".join(shlex.quote(p) for p in parts)
 
 
 def _slim(rec: dict) -> dict:
