@@ -1,7 +1,8 @@
 """`SB3Policy`: a trained Stable-Baselines3 agent behind the same interface as the controllers.
 
 `policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias of a shipped model, `ALIASES`:
-`sb3:sac-circle`, `sb3:ppo-circle`, `sb3:ppo-circle-physics`) reads a run folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
+the name of a folder of `policies/models/`, e.g. `sb3:sac-circle`, `sb3:ppo-circle`) reads a run folder
+written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
 `VecNormalize.save("DIR/vec_normalize.pkl")`) or by rl-baselines3-zoo (see below):
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
@@ -77,15 +78,21 @@ from policies.sb3_files import (
     safe_custom_objects,
 )
 
-#: Aliases of models shipped as package data: name -> path inside this package (`policies/models/`), found
-#: through this file's own location, so a user's `train.py` or `policies.py` beside their script cannot hide it.
-#: One entry per folder of `policies/models/` (a test keeps the two equal); each folder has a README.md that
-#: says how the model was trained and selected.
-ALIASES = {
-    "sac-circle": "models/sac-circle/model.zip",
-    "ppo-circle": "models/ppo-circle/model.zip",
-    "ppo-circle-physics": "models/ppo-circle-physics/model.zip",
-}
+#: Folder of the models shipped as package data (found through this file's own location, so a user's
+#: `train.py` or `policies.py` beside their script cannot hide it).
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+
+
+def _shipped_models() -> dict[str, str]:
+    """name -> path inside this package of every shipped model: each folder of `models/` holding a model.zip
+    (and a README.md saying how it was trained and chosen), by its folder name."""
+    if not MODELS_DIR.is_dir():
+        return {}
+    return {d.name: f"models/{d.name}/model.zip" for d in sorted(MODELS_DIR.iterdir()) if (d / "model.zip").is_file()}
+
+
+#: Aliases of the shipped models (`sb3:sac-circle`, `sb3:ppo-circle`, ...): the folders of `policies/models/`.
+ALIASES = _shipped_models()
 
 #: What `sb3:` policies need, and how to install it.
 INSTALL_HINT = 'pip install "mobman[rl]"'
@@ -121,7 +128,8 @@ ZOO_NEUTRAL = ("train.wrappers.AliveBonus", "gymnasium.wrappers.FlattenObservati
 
 
 def resolve_model_path(text: str) -> Path:
-    """`ppo-circle` (an alias of `ALIASES`) -> the packaged model; a folder -> its model (`model.zip`, or rl-zoo's `<ENV>.zip`); else
+    """`ppo-circle` (an alias of `ALIASES`) -> the packaged model; a folder -> its model (`model.zip`, or
+    rl-zoo's `<ENV>.zip`); else
     the path itself (must exist)."""
     return resolve_run(text).model
 
@@ -134,7 +142,7 @@ def resolve_run(text: str) -> RunFiles:
 def _model_path(text: str) -> Path:
     text = text.strip()
     if text in ALIASES:
-        path = Path(__file__).resolve().parent / ALIASES[text]
+        path = MODELS_DIR.parent / ALIASES[text]
         if not path.is_file():
             raise FileNotFoundError(
                 f"sb3:{text}: the packaged model {path} is missing (it ships with mobman's policies package); "
