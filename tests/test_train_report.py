@@ -175,7 +175,9 @@ def test_report_on_synthetic_runs(tmp_path, monkeypatch):
     for section in ("## Final evaluation: kinematic", "## Final evaluation: physics", "## Runs", "## Compute"):
         assert section in text
     assert "| PPO (kinematic-trained), 2,000 steps | 3 x 4 |" in text
-    assert "`ppo-kin-s1` (median seed: shipped)" in text
+    assert "`ppo-kin-s1` (median seed)" in text
+    assert fam["ppo-physics"]["max_error_m"]["iqm_ci95"] is None  # one seed: no interval over seeds
+    assert "| PPO (physics-trained), 2,000 steps | 1 x 4 | 0 | 0 | 100% | 3.50 | 3.50 | training seeds |" in text
     assert "training (target 2,000)" in text
     # summary.md is a function of results.json alone
     from train.report_text import summary_markdown

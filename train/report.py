@@ -332,7 +332,7 @@ def build_report(config: ReportConfig) -> dict:
     from eval.output.provenance import git_rev, provenance
     from train.report_text import curves_figure, summary_markdown
 
-    runs = [read_run(p) for p in config.runs]
+    runs = sorted((read_run(p) for p in config.runs), key=lambda r: (r["family"], r["seed"]))
     env_ids = sorted({r["config"]["env_id"] for r in runs})
     if len(env_ids) != 1:
         raise ValueError(f"the runs were trained on several envs {env_ids}; report one env at a time")

@@ -15,7 +15,7 @@ The statistics are the protocol's (`eval.metrics`): the IQM is `eval.metrics.iqm
   of the mean success (`success_ci95`; a Wilson interval over the pooled episodes would treat episodes of
   one agent as independent agents). As in `eval.metrics.aggregate`, an episode that failed to run (an
   exception, status not "ok") counts as a failure of the success rate and in `n_failed`, and the error
-  statistics are over the episodes that ran.
+  statistics are over the episodes that ran. One seed has no interval over seeds (None).
 * **Median-seed model** (`median_run`): the run whose IQM max error over the reported episodes is the median
   of its family's (the lower median for an even count; ties broken by the smaller seed).
 
@@ -77,12 +77,12 @@ def family_row(family: str, runs: Sequence[dict]) -> dict:
         "n_tipped_over": sum(bool(e.get("tipped_over")) for eps in ran for e in eps),
         "max_error_m": {
             "iqm": M.iqm(values),
-            "iqm_ci95": M.iqm_ci95(list(by_episode.values())),
+            "iqm_ci95": M.iqm_ci95(list(by_episode.values())) if len(runs) > 1 else None,
             "median": float(np.median(values)) if values else None,
             "per_seed_iqm": [M.iqm(e["max_error_m"] for e in eps) for eps in ran],
         },
         "success_rate": float(success.mean()),
-        "success_rate_ci95": success_ci95(success),
+        "success_rate_ci95": success_ci95(success) if len(runs) > 1 else None,
         "per_seed_success_rate": [float(v) for v in success.mean(axis=1)],
     }
 

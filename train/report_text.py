@@ -91,7 +91,7 @@ def runs_table(results: dict) -> str:
     lines = []
     for r in results["runs"]:
         final = r.get("final")
-        name = f"`{r['name']}`" + (" (median seed: shipped)" if r["name"] in medians else "")
+        name = f"`{r['name']}`" + (" (median seed)" if r["name"] in medians else "")
         lines.append(
             [
                 name,
