@@ -190,7 +190,8 @@ def test_report_on_synthetic_runs(tmp_path, monkeypatch):
 
     readme = (shipped / "README.md").read_text()
     assert readme == model_readme(saved, "ppo-kinematic", "my-ppo", str(out / "results.json"))
-    assert "**median-seed model** of the `ppo-kinematic` family: of its 3 training seeds (0, 1, 2)" in readme
+    assert "**median-seed model** of the `ppo-kinematic` family: of its finished training seeds (0, 1, 2)" in readme
+    assert "`ppo-kin-s1`, seed 1. A typical run, not the best one." in readme
     assert (
         "mobman-train --algo ppo --env WheeledPuma-Circle-v0 --dynamics kinematic --timesteps 2000 --seed 1" in readme
     )

@@ -238,6 +238,14 @@ def curves_figure(results: dict, run_curves: dict[str, list[dict]]) -> Any:
     return fig
 
 
+def _median_note(n: int) -> str:
+    if n >= 3:
+        return "A typical run, not the best one."
+    if n == 2:
+        return "With two finished seeds the lower median is the better of the two."
+    return "Only this seed had finished when the report was written, so it is the median by default."
+
+
 def model_readme(results: dict, family: str, alias: str, results_file: str) -> str:
     """README.md of a shipped model: what it is, how it was chosen and trained, and its results beside its
     family and the controllers, every figure read from `results` (the report's results.json)."""
@@ -269,7 +277,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
             "episodes",
         ],
         [
-            f"{family}, all {fam['n_seeds']} seeds",
+            f"{family}, {fam['n_seeds']} finished seed(s)",
             f"{fam['n_seeds']} x {fam['n_episodes'] // fam['n_seeds']}",
             _pct(fam["success_rate"], fam["success_rate_ci95"]),
             _mm_ci(fam["max_error_m"], "agent"),
@@ -314,9 +322,9 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         "",
         f"A Stable-Baselines3 {title} agent trained by `mobman-train` on `{results['env_id']}` in **{dyn}** mode "
         f"(the paper's circle, 20 s; every episode a different robot, 5% wear). It is the **median-seed model** "
-        f"of the `{family}` family: of its {fam['n_seeds']} training seeds ({', '.join(map(str, fam['seeds']))}), "
-        f"the run whose IQM max error on the reported episodes (seeds {seeds}) is the median of the seeds' "
-        f"(`{run['name']}`, seed {run['seed']}). A typical run, not the best one.",
+        f"of the `{family}` family: of its finished training seeds ({', '.join(map(str, fam['seeds']))}), the run "
+        f"whose IQM max error on the reported episodes (seeds {seeds}) is the median of the seeds' (the lower "
+        f"median for an even count): `{run['name']}`, seed {run['seed']}. {_median_note(fam['n_seeds'])}",
         "",
         "Files: `model.zip` (the run's final model), `vecnormalize.pkl` (observation statistics), `config.json` "
         "(the run's resolved `TrainConfig`, which `policies.sb3.SB3Policy` reads: algorithm, observation keys, "
@@ -338,7 +346,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         "",
         f"Budget of this run: {_steps(run['steps'])} env steps in {run['wall_s'] / 60:.1f} min wall clock "
         f"({run['steps'] / run['wall_s']:.0f} steps/s, one env, torch 1 thread, on a 2-core machine shared with "
-        f"other jobs). The family: {len(walls)} runs, {sum(walls) / 3600:.2f} h in all.",
+        f"other jobs). The family's finished runs: {len(walls)}, {sum(walls) / 3600:.2f} h in all.",
         "",
         f"## Results (reported seeds {seeds}, {dyn}, bench condition `{cond}`, success = max error <= "
         f"{cfg['tolerance'] * 1e3:g} mm)",
