@@ -61,7 +61,6 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 
 from __future__ import annotations
 
-import ast
 import json
 import warnings
 from pathlib import Path
@@ -76,6 +75,7 @@ from policies.sb3_files import (
     load_zoo_yaml,
     read_zip_data,
     safe_custom_objects,
+    zoo_normalize,
 )
 
 #: Folder of the models shipped as package data (found through this file's own location, so a user's
@@ -228,18 +228,6 @@ def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _zoo_normalize(value: Any, where: Path) -> bool:
-    """Whether rl-zoo's `normalize` hyperparameter asks for observation statistics (bool, dict or its text)."""
-    if isinstance(value, str):
-        try:
-            value = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict") from None
-    if isinstance(value, dict):
-        return bool(value.get("norm_obs", True))
-    return bool(value)
-
-
 def _zoo_view(config: dict, where: Path) -> dict:
     """mobman's config keys (`wrappers`, `obs_keys`) from rl-zoo's `env_wrapper`; refuses what it cannot reproduce."""
     if config.get("frame_stack"):
@@ -320,7 +308,7 @@ class SB3Policy:
         if isinstance(args.get("algo"), str):
             config["algo"] = args["algo"]
         config.update(_zoo_view(hp, cfg_path))
-        if _zoo_normalize(hp.get("normalize", False), cfg_path) and run.stats is None:
+        if zoo_normalize(hp.get("normalize", False), cfg_path)["norm_obs"] and run.stats is None:
             raise ValueError(
                 f"{cfg_path}: normalize {hp.get('normalize')!r} says the agent saw normalised observations, but "
                 f"{run.zoo_dir / 'vecnormalize.pkl'} is missing; copy it from the training run"

@@ -50,39 +50,41 @@ def _steps(n: int) -> str:
     return f"{n:,}"
 
 
-def final_table(results: dict, dynamics: str) -> str:
-    """The final-evaluation table of one dynamics mode: the agent families trained in it, then the controllers."""
-    lines = []
-    for f in (f for f in results["families"] if f["dynamics"] == dynamics):
-        steps = "/".join(_steps(s) for s in f["steps_per_run"])
-        lines.append(
-            [
-                f"{family_title(f['family'])}, {steps} steps",
-                f"{f['n_seeds']} x {f['n_episodes'] // f['n_seeds']}",
-                str(f["n_failed"]),
-                str(f["n_tipped_over"]),
-                _pct(f["success_rate"], f["success_rate_ci95"]),
-                _mm_ci(f["max_error_m"], "agent"),
-                format_mm(f["max_error_m"]["median"], "agent"),
-                "training seeds",
-            ]
-        )
+def _row(label: str, size: str, stats: dict, spec: str, over: str) -> list[str]:
+    """A row of `FINAL_HEADER` from an aggregate-shaped dict (a family row, a run's or a controller's)."""
+    return [
+        label,
+        size,
+        str(stats["n_failed"]),
+        str(stats["n_tipped_over"]),
+        _pct(stats["success_rate"], stats["success_rate_ci95"]),
+        _mm_ci(stats["max_error_m"], spec),
+        format_mm(stats["max_error_m"]["median"], spec),
+        over,
+    ]
+
+
+def _family_row(f: dict, label: str) -> list[str]:
+    return _row(label, f"{f['n_seeds']} x {f['n_episodes'] // f['n_seeds']}", f, "agent", "training seeds")
+
+
+def _controller_rows(results: dict, dynamics: str) -> tuple[list[list[str]], list[str]]:
+    """The controllers' rows of one mode and the chaotic-controller footnote lines ([] if none is chaotic)."""
     rows = results["controllers"].get(dynamics, {}).get("rows", [])
-    for a in rows:
-        lines.append(
-            [
-                f"`{a['policy']}`",
-                f"- x {a['n']}",
-                str(a["n_failed"]),
-                str(a["n_tipped_over"]),
-                _pct(a["success_rate"], a["success_rate_ci95"]),
-                _mm_ci(a["max_error_m"], a["policy"]),
-                format_mm(a["max_error_m"]["median"], a["policy"]),
-                "episodes",
-            ]
-        )
-    note = [CHAOTIC_NOTE + "."] if any(is_chaotic(a["policy"]) for a in rows) else []
-    return "\n".join([markdown_table(FINAL_HEADER, lines), *(["", *note] if note else [])])
+    lines = [_row(f"`{a['policy']}`", f"- x {a['n']}", a, a["policy"], "episodes") for a in rows]
+    return lines, ([CHAOTIC_NOTE + ".", ""] if any(is_chaotic(a["policy"]) for a in rows) else [])
+
+
+def final_table(results: dict, dynamics: str) -> str:
+    """The final-evaluation table of one dynamics mode: the agent families trained in it, then the controllers
+    (and the chaotic-controller footnote)."""
+    lines = [
+        _family_row(f, f"{family_title(f['family'])}, {'/'.join(_steps(s) for s in f['steps_per_run'])} steps")
+        for f in results["families"]
+        if f["dynamics"] == dynamics
+    ]
+    ctrl, note = _controller_rows(results, dynamics)
+    return "\n".join([markdown_table(FINAL_HEADER, lines + ctrl), *([""] + note[:1] if note else [])])
 
 
 def runs_table(results: dict) -> str:
@@ -259,44 +261,11 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
     cond = results["bench_condition"][dyn]
     ck = results["condition_kwargs"][dyn]
     final = run["final"]
-    header = (
-        "policy",
-        "episodes",
-        "success [95% CI]",
-        "max err IQM [95% CI] (mm)",
-        "max err median (mm)",
-        "interval over",
-    )
     rows = [
-        [
-            f"`sb3:{alias}` (seed {run['seed']})",
-            str(final["n"]),
-            _pct(final["success_rate"], final["success_rate_ci95"]),
-            _mm_ci(final["max_error_m"], "agent"),
-            format_mm(final["max_error_m"]["median"], "agent"),
-            "episodes",
-        ],
-        [
-            f"{family}, {fam['n_seeds']} finished seed(s)",
-            f"{fam['n_seeds']} x {fam['n_episodes'] // fam['n_seeds']}",
-            _pct(fam["success_rate"], fam["success_rate_ci95"]),
-            _mm_ci(fam["max_error_m"], "agent"),
-            format_mm(fam["max_error_m"]["median"], "agent"),
-            "training seeds",
-        ],
+        _row(f"`sb3:{alias}` (seed {run['seed']})", f"1 x {final['n']}", final, "agent", "episodes"),
+        _family_row(fam, f"{family}, {fam['n_seeds']} finished seed(s)"),
     ]
-    ctrl = results["controllers"].get(dyn, {}).get("rows", [])
-    for a in ctrl:
-        rows.append(
-            [
-                f"`{a['policy']}`",
-                str(a["n"]),
-                _pct(a["success_rate"], a["success_rate_ci95"]),
-                _mm_ci(a["max_error_m"], a["policy"]),
-                format_mm(a["max_error_m"]["median"], a["policy"]),
-                "episodes",
-            ]
-        )
+    ctrl, note = _controller_rows(results, dyn)
     per_seed = "; ".join(
         f"seed {r['seed']}: {format_mm(r['final']['max_error_m']['iqm'], 'agent')} mm, "
         f"{r['final']['success_rate'] * 100:.0f}%"
@@ -351,9 +320,9 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         f"## Results (reported seeds {seeds}, {dyn}, bench condition `{cond}`, success = max error <= "
         f"{cfg['tolerance'] * 1e3:g} mm)",
         "",
-        markdown_table(header, rows),
+        markdown_table(FINAL_HEADER, rows + ctrl),
         "",
-        *([CHAOTIC_NOTE + ".", ""] if any(is_chaotic(a["policy"]) for a in ctrl) else []),
+        *note,
         f"Per training seed (IQM max error, success): {per_seed}.",
         "",
         f"The same evaluation: `{run['command']}`.",

@@ -66,22 +66,16 @@ def entry_fields(entry: dict, where: str) -> dict[str, Any]:
 
 
 def _normalize(value: Any, where: str) -> dict[str, bool]:
-    if isinstance(value, str):
-        try:
-            value = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict") from None
-    if isinstance(value, bool):
-        return {"normalize_obs": value, "normalize_reward": value}
-    if isinstance(value, dict) and set(value) <= {"norm_obs", "norm_reward"}:
-        return {
-            "normalize_obs": bool(value.get("norm_obs", True)),
-            "normalize_reward": bool(value.get("norm_reward", True)),
-        }
-    raise ValueError(
-        f"{where}: normalize {value!r}; accepted: true, false, or a dict of norm_obs / norm_reward (mobman-train "
-        f"sets VecNormalize's other arguments itself)"
-    )
+    from policies.sb3_files import zoo_normalize
+
+    kw = zoo_normalize(value, where)
+    extra = sorted(set(kw) - {"norm_obs", "norm_reward"})
+    if extra:
+        raise ValueError(
+            f"{where}: normalize {value!r} sets {extra}; accepted: true, false, or a dict of norm_obs / norm_reward "
+            f"(mobman-train sets VecNormalize's other arguments itself)"
+        )
+    return {"normalize_obs": kw["norm_obs"], "normalize_reward": kw["norm_reward"]}
 
 
 def _wrappers(value: Any, where: str) -> dict[str, Any]:
