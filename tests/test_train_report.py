@@ -105,6 +105,8 @@ def _run_folder(root: Path, name: str, algo: str, seed: int, *, done=True, dynam
         "obs_keys": ["pos_error"],
         "wrappers": ["pos_error"],
         "hyperparams_resolved": {"gamma": 0.98},
+        "n_envs": 1,
+        "torch_threads": 1,
         **cfg_changes,
     }
     (d / "config.json").write_text(json.dumps(cfg))

@@ -143,7 +143,18 @@ def sha256(path: Path) -> str:
 
 
 #: config.json entries that must agree between the seeds of one family.
-FAMILY_KEYS = ("env_id", "algo", "dynamics", "timesteps", "env_kwargs", "alive_bonus", "obs_keys", "wrappers")
+FAMILY_KEYS = (
+    "env_id",
+    "algo",
+    "dynamics",
+    "timesteps",
+    "env_kwargs",
+    "alive_bonus",
+    "obs_keys",
+    "wrappers",
+    "n_envs",
+    "torch_threads",
+)
 
 
 def read_run(path: str | Path) -> dict:

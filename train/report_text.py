@@ -126,7 +126,22 @@ def compute_table(results: dict) -> str:
                 f"{sum(r['wall_s'] for r in runs) / 3600:.2f}",
             ]
         )
-    return markdown_table(header, lines)
+    runs, done = results["runs"], [r for r in results["runs"] if r["status"] == "done"]
+    lines.append(
+        [
+            "all",
+            f"{len(done)} of {len(runs)}",
+            f"{_steps(sum(r['steps'] for r in runs))} in all",
+            "",
+            f"{sum(r['wall_s'] for r in runs) / 3600:.2f}",
+        ]
+    )
+    note = (
+        "Wall clock of each training process (its summary.json: all sessions, periodic evaluations included); "
+        "unfinished runs count up to their last periodic evaluation; the report's final evaluations are not "
+        f"included. {_machine(results)}"
+    )
+    return markdown_table(header, lines) + "\n\n" + note
 
 
 def curves_table(results: dict) -> str:
@@ -240,6 +255,11 @@ def curves_figure(results: dict, run_curves: dict[str, list[dict]]) -> Any:
     return fig
 
 
+def _machine(results: dict) -> str:
+    prov = results.get("provenance") or {}
+    return f"Machine of the report: {prov.get('cpu') or 'unknown CPU'}, {prov.get('cpu_count') or '?'} cores."
+
+
 def _median_note(n: int) -> str:
     if n >= 3:
         return "A typical run, not the best one."
@@ -314,8 +334,9 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         "development seeds only (900-904); the reported seeds were never seen in training or selection.",
         "",
         f"Budget of this run: {_steps(run['steps'])} env steps in {run['wall_s'] / 60:.1f} min wall clock "
-        f"({run['steps'] / run['wall_s']:.0f} steps/s, one env, torch 1 thread, on a 2-core machine shared with "
-        f"other jobs). The family's finished runs: {len(walls)}, {sum(walls) / 3600:.2f} h in all.",
+        f"({run['steps'] / run['wall_s']:.0f} steps/s; {run['config']['n_envs']} env(s), torch "
+        f"{run['config']['torch_threads']} thread(s)). {_machine(results)} The family's finished runs: "
+        f"{len(walls)}, {sum(walls) / 3600:.2f} h in all.",
         "",
         f"## Results (reported seeds {seeds}, {dyn}, bench condition `{cond}`, success = max error <= "
         f"{cfg['tolerance'] * 1e3:g} mm)",
