@@ -199,7 +199,11 @@ def summary_markdown(results: dict) -> str:
         "",
         "## Commands",
         "",
-        *[f"* `{r['name']}`: `{r['command']}`" for r in results["runs"] if r.get("command")],
+        *[
+            f"* `{r['name']}`: trained by `{r['train_command']}`"
+            + (f"; evaluated by `{r['command']}`" if r.get("command") else " (still training)")
+            for r in results["runs"]
+        ],
         *[f"* controllers, {m}: `{c['command']}`" for m, c in results["controllers"].items()],
         "",
     ]
