@@ -358,7 +358,10 @@ def build_report(config: ReportConfig) -> dict:
         if r["status"] == "done":
             r.update(evaluate_run(config, r, out / "evals" / r["name"]))
     modes = sorted({r["config"]["dynamics"] for r in runs}, key=list(BENCH_CONDITION).index)
-    controllers = {m: evaluate_controllers(config, env_id, m, out / "evals" / f"controllers-{m}") for m in modes}
+    controllers = {
+        m: evaluate_controllers(config, env_id, m, out / "evals" / f"controllers-{m}")
+        for m in (modes if config.controllers else [])
+    }
 
     family_rows, medians = [], {}
     for fam, members in families.items():
