@@ -1,6 +1,6 @@
 """MkDocs hooks of the documentation site (mkdocs.yml `hooks:`): one source for every text the site shows.
 
-* Repository manuals outside docs/ (the shipped agent's README) become pages at their repository paths, so the
+* Repository manuals outside docs/ (the shipped agents' READMEs) become pages at their repository paths, so the
   README text embedded in the site (pymdownx snippets) keeps its relative links working.
 * The tutorial notebook becomes a Markdown page (its Markdown cells as they are, code cells as Python blocks,
   no outputs: the notebook is stored without outputs, which is checked here, and run in CI by nbmake), beside
@@ -26,8 +26,9 @@ from typing import Any
 
 from mkdocs.structure.files import File, Files
 
-#: Files outside docs/ published as pages at the same path (relative to the repository root).
-REPO_PAGES = ("policies/models/sac-circle/README.md",)
+#: Files outside docs/ published as pages at the same path (relative to the repository root): the README of
+#: every shipped model (one folder per `sb3:` alias).
+REPO_PAGES_GLOB = "policies/models/*/README.md"
 #: Notebooks in docs/ rendered as Markdown pages next to them.
 NOTEBOOKS = ("tutorials/benchmark-your-controller.ipynb",)
 POLICY_TABLE = "<!-- mobman:policy-table -->"
@@ -89,8 +90,9 @@ def on_files(files: Files, config: Any) -> Files:
     root = _root(config)
     for module in undocumented_modules(root, Path(config.docs_dir)):
         log.warning(f"module {module} is not in the API reference: add '::: {module}' to docs/reference/")
-    for rel in REPO_PAGES:
-        files.append(File.generated(config, rel, abs_src_path=str(root / rel)))
+    for path in sorted(root.glob(REPO_PAGES_GLOB)):
+        rel = path.relative_to(root).as_posix()
+        files.append(File.generated(config, rel, abs_src_path=str(path)))
     for rel in NOTEBOOKS:
         path = Path(config.docs_dir).resolve() / rel
         nb = json.loads(path.read_text(encoding="utf-8"))

@@ -5,7 +5,8 @@ Spec grammar (one string, as the CLI takes it):
 * `name[:key=value,...]` - a built-in controller; keys are the fields of its config dataclass; values are
   parsed as bool (`true`/`false`), int, float, or else kept as a string: `nnbc:gamma=20,mu=20,j0=probe`.
 * `sb3:PATH` - a Stable-Baselines3 agent; the whole rest of the string is the path (a `model.zip` or its run
-  folder), or the alias `sb3:sac-circle` (the baseline shipped inside the `train` package).
+  folder), or the alias of a shipped baseline (a folder name of `policies/models/`: `sb3:sac-circle`,
+  `sb3:ppo-circle`, ...).
 * `module:attr` - your own policy: `attr` (dotted for nested attributes) in the importable `module` is a
   Policy object, or a class / factory that is called with the env if its signature accepts one positional
   argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
@@ -151,7 +152,7 @@ KNOWN_POLICIES: dict[str, str] = {name: e.description for name, e in _REGISTRY.i
 
 #: The two spec forms that are not names.
 SPEC_FORMS: dict[str, str] = {
-    "sb3:PATH": "a Stable-Baselines3 agent: DIR/model.zip of a mobman-train run (or the alias sb3:sac-circle)",
+    "sb3:PATH": "a Stable-Baselines3 agent: DIR/model.zip of a mobman-train run (or a shipped baseline, e.g. sb3:ppo-circle)",
     "module:attr": "your own Policy object, class or factory, importable as module:attr",
 }
 

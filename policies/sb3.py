@@ -1,7 +1,8 @@
 """`SB3Policy`: a trained Stable-Baselines3 agent behind the same interface as the controllers.
 
-`policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias `sb3:sac-circle`) reads a run
-folder written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
+`policies.make("sb3:runs/sac/model.zip", env)` (or the run folder, or the alias of a shipped model, `ALIASES`:
+the name of a folder of `policies/models/`, e.g. `sb3:sac-circle`, `sb3:ppo-circle`) reads a run folder
+written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zip")`, optionally
 `VecNormalize.save("DIR/vec_normalize.pkl")`) or by rl-baselines3-zoo (see below):
 
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
@@ -60,7 +61,6 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 
 from __future__ import annotations
 
-import ast
 import json
 import warnings
 from pathlib import Path
@@ -75,11 +75,24 @@ from policies.sb3_files import (
     load_zoo_yaml,
     read_zip_data,
     safe_custom_objects,
+    zoo_normalize,
 )
 
-#: Aliases of models shipped as package data: name -> path inside this package (`policies/models/`), found
-#: through this file's own location, so a user's `train.py` or `policies.py` beside their script cannot hide it.
-ALIASES = {"sac-circle": "models/sac-circle/model.zip"}
+#: Folder of the models shipped as package data (found through this file's own location, so a user's
+#: `train.py` or `policies.py` beside their script cannot hide it).
+MODELS_DIR = Path(__file__).resolve().parent / "models"
+
+
+def _shipped_models() -> dict[str, str]:
+    """name -> path inside this package of every shipped model: each folder of `models/` holding a model.zip
+    (and a README.md saying how it was trained and chosen), by its folder name."""
+    if not MODELS_DIR.is_dir():
+        return {}
+    return {d.name: f"models/{d.name}/model.zip" for d in sorted(MODELS_DIR.iterdir()) if (d / "model.zip").is_file()}
+
+
+#: Aliases of the shipped models (`sb3:sac-circle`, `sb3:ppo-circle`, ...): the folders of `policies/models/`.
+ALIASES = _shipped_models()
 
 #: What `sb3:` policies need, and how to install it.
 INSTALL_HINT = 'pip install "mobman[rl]"'
@@ -115,7 +128,8 @@ ZOO_NEUTRAL = ("train.wrappers.AliveBonus", "gymnasium.wrappers.FlattenObservati
 
 
 def resolve_model_path(text: str) -> Path:
-    """`sac-circle` -> the packaged model; a folder -> its model (`model.zip`, or rl-zoo's `<ENV>.zip`); else
+    """`ppo-circle` (an alias of `ALIASES`) -> the packaged model; a folder -> its model (`model.zip`, or
+    rl-zoo's `<ENV>.zip`); else
     the path itself (must exist)."""
     return resolve_run(text).model
 
@@ -128,7 +142,7 @@ def resolve_run(text: str) -> RunFiles:
 def _model_path(text: str) -> Path:
     text = text.strip()
     if text in ALIASES:
-        path = Path(__file__).resolve().parent / ALIASES[text]
+        path = MODELS_DIR.parent / ALIASES[text]
         if not path.is_file():
             raise FileNotFoundError(
                 f"sb3:{text}: the packaged model {path} is missing (it ships with mobman's policies package); "
@@ -214,18 +228,6 @@ def _wrapper_names(items: Any, where: Path) -> tuple[str, ...]:
     return tuple(names)
 
 
-def _zoo_normalize(value: Any, where: Path) -> bool:
-    """Whether rl-zoo's `normalize` hyperparameter asks for observation statistics (bool, dict or its text)."""
-    if isinstance(value, str):
-        try:
-            value = ast.literal_eval(value)
-        except (ValueError, SyntaxError):
-            raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict") from None
-    if isinstance(value, dict):
-        return bool(value.get("norm_obs", True))
-    return bool(value)
-
-
 def _zoo_view(config: dict, where: Path) -> dict:
     """mobman's config keys (`wrappers`, `obs_keys`) from rl-zoo's `env_wrapper`; refuses what it cannot reproduce."""
     if config.get("frame_stack"):
@@ -306,7 +308,7 @@ class SB3Policy:
         if isinstance(args.get("algo"), str):
             config["algo"] = args["algo"]
         config.update(_zoo_view(hp, cfg_path))
-        if _zoo_normalize(hp.get("normalize", False), cfg_path) and run.stats is None:
+        if zoo_normalize(hp.get("normalize", False), cfg_path)["norm_obs"] and run.stats is None:
             raise ValueError(
                 f"{cfg_path}: normalize {hp.get('normalize')!r} says the agent saw normalised observations, but "
                 f"{run.zoo_dir / 'vecnormalize.pkl'} is missing; copy it from the training run"

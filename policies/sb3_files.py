@@ -31,6 +31,7 @@ May import numpy and the standard library; torch, gymnasium, yaml and Stable-Bas
 
 from __future__ import annotations
 
+import ast
 import base64
 import binascii
 import io
@@ -369,3 +370,23 @@ def load_zoo_yaml(path: Path) -> dict[str, Any]:
     if not isinstance(data, dict):
         raise ValueError(f"{path} must hold a mapping (rl-zoo's OrderedDict), got {type(data).__name__}")
     return data
+
+
+def zoo_normalize(value: Any, where: Any) -> dict[str, Any]:
+    """rl-baselines3-zoo's `normalize` hyperparameter (a bool, a dict, or the dict's Python text, as zoo files
+    write it) as VecNormalize keyword arguments with `norm_obs` and `norm_reward` always present (`true`:
+    VecNormalize's defaults, both on; `false`: both off); other keys of a dict are kept."""
+    if isinstance(value, str):
+        try:
+            value = ast.literal_eval(value)
+        except (ValueError, SyntaxError):
+            raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict") from None
+    if isinstance(value, bool):
+        return {"norm_obs": value, "norm_reward": value}
+    if isinstance(value, dict):
+        return {
+            **value,
+            "norm_obs": bool(value.get("norm_obs", True)),
+            "norm_reward": bool(value.get("norm_reward", True)),
+        }
+    raise ValueError(f"{where}: normalize {value!r} is neither a bool nor a dict")

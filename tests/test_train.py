@@ -250,14 +250,91 @@ def test_progress_bar_only_on_a_terminal(monkeypatch):
     assert parse("--no-progress").progress_bar is False and parse("--quiet").progress_bar is False
 
 
-def test_hyperparams_file_zoo_style(tmp_path):
+def test_hyperparams_file_per_algorithm(tmp_path):
     from train.cli import load_hyperparams
 
     f = tmp_path / "hp.yml"
     f.write_text("sac:\n  learning_rate: 0.001\nppo:\n  n_steps: 64\n")
-    assert load_hyperparams(str(f), "ppo") == {"n_steps": 64}
+    assert load_hyperparams(str(f), "ppo") == {"hyperparams": {"n_steps": 64}}
     with pytest.raises(ValueError, match="not for --algo td3"):
         load_hyperparams(str(f), "td3")
+
+
+@pytest.mark.parametrize("algo, steps", [("ppo", 1_000_000), ("sac", 200_000)])
+def test_the_shipped_zoo_files_are_mobman_trains_defaults(algo, steps):
+    """`mobman-train --hyperparams train/hyperparams/ALGO.yml` (rl-zoo's format, keyed by env id) trains exactly
+    what the defaults train: same hyperparameters, normalisation, observation, alive bonus, steps."""
+    from train.cli import build_parser, config_from_args
+
+    root = Path(__file__).resolve().parents[1]
+    args = ["--algo", algo, "--hyperparams", str(root / "train" / "hyperparams" / f"{algo}.yml")]
+    cfg = config_from_args(build_parser().parse_args(args))
+    ref = TrainConfig(algo=algo, timesteps=steps, progress_bar=False)
+    assert cfg.resolved_hyperparams == ref.resolved_hyperparams
+    assert cfg.do_normalize_reward == ref.do_normalize_reward and cfg.normalize_obs == ref.normalize_obs
+    assert (cfg.timesteps, cfg.obs_keys, cfg.wrappers, cfg.alive_bonus) == (
+        ref.timesteps,
+        ref.obs_keys,
+        ref.wrappers,
+        ref.alive_bonus,
+    )
+    # the command line wins over the file
+    cfg = config_from_args(build_parser().parse_args(args + ["--timesteps", "500", "--alive-bonus", "1.5"]))
+    assert (cfg.timesteps, cfg.alive_bonus) == (500, 1.5)
+
+
+ZOO_ENTRY = """WheeledPuma-Circle-v0:
+  n_timesteps: !!float 2e4
+  policy: 'MultiInputPolicy'
+  normalize: true
+  env_wrapper:
+    - train.wrappers.AgentObservation:
+        wrappers: [pos_error]
+        obs_keys: [pos_error, joint_pos]
+  n_steps: 64
+  policy_kwargs: "dict(net_arch=dict(pi=[16], vf=[16]), activation_fn=nn.ReLU, log_std_init=-1.5)"
+"""
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (None, None),
+        (("policy: 'MultiInputPolicy'", "policy: 'MlpPolicy'"), "MultiInputPolicy"),
+        (("normalize: true", "normalize: \"{'norm_obs': True, 'gamma': 0.9}\""), "accepted: true, false, or a dict"),
+        (("  n_steps: 64", "  n_steps: 64\n  frame_stack: 4"), r"\['frame_stack'\] have no mobman-train equivalent"),
+        (("train.wrappers.AgentObservation:", "gymnasium.wrappers.TimeAwareObservation:"), "not one mobman-train"),
+        (("nn.ReLU", "nn.SiLU"), "activation nn.SiLU; accepted"),
+        (("nn.ReLU", "__import__('os')"), "may hold literals"),
+        (
+            ("WheeledPuma-Circle-v0:", "WheeledPuma-Line-v0:"),
+            r"entries for \['WheeledPuma-Line-v0'\] but not for --env",
+        ),
+    ],
+)
+def test_zoo_entry_fields(tmp_path, change, match):
+    from train.cli import load_hyperparams
+
+    f = tmp_path / "ppo.yml"
+    f.write_text(ZOO_ENTRY if change is None else ZOO_ENTRY.replace(*change))
+    if match is not None:
+        with pytest.raises(ValueError, match=match):
+            load_hyperparams(str(f), "ppo", "WheeledPuma-Circle-v0")
+        return
+    fields = load_hyperparams(str(f), "ppo", "WheeledPuma-Circle-v0")
+    assert fields == {
+        "timesteps": 20_000,
+        "normalize_obs": True,
+        "normalize_reward": True,
+        "alive_bonus": 0.0,  # no AliveBonus wrapper: rl-zoo would train without it
+        "wrappers": ("pos_error",),
+        "obs_keys": ("pos_error", "joint_pos"),
+        "hyperparams": {
+            "n_steps": 64,
+            "policy_kwargs": {"net_arch": {"pi": [16], "vf": [16]}, "activation_fn": "relu", "log_std_init": -1.5},
+        },
+    }
+    TrainConfig(algo="ppo", **fields)  # accepted as it is
 
 
 # --- smoke training, reload, evaluate ---------------------------------------------------------------------

@@ -9,12 +9,15 @@ summary = run(TrainConfig(algo="sac", env_id="WheeledPuma-Circle-v0", timesteps=
 mobman-train --algo sac --env WheeledPuma-Circle-v0 --timesteps 100000 --seed 0 --out runs/sac
 mobman-train --resume runs/sac --timesteps 200000          # continue (also after Ctrl-C)
 mobman-eval run --policy sb3:runs/sac/model.zip --policy nnbc --dynamics kinematic
+mobman-train report runs/ppo-s0 runs/ppo-s1 runs/ppo-s2 --out docs/results/rl-v2   # several seeds, one report
 ```
 
 Modules: `config` (`TrainConfig`, frozen, a docstring per field, JSON round trip), `algos` (name -> SB3 class
 and default hyperparameters, rl-zoo style), `wrappers` (the agent's view of the observation), `run` (`run`,
 `resume`, the run folder), `runfolder` (naming, config.json, checkpoints, best model), `callbacks` (checkpoints, learning curve), `evaluation` (through `eval`), `agent`
-(the live model behind the `Policy` contract), `cli` (`main(argv)`). Importing `train` loads neither torch nor
+(the live model behind the `Policy` contract), `zoo` (rl-baselines3-zoo hyperparameter files), `report`,
+`report_stats`, `report_text`, `report_cli` (`mobman-train report`: several seeds -> curves and tables with
+intervals), `cli` (`main(argv)`). Importing `train` loads neither torch nor
 SB3; `run` does.
 
 ## How the task is posed to the agent (the defaults)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import time
@@ -13,18 +12,9 @@ from typing import Any
 from stable_baselines3.common.callbacks import BaseCallback
 
 from eval.output.files import atomic_write_bytes, atomic_write_text
+from train.curve import CURVE_FIELDS, read_curve, write_curve
 
 log = logging.getLogger("train")
-
-CURVE_FIELDS = (
-    "timesteps",
-    "wall_s",
-    "median_rms_error_m",
-    "max_rms_error_m",
-    "median_max_error_m",
-    "max_max_error_m",
-    "success_rate",
-)
 
 
 class CheckpointSaver(BaseCallback):
@@ -108,17 +98,8 @@ class PeriodicEval(BaseCallback):
             self.on_result(self.model, row)
 
 
-def read_curve(path: Path) -> list[dict]:
-    if not Path(path).exists():
-        return []
-    with open(path, newline="") as f:
-        return [{k: float(v) for k, v in row.items()} for row in csv.DictReader(f)]
-
-
 def append_curve_row(path: Path, row: dict) -> None:
-    rows = read_curve(path) + [row]
-    lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
-    atomic_write_text(path, "\n".join(lines) + "\n")
+    write_curve(path, read_curve(path) + [row])
 
 
 def truncate_curve(path: Path, max_timesteps: int) -> None:
@@ -127,8 +108,7 @@ def truncate_curve(path: Path, max_timesteps: int) -> None:
     last gradient update)."""
     rows = [r for r in read_curve(path) if r["timesteps"] < max_timesteps]
     if Path(path).exists():
-        lines = [",".join(CURVE_FIELDS)] + [",".join(repr(float(r[k])) for k in CURVE_FIELDS) for r in rows]
-        atomic_write_text(path, "\n".join(lines) + "\n")
+        write_curve(path, rows)
 
 
 def curve_figure(rows: list[dict], reference: dict | None = None, title: str = ""):

@@ -2,6 +2,7 @@
 
     mobman-train --algo sac --env WheeledPuma-Circle-v0 --timesteps 100000 --seed 0 --out runs/sac-circle
     mobman-train --resume runs/sac-circle [--timesteps 200000]
+    mobman-train report runs/ppo-s0 runs/ppo-s1 ... --out docs/results/rl-v2   # several seeds: train.report
 
 Every argument is checked (and the envs built once) before training starts. Exit codes: 0 done, 2 bad
 arguments, 1 trained but the final evaluation failed (the
@@ -17,7 +18,7 @@ from pathlib import Path
 
 from mobman_env import __version__
 from mobman_env.sim import DYNAMICS_MODES
-from train import algos
+from train import algos, zoo
 from train.config import LEARNING_ENV_KWARGS, TrainConfig
 
 #: CLI options that may be given with --resume (everything else comes from the run's config.json).
@@ -52,8 +53,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--hyperparams",
         metavar="FILE",
-        help="YAML or JSON file of hyperparameters overriding the algorithm's defaults: a flat mapping, "
-        "or zoo-style a mapping per algorithm name",
+        help="YAML or JSON file of hyperparameters overriding the algorithm's defaults: a flat mapping, a "
+        "mapping per algorithm name, or an rl-baselines3-zoo file (a mapping per env id, e.g. "
+        "train/hyperparams/ppo.yml; its n_timesteps, normalize and env_wrapper set those settings; see train.zoo)",
     )
     p.add_argument(
         "--eval-freq",
@@ -87,8 +89,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def load_hyperparams(path: str, algo: str) -> dict:
-    """Read a YAML/JSON hyperparameter file: a flat mapping, or (zoo style) one mapping per algorithm."""
+def load_hyperparams(path: str, algo: str, env_id: str | None = None) -> dict:
+    """Read a YAML/JSON hyperparameter file into TrainConfig fields ("hyperparams" and, for an rl-zoo entry,
+    the fields its zoo keys set, `train.zoo`): a flat mapping of hyperparameters, one mapping per algorithm
+    name, or rl-baselines3-zoo's format, one entry per env id (the entry of `env_id` is taken)."""
     file = Path(path)
     if not file.is_file():
         raise ValueError(f"--hyperparams {path}: no such file")
@@ -104,13 +108,20 @@ def load_hyperparams(path: str, algo: str) -> dict:
         raise ValueError(f"--hyperparams {path}: cannot parse ({exc})") from None
     if not isinstance(data, dict):
         raise ValueError(f"--hyperparams {path}: expected a mapping of hyperparameters, got {type(data).__name__}")
+    if zoo.is_env_keyed(data):
+        env_id = env_id or TrainConfig().env_id
+        if env_id not in data:
+            raise ValueError(
+                f"--hyperparams {path} is an rl-zoo file with entries for {sorted(data)} but not for --env {env_id}"
+            )
+        return zoo.entry_fields(data[env_id], f"--hyperparams {path} ({env_id})")
     if set(data) & set(algos.ALGOS):
         if algo not in data:
             raise ValueError(
                 f"--hyperparams {path} has entries for {sorted(set(data) & set(algos.ALGOS))} but not for --algo {algo}"
             )
         data = data[algo]
-    return dict(data or {})
+    return {"hyperparams": dict(data or {})}
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
@@ -149,8 +160,9 @@ def config_from_args(args: argparse.Namespace) -> TrainConfig:
             raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
         merged = {**json.loads(json.dumps(LEARNING_ENV_KWARGS)), **extra}
         fields["env_kwargs"] = {k: v for k, v in merged.items() if v is not None}
-    if args.hyperparams is not None:
-        fields["hyperparams"] = load_hyperparams(args.hyperparams, args.algo or TrainConfig().algo)
+    if args.hyperparams is not None:  # what the command line sets wins over the file
+        file_fields = load_hyperparams(args.hyperparams, args.algo or TrainConfig().algo, args.env_id)
+        fields = {**file_fields, **fields}
     return TrainConfig(**fields)
 
 
@@ -172,6 +184,11 @@ def require_rl() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["report"]:
+        from train.report_cli import main as report_main
+
+        return report_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

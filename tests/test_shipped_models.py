@@ -1,0 +1,88 @@
+"""The shipped `sb3:` baselines (policies/models/): every folder is an alias, each loads through the restricted
+loader and acts in a short rollout, and the PPO ones are what the committed multi-seed report says they are
+(the median-seed run's model, byte for byte, with the README the report generates). Accuracy is asserted on
+development seeds only."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import policies
+from policies import sb3
+
+pytest.importorskip("stable_baselines3")
+
+ROOT = Path(__file__).resolve().parents[1]
+MODELS = ROOT / "policies" / "models"
+REPORT = ROOT / "docs" / "results" / "rl-v2" / "results.json"
+#: alias -> family of the models the committed report shipped (`mobman-train report --ship ALIAS=FAMILY`)
+REPORTED = dict(json.loads(REPORT.read_text())["config"]["ship"])
+
+
+def test_every_model_folder_is_an_alias_with_a_readme():
+    folders = sorted(d.name for d in MODELS.iterdir() if d.is_dir() and not d.name.startswith("_"))
+    assert folders == sorted(sb3.ALIASES)
+    assert {"sac-circle", "ppo-circle"} <= set(sb3.ALIASES)
+    assert set(REPORTED) <= set(sb3.ALIASES)
+    for alias in sb3.ALIASES:
+        assert sb3.resolve_model_path(alias) == MODELS / alias / "model.zip"
+        assert (MODELS / alias / "README.md").is_file(), f"{alias} has no README"
+
+
+@pytest.mark.parametrize("alias", sorted(sb3.ALIASES))
+def test_shipped_model_loads_and_acts(alias):
+    dynamics = json.loads((MODELS / alias / "config.json").read_text())["dynamics"]
+    env = gym.make("WheeledPuma-Circle-v0", dynamics=dynamics)
+    try:
+        policy = policies.make(f"sb3:{alias}", env)
+        assert policy.path == (MODELS / alias / "model.zip").resolve()
+        obs, info = env.reset(seed=901)  # a development seed
+        policy.reset(obs, info, seed=901)
+        actions = []
+        for _ in range(50):
+            action, _ = policy.predict(obs, deterministic=True)
+            assert env.action_space.contains(np.asarray(action, dtype=env.action_space.dtype))
+            actions.append(action)
+            obs, _, terminated, truncated, _ = env.step(action)
+            assert not (terminated or truncated)
+        assert np.ptp(np.array(actions), axis=0).max() > 0  # it reacts to the state: not a constant output
+    finally:
+        env.close()
+
+
+@pytest.mark.parametrize("alias", sorted(REPORTED))
+def test_shipped_ppo_is_the_reports_median_seed_model(alias):
+    from train.report import sha256
+    from train.report_text import model_readme
+
+    family = REPORTED[alias]
+    results = json.loads(REPORT.read_text())
+    median = results["median_seed_models"][family]
+    run = next(r for r in results["runs"] if r["name"] == median["run"])
+    assert run["family"] == family
+    assert sha256(MODELS / alias / "model.zip") == run["model_sha256"]
+    rel = str(REPORT.relative_to(ROOT))
+    assert (MODELS / alias / "README.md").read_text() == model_readme(results, family, alias, rel), (
+        f"policies/models/{alias}/README.md differs from what `mobman-train report --ship` generates"
+    )
+    shipped_cfg = json.loads((MODELS / alias / "config.json").read_text())
+    assert shipped_cfg["seed"] == median["seed"] and shipped_cfg["algo"] == "ppo"
+
+
+def test_shipped_kinematic_ppo_tracks_on_development_seeds():
+    """Accuracy on development seeds (never reported ones): better than standing still by far."""
+    from eval.rollout import make_env, rollout
+
+    env = make_env("WheeledPuma-Circle-v0", env_kwargs={"dynamics": "kinematic"})
+    try:
+        policy = policies.make("sb3:ppo-circle", env)
+        rec = rollout(env, policy, 902, meta={"policy": "ppo-circle"})[0]
+    finally:
+        env.close()
+    assert rec["status"] == "ok"
+    assert rec["rms_error_m"] < 0.05  # zero's RMS error on this path is ~0.47 m
