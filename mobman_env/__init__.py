@@ -10,6 +10,8 @@ Importing this package registers four ids (only those not yet registered, so imp
 | `WheeledPuma-Random-v0` | a random smooth path per seed, each axis within 0.3 m, 20 s |
 
 `gym.make("mobman_env:WheeledPuma-Circle-v0")` works without importing this package first.
+`gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", dynamics="kinematic")` returns the native
+numpy vector env `mobman_env.vector.WheeledPumaVectorEnv` (physics mode: a `SyncVectorEnv` of single envs).
 """
 
 from __future__ import annotations
@@ -55,7 +57,12 @@ def register_envs() -> None:
     """Register the ids that are not registered yet (harmless and silent when called again)."""
     for env_id, spec in TASKS.items():
         if env_id not in registry:
-            register(id=env_id, entry_point="mobman_env.env:WheeledPumaEnv", kwargs={"path": dict(spec)})
+            register(
+                id=env_id,
+                entry_point="mobman_env.env:WheeledPumaEnv",
+                vector_entry_point="mobman_env.vector:make_vector_env",
+                kwargs={"path": dict(spec)},
+            )
 
 
 register_envs()
