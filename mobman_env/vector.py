@@ -33,6 +33,8 @@ over the robots' generators (one draw per robot and step), the rest is one pass.
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 from typing import Any
 
 import gymnasium as gym
@@ -451,7 +453,7 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             params.append(p)
             for k in _LENGTHS:
                 ep.lengths0[k][i] = ep.lengths[k][i] = getattr(p, k)
-            ep.hashes[i] = p.hash()
+            ep.hashes[i] = _params_hash(p)
         ep.q[rows] = q0
         ep.pose[rows] = pose0
         ep.u[rows] = 0.0
@@ -500,6 +502,14 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             }
             infos = self._add_info(infos, info, int(i))
         return flat, infos
+
+
+def _params_hash(params: RobotParams) -> str:
+    """`params.hash()` without `dataclasses.asdict`'s deep copy (1 ms per robot; the fields are floats and
+    tuples of floats, which JSON writes the same either way); `tests/test_vector_env.py` checks the equality."""
+    fields = {f.name: getattr(params, f.name) for f in dataclasses.fields(params)}
+    text = json.dumps(fields, sort_keys=True, default=float)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
 def _scatter_info(info: dict[str, Any], mask: np.ndarray, n: int) -> dict[str, Any]:

@@ -47,15 +47,25 @@ def _bmv(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.matmul(m, v[:, :, None])[:, :, 0]
 
 
+@functools.cache
+def _block_buffer(ng: int) -> tuple[np.ndarray, np.ndarray]:
+    """A zeroed (ng, 3G, 4G) block-diagonal matrix and a writable view of its G diagonal (3, 4) blocks,
+    (ng, G, 3, 4); the off-diagonal zeros are never written, so the buffer is reused."""
+    L = np.zeros((ng, 3 * GROUP, 4 * GROUP))
+    s0, s1, s2 = L.strides
+    diag = np.lib.stride_tricks.as_strided(
+        L, shape=(ng, GROUP, 3, 4), strides=(s0, 3 * s1 + 4 * s2, s1, s2), writeable=True
+    )
+    return L, diag
+
+
 def _block_products(F: np.ndarray, A: np.ndarray) -> np.ndarray:
     """F (N, 3, 4) @ A (N, 4, 4) for N a multiple of GROUP, G robots per block-diagonal product."""
     n = F.shape[0]
     ng = n // GROUP
-    L = np.zeros((ng, GROUP, 3, GROUP, 4))
-    idx = np.arange(GROUP)
-    L[:, idx, :, idx, :] = F.reshape(ng, GROUP, 3, 4).transpose(1, 0, 2, 3)
-    out = np.matmul(L.reshape(ng, 3 * GROUP, 4 * GROUP), A.reshape(ng, 4 * GROUP, 4))
-    return out.reshape(n, 3, 4)
+    L, diag = _block_buffer(ng)
+    diag[...] = F.reshape(ng, GROUP, 3, 4)
+    return np.matmul(L, A.reshape(ng, 4 * GROUP, 4)).reshape(n, 3, 4)
 
 
 @functools.cache
