@@ -39,7 +39,6 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
@@ -165,12 +164,18 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
     def true_params(self, i: int) -> RobotParams:
         """Robot i's true robot at its current time (for oracles and tests only)."""
         ep = self._ep
-        return dataclasses.replace(self._nominal, **{k: float(ep.lengths[k][i]) for k in PERTURBED_FIELDS})
+        changes: dict[str, Any] = {k: float(ep.lengths[k][i]) for k in PERTURBED_FIELDS}
+        return dataclasses.replace(self._nominal, **changes)
 
     @property
     def dt(self) -> float:
         """The control period, s."""
         return self._dt
+
+    @property
+    def action_scale(self) -> np.ndarray:
+        """Speed limits of the 8 actuators, rad/s (the same for every robot, as the single env's)."""
+        return self._scale
 
     # --- gym API -------------------------------------------------------------------------------------------
     def reset(self, *, seed: int | list[int | None] | None = None, options: dict | None = None):
@@ -201,7 +206,6 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             raise RuntimeError("call reset() before step()")
         a = self._actions(actions)
         n = self.num_envs
-        ep = self._ep
         rewards = np.zeros(n)
         terminated = np.zeros(n, dtype=bool)
         truncated = np.zeros(n, dtype=bool)
@@ -232,7 +236,7 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
                 final_info = np.full(n, None, dtype=object)
                 for i in idx:
                     final_obs[i] = {k: flat[i, sl].copy() for k, sl in self._template._obs_slices}
-                    final_info[i] = _row_info(infos, i)
+                    final_info[i] = _row_info(infos, int(i))
                 infos["final_obs"], infos["_final_obs"] = final_obs, done.copy()
                 infos["final_info"], infos["_final_info"] = final_info, done.copy()
                 f, infos = self._reset_rows(idx, None, infos)
@@ -251,7 +255,9 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
     def _actions(self, actions: Any) -> np.ndarray:
         a = np.asarray(actions)
         if a.dtype.kind not in "fiu":
-            raise ValueError(f"actions must be real numbers (a float array of shape ({self.num_envs}, 8)), got {a.dtype}")
+            raise ValueError(
+                f"actions must be real numbers (a float array of shape ({self.num_envs}, 8)), got {a.dtype}"
+            )
         a = a.astype(np.float64, copy=False)
         if a.shape != (self.num_envs, N_ACT):
             raise ValueError(
@@ -276,7 +282,9 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         d[:, 2], d[:, 3] = lengths["d3"], lengths["d4"]
         lengths["a"], lengths["d"] = a, d
         pose, u = ep.pose[sel], ep.u[sel]
-        ee, J, J_pc, pc = VK.ee_and_jacobian(lengths, self._ca, self._sa, ep.q[sel], pose, ep.cos_yaw[sel], ep.sin_yaw[sel])
+        ee, J, J_pc, pc = VK.ee_and_jacobian(
+            lengths, self._ca, self._sa, ep.q[sel], pose, ep.cos_yaw[sel], ep.sin_yaw[sel]
+        )
         return ee, VK._bmv(J, u), pc, VK._bmv(J_pc, u)
 
     def _observation(self, sel: Any, t: np.ndarray, state: tuple, r_d: np.ndarray, v_d: np.ndarray) -> np.ndarray:
@@ -440,7 +448,9 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         options = dict(options or {})
         unknown = sorted(set(options) - set(single.RESET_OPTIONS), key=str)
         if unknown:
-            raise ValueError(f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, single.RESET_OPTIONS))}")
+            raise ValueError(
+                f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, single.RESET_OPTIONS))}"
+            )
         spec = validate_spec(options["path"]) if "path" in options else tpl.path_spec
         q0 = tpl._joint_vector(options["arm_joint_pos"]) if "arm_joint_pos" in options else tpl.arm_joint_pos
         pose0 = single._base_pose(options["base_pose"]) if "base_pose" in options else tpl.base_pose
