@@ -69,7 +69,7 @@ class SB3VecEnv(VecEnv):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
         return obs, rewards.astype(np.float32), dones, infos
 
-    def seed(self, seed: int | None = None) -> Sequence[None | int]:
+    def seed(self, seed: int | None = None) -> Sequence[int | None]:
         """Robot i gets seed + i at the next `reset()` (SB3's rule, and the vector env's)."""
         if seed is None:
             self._seeds = [None] * self.num_envs
@@ -80,14 +80,14 @@ class SB3VecEnv(VecEnv):
     def close(self) -> None:
         self.venv.close()
 
-    def _indices(self, indices: None | int | Iterable[int]) -> list[int]:
+    def _indices(self, indices: int | Iterable[int] | None) -> list[int]:
         if indices is None:
             return list(range(self.num_envs))
         if isinstance(indices, int):
             return [indices]
         return list(indices)
 
-    def get_attr(self, attr_name: str, indices: None | int | Iterable[int] = None) -> list[Any]:
+    def get_attr(self, attr_name: str, indices: int | Iterable[int] | None = None) -> list[Any]:
         """The vector env's attribute, once per requested robot (the robots share their constants: dt,
         action_scale, nominal_params, spaces; `true_params` is the robot's own)."""
         if attr_name == "true_params":
@@ -98,17 +98,17 @@ class SB3VecEnv(VecEnv):
             value = getattr(self.venv, attr_name)
         return [value for _ in self._indices(indices)]
 
-    def set_attr(self, attr_name: str, value: Any, indices: None | int | Iterable[int] = None) -> None:
+    def set_attr(self, attr_name: str, value: Any, indices: int | Iterable[int] | None = None) -> None:
         raise AttributeError(
             f"SB3VecEnv cannot set {attr_name!r}: the robots of a vector env share one configuration; make a new "
             "vector env with the value as a constructor argument"
         )
 
-    def env_method(self, method_name: str, *args: Any, indices: None | int | Iterable[int] = None, **kwargs: Any):
+    def env_method(self, method_name: str, *args: Any, indices: int | Iterable[int] | None = None, **kwargs: Any):
         raise AttributeError(
             f"SB3VecEnv has no per-robot methods ({method_name!r}): the robots are rows of one numpy env; call the "
             "vector env (SB3VecEnv.venv) directly"
         )
 
-    def env_is_wrapped(self, wrapper_class: type, indices: None | int | Iterable[int] = None) -> list[bool]:
+    def env_is_wrapped(self, wrapper_class: type, indices: int | Iterable[int] | None = None) -> list[bool]:
         return [False for _ in self._indices(indices)]
