@@ -110,8 +110,8 @@ class BatchedPolicy:
             )
         starts = np.zeros(n, dtype=bool) if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(n)
         if self._zero:
-            for i in np.flatnonzero(starts):
-                self.rows[i]._start(None)
+            for j in np.flatnonzero(starts).tolist():
+                self.rows[j]._start(None)
             return self._zero_action.copy(), state
         out = np.empty((n, len(self.rows[0]._scale)), dtype=np.float32)
         for i, row in enumerate(self.rows):

@@ -35,7 +35,7 @@ def test_terminal_observation_and_next_episode_as_sb3_expects():
     o, _ = single.reset(seed=10_001)
     assert np.array_equal(obs["ee_pos"][1], o["ee_pos"])
     a = np.zeros((3, 8), dtype=np.float32)
-    for k in range(20):
+    for _ in range(20):
         obs, rewards, dones, infos = venv.step(a)
         o, r, te, tr, _ = single.step(a[1])
         assert rewards.dtype == np.float32 and rewards[1] == np.float32(r)
