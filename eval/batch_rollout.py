@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from eval import metrics as M
-from eval.rollout import _Buffers, _empty_record, _finish, _JacobianRecorder, _metrics_none
+from eval.rollout import _empty_record, _finish, _JacobianRecorder, _metrics_none
 
 
 class _RobotBase:
@@ -71,19 +71,27 @@ def rollout_batch(
     bases = [_RobotBase(venv, i) for i in range(n)]
     recs = [_empty_record(bases[i], seed + i, meta) for i in range(n)]
     wall0 = time.perf_counter()
-    bufs: list[_Buffers] = []
+    steps_run = np.zeros(n, dtype=int)
+    arr: dict[str, np.ndarray] = {}
     try:
         obs, info = venv.reset(seed=seed)
         n_steps = np.asarray(info["task"]["n_steps"], dtype=int)
+        m = int(n_steps.max())
+        n_act = len(np.asarray(bases[0].action_scale))
+        # the per-step arrays of all robots, step-major (rows of the single rollout's _Buffers, one per robot)
+        arr = {
+            "r_d": np.empty((m + 1, n, 3)),
+            "r_a": np.empty((m + 1, n, 3)),
+            "p_c": np.empty((m + 1, n, 2)),
+            "error": np.empty((m + 1, n)),
+            "action": np.empty((m, n, n_act)),
+            "predict_us": np.empty((m, n)),
+        }
+        _observe(arr, 0, obs, info)
         for i, rec in enumerate(recs):
             rec.update(
-                path=_path(info, i),
-                start=info["task"]["start"][i],
-                true_params_hash=info["true_params_hash"][i],
+                path=_path(info, i), start=info["task"]["start"][i], true_params_hash=info["true_params_hash"][i]
             )
-            buf = _Buffers(int(n_steps[i]), bases[i].dt, len(np.asarray(bases[i].action_scale)))
-            buf.observe(0, {k: v[i] for k, v in obs.items()}, _row_info(info, i))
-            bufs.append(buf)
         policy.reset(obs, info, seed=seed)
         rows = getattr(policy, "rows", [policy] * n)
         jacs = [
@@ -92,34 +100,31 @@ def rollout_batch(
             else None
             for i in range(n)
         ]
+        watched = [i for i in range(n) if jacs[i] is not None]
         running = np.ones(n, dtype=bool)
-        last_info: list[dict] = [{} for _ in range(n)]
         k = 0
         clock = time.perf_counter
         while running.any():
             t0 = clock()
             actions, _ = policy.predict(obs, episode_start=None, deterministic=True)
-            us = (clock() - t0) * 1e6 / running.sum()
+            arr["predict_us"][k] = (clock() - t0) * 1e6 / running.sum()
             act = np.asarray(actions, dtype=np.float32)
-            live = np.flatnonzero(running)
-            for i in live:
-                bufs[i].us[k] = us
-                if jacs[i] is not None:
+            for i in watched:
+                if running[i]:
                     jacs[i].record(k, {"joint_pos": obs["joint_pos"][i], "base_yaw": obs["base_yaw"][i]})
             obs, _, term, trunc, info = venv.step(act)
-            clipped = np.clip(act, -1.0, 1.0)
-            for i in live:
-                bufs[i].act[k] = clipped[i]
-                row = _row_info(info, i)
-                bufs[i].observe(
-                    k + 1, {"target_pos": obs["target_pos"][i], "arm_base_pos": obs["arm_base_pos"][i]}, row
-                )
-                last_info[i] = row
-                if term[i] or trunc[i] or k + 1 >= n_steps[i]:
-                    running[i] = False
-                    _close(recs[i], bufs[i], k + 1, last_info[i], bases[i], tolerance, settle_time, jacs[i])
-                    recs[i]["terminated"] = bool(term[i])
+            arr["action"][k] = np.clip(act, -1.0, 1.0)
             k += 1
+            _observe(arr, k, obs, info)
+            ended = running & (term | trunc | (k >= n_steps))
+            for i in np.flatnonzero(ended).tolist():
+                running[i] = False
+                steps_run[i] = k
+                arrays = _arrays(arr, i, k, bases[i].dt)
+                recs[i]["_arrays"] = _finish(
+                    recs[i], arrays, _row_info(info, i), k, bases[i], tolerance, settle_time, jacs[i]
+                )
+                recs[i]["terminated"] = bool(term[i])
         out = [(rec, rec.pop("_arrays")) for rec in recs]
     except KeyboardInterrupt:
         raise
@@ -128,8 +133,8 @@ def rollout_batch(
         out = []
         for i, rec in enumerate(recs):
             rec.pop("_arrays", None)
-            rec.update(status="failed", error=tb, n_steps=bufs[i].k if i < len(bufs) else 0, **_metrics_none())
-            out.append((rec, bufs[i].arrays(bufs[i].k) if i < len(bufs) else None))
+            rec.update(status="failed", error=tb, n_steps=int(steps_run[i]), **_metrics_none())
+            out.append((rec, _arrays(arr, i, int(steps_run[i]), bases[i].dt) if arr else None))
     wall = (time.perf_counter() - wall0) / n
     for rec, _ in out:
         rec["wall_s"] = wall
@@ -149,5 +154,16 @@ def _path(info: dict, i: int) -> dict:
     return row
 
 
-def _close(rec: dict, buf: _Buffers, k: int, info: dict, base: Any, tolerance: float, settle: float, jac) -> None:
-    rec["_arrays"] = _finish(rec, buf.arrays(k), info, k, base, tolerance, settle, jac)
+def _observe(arr: dict, k: int, obs: dict, info: dict) -> None:
+    """The state after step k of every robot (k = 0: after the reset), as `_Buffers.observe` stores it."""
+    arr["r_d"][k], arr["r_a"][k] = obs["target_pos"], info["ee_pos_true"]
+    arr["p_c"][k], arr["error"][k] = obs["arm_base_pos"], info["tracking_error"]
+
+
+def _arrays(arr: dict, i: int, k: int, dt: float) -> dict[str, np.ndarray]:
+    """Robot i's arrays of its first k steps, contiguous as `_Buffers.arrays` hands them out (so the metrics
+    reduce them in the same order)."""
+    out = {"t": np.arange(k + 1) * dt}
+    for key, value in arr.items():
+        out[key] = np.ascontiguousarray(value[: k + (0 if key in ("action", "predict_us") else 1), i])
+    return out

@@ -17,7 +17,7 @@ each key as an array of N entries with a boolean mask `_key` (nested dicts such 
 `metadata["autoreset_mode"]`): the step after robot i's episode ended resets it (its action ignored, reward 0,
 not terminated nor truncated, the reset's `info` keys in that row) with no options and its generator continuing,
 as a single env's `reset()`. `AutoresetMode.SAME_STEP` resets at once and puts the last observation and info in
-`info["final_obs"]` / `info["final_info"]` (what SB3's adapter, `policies.vec_env`... uses).
+`info["final_obs"]` / `info["final_info"]` (what the SB3 adapter, `policies.sb3_vec_env`, uses).
 
 Reset options apply to every robot reset by that call (as `SyncVectorEnv` passes them to each env); autoresets use
 the constructor values. Rendering is not offered (render_mode must be None): render one robot with a single env.
