@@ -244,3 +244,15 @@ def test_paper_says_what_clik_and_the_ceiling_mean():
     assert "(eq. (10) with the same knowledge, `oracle`: 1/3)" in md
     assert "`nnbc`'s median is ~200 times it" in md
     assert "| clik (kinematic) |" in md.replace("| nnbc (kinematic) | jmpi (kinematic) ", "| ")
+
+
+def test_speed_peers_are_raced_interleaved_with_ratios():
+    pytest.importorskip("panda_gym")
+    pytest.importorskip("mujoco")
+    from eval import speed
+
+    rows = speed.peer_steps(steps=5, repeats=2)
+    assert [(r["id"], r["status"]) for r in rows] == [("PandaReach-v3", "ok"), ("Reacher-v5", "ok")]
+    for r in rows:
+        ratio = r["mobman_kinematic_steps_per_s"] / r["peer_steps_per_s"]
+        assert r["ratio_mobman_to_peer"] == pytest.approx(ratio)
