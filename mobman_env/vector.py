@@ -22,6 +22,8 @@ as a single env's `reset()`. `AutoresetMode.SAME_STEP` resets at once and puts t
 Reset options apply to every robot reset by that call (as `SyncVectorEnv` passes them to each env); autoresets use
 the constructor values. Rendering is not offered (render_mode must be None): render one robot with a single env.
 
+Registered as every id's `vector_entry_point`, so `gym.make_vec(id, N)` without a mode uses it too (Gymnasium
+then refuses `vector_kwargs` and `wrappers`: pass `vectorization_mode="sync"` for its `SyncVectorEnv` with them).
 Physics mode: `make_vector_env(num_envs, dynamics="physics", ...)` (the registered vector entry point) returns a
 `gymnasium.vector.SyncVectorEnv` of single envs: a PyBullet world per robot, contacts cannot be batched in numpy.
 
