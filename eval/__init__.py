@@ -16,7 +16,8 @@ every module and fails on a cycle or an upward import):
 
 1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays)
 2. `rollout` (make_env, make_policy, the one rollout loop)
-3. `config` (EvalConfig)
+3. `config` (EvalConfig), `batch_rollout` (the rollout loop for N episodes through one vector env and one
+   batched policy)
 4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
    `tables` <- `results`, `plots` <- `stat_plots`, `video`: what is written)

@@ -10,10 +10,16 @@ What it measures, all in the same run so that the ratios compare like with like 
 | physics at 2, 4, 10 substeps | env and bare steps/s at each |
 | predict microseconds | the whole `predict` call of each built-in policy over one kinematic episode (median, p99) |
 | episodes/s | `eval.run` of 20 s kinematic `nnbc` episodes with `workers` 1 and 2 (worker start-up included) |
+| vector env robot-steps/s | `gym.make_vec(..., vectorization_mode="vector_entry_point", dynamics="kinematic")` at N = 1, 64, 1024 (`mobman_env.vector`), random actions, no autoreset inside the timed block |
+| batched predict | the whole batched `predict` of `policies.make(spec, vector_env)` at N = 64, per robot-step |
+| batched episodes/s | `eval.batch_rollout.rollout_batch` of `--batch` 20 s kinematic `nnbc` and `clik` episodes in one process (one vector env, one batched policy) |
+| peers (`--peers`) | steps/s of panda-gym `PandaReach-v3` and MuJoCo `Reacher-v5` (installed with the `[bench]` extra), timed interleaved with the kinematic env in the same process; ratios mobman / peer |
 
-Each timed block is repeated (`--repeats`, interleaving env and bare runs) and the best repeat is reported: on
+Timed blocks in this process count its CPU time (`CLOCK`: per CPU-second, so other jobs on a shared machine
+change the figures less); the `eval.run` episodes/s and the predict table are wall time. Each timed block is repeated (`--repeats`, interleaving env and bare runs) and the best repeat is reported: on
 a machine shared with other jobs the best repeat is the least disturbed one. The load average at the start is
-recorded beside the figures. Writes `speed.json` into `--out` and prints a table.
+recorded beside the figures. Writes `speed.json` and `speed.md` (its figures as Markdown, the source of the
+README's Performance block) into `--out` and prints a table.
 """
 
 from __future__ import annotations
@@ -29,6 +35,15 @@ import numpy as np
 SPEED_ENV = "WheeledPuma-Circle-v0"
 SUBSTEPS = (2, 4, 10)
 WORKERS = (1, 2)
+#: the clock of every block run in this process: its CPU time. On a machine shared with other jobs the wall time
+#: mostly measures them (at a load average of 10 on 2 cores a process gets a fifth of a core); the `eval.run`
+#: episodes/s (worker processes) and the predict times inside the rollout loop stay wall time
+CLOCK = time.process_time
+VECTOR_SIZES = (1, 64, 1024)
+#: robots of the batched-predict block
+PREDICT_BATCH = 64
+#: (label, id, module to import first) of the peers `--peers` races
+PEERS = (("panda-gym", "PandaReach-v3", "panda_gym"), ("MuJoCo", "Reacher-v5", None))
 
 
 # --- timed blocks ----------------------------------------------------------------------------------------
@@ -45,7 +60,7 @@ def time_env_steps(env, actions: np.ndarray) -> float:
     total = 0.0
     i = 0
     n = len(actions)
-    clock = time.perf_counter
+    clock = CLOCK
     while i < n:
         t0 = clock()
         while i < n:
@@ -69,12 +84,12 @@ def time_bare_steps(sim, actions: np.ndarray, action_scale: np.ndarray, n_subste
     forces = sim.torque_limits
     targets = (actions.astype(float) * action_scale).tolist()
     control, step, mode = client.setJointMotorControlArray, client.stepSimulation, pybullet.VELOCITY_CONTROL
-    t0 = time.perf_counter()
+    t0 = CLOCK()
     for u in targets:
         control(body, ids, mode, targetVelocities=u, forces=forces)
         for _ in range(n_substeps):
             step()
-    return time.perf_counter() - t0
+    return CLOCK() - t0
 
 
 def env_vs_bare(dynamics: str, n_substeps: int, steps: int, repeats: int, seed: int = 0) -> dict:
@@ -199,6 +214,138 @@ def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed:
     }
 
 
+def _vector_env(n: int):
+    import gymnasium as gym
+
+    import mobman_env  # noqa: F401  (registers the ids)
+
+    return gym.make_vec(SPEED_ENV, num_envs=n, vectorization_mode="vector_entry_point", dynamics="kinematic")
+
+
+def vector_steps(n: int, steps: int, repeats: int, seed: int = 0) -> dict:
+    """Best-of-`repeats` robot-steps/s of the native vector env at N = n (at most 1,999 steps per block, so that
+    no episode ends inside it, and at most about 200,000 robot-steps)."""
+    steps = max(1, min(steps, 1999, 200_000 // n))
+    venv = _vector_env(n)
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-0.2, 0.2, size=(steps, n, 8)).astype(np.float32)
+    times = []
+    try:
+        for _ in range(repeats):
+            venv.reset(seed=seed)
+            t0 = CLOCK()
+            for a in actions:
+                venv.step(a)
+            times.append(CLOCK() - t0)
+    finally:
+        venv.close()
+    return {
+        "num_envs": n,
+        "steps": steps,
+        "robot_steps_per_s": n * steps / min(times),
+        "robot_steps_per_s_all": [n * steps / t for t in times],
+    }
+
+
+def batched_predict_times(specs: list[str], steps: int, n: int = PREDICT_BATCH, seed: int = 0) -> list[dict]:
+    """Microseconds per robot-step of the whole batched `predict` (N = n robots of the vector env) of each spec,
+    over `steps` steps (at most 200) of the policy's own closed loop."""
+    import policies
+
+    steps = max(1, min(steps, 200))
+    rows = []
+    for spec in specs:
+        if spec.startswith("sb3:"):
+            continue  # an SB3 agent is batched by SB3 itself; its single-env figure is in the predict table
+        venv = _vector_env(n)
+        try:
+            policy = policies.make(spec, venv)
+            obs, info = venv.reset(seed=seed)
+            policy.reset(obs, info, seed=seed)
+            total = 0.0
+            for _ in range(steps):
+                t0 = CLOCK()
+                actions, _ = policy.predict(obs)
+                total += CLOCK() - t0
+                obs, *_ = venv.step(actions)
+            rows.append({"policy": spec, "status": "ok", "num_envs": n, "us_per_robot_step": total / (n * steps) * 1e6})
+        except Exception as exc:
+            rows.append({"policy": spec, "status": f"skipped: {exc}"})
+        finally:
+            venv.close()
+    return rows
+
+
+def batch_episodes_per_second(n: int, policy: str, seed: int = 0) -> dict:
+    """Episodes/s of `n` 20 s kinematic episodes run as one batch (`eval.batch_rollout.rollout_batch`)."""
+    import policies
+    from eval.batch_rollout import rollout_batch
+
+    venv = _vector_env(n)
+    try:
+        pol = policies.make(policy, venv)
+        t0 = CLOCK()
+        out = rollout_batch(venv, pol, seed)
+        wall = CLOCK() - t0
+    finally:
+        venv.close()
+    failed = [rec for rec, _ in out if rec["status"] != "ok"]
+    steps = sum(rec["n_steps"] for rec, _ in out)
+    return {
+        "policy": policy,
+        "episodes": n,
+        "status": "ok" if not failed else "failed: " + failed[0]["error"].strip().splitlines()[-1],
+        "episodes_per_s": n / wall,
+        "robot_steps_per_s": steps / wall,
+        "wall_s": wall,
+    }
+
+
+def peer_steps(steps: int, repeats: int, seed: int = 0) -> list[dict]:
+    """Steps/s of each installed peer and of the kinematic env, timed interleaved (mobman, peer, mobman, peer,
+    ...) in this process under random actions, resets not timed; the best repeat of each, and their ratio."""
+    import importlib
+
+    import gymnasium as gym
+
+    rows = []
+    for label, env_id, module in PEERS:
+        try:
+            if module:
+                importlib.import_module(module)
+            peer = gym.make(env_id)
+        except Exception as exc:
+            rows.append({"peer": label, "id": env_id, "status": f"not installed: {exc} (pip install 'mobman[bench]')"})
+            continue
+        ours = _env("kinematic")
+        rng = np.random.default_rng(seed)
+        peer.action_space.seed(seed)
+        peer_actions = np.array([peer.action_space.sample() for _ in range(steps)])
+        our_actions = rng.uniform(-0.2, 0.2, size=(steps, 8)).astype(np.float32)
+        t_ours, t_peer = [], []
+        try:
+            for _ in range(repeats):
+                ours.reset(seed=seed)
+                t_ours.append(time_env_steps(ours, our_actions))
+                peer.reset(seed=seed)
+                t_peer.append(time_env_steps(peer, peer_actions))
+        finally:
+            ours.close()
+            peer.close()
+        rows.append(
+            {
+                "peer": label,
+                "id": env_id,
+                "status": "ok",
+                "steps": steps,
+                "peer_steps_per_s": steps / min(t_peer),
+                "mobman_kinematic_steps_per_s": steps / min(t_ours),
+                "ratio_mobman_to_peer": min(t_peer) / min(t_ours),
+            }
+        )
+    return rows
+
+
 def default_policies() -> list[str]:
     try:
         import policies
@@ -210,7 +357,13 @@ def default_policies() -> list[str]:
 
 
 def measure(
-    steps: int = 4000, repeats: int = 3, episodes: int = 8, specs: list[str] | None = None, progress=print
+    steps: int = 4000,
+    repeats: int = 3,
+    episodes: int = 8,
+    specs: list[str] | None = None,
+    progress=print,
+    batch: int = 64,
+    peers: bool = False,
 ) -> dict:
     from eval.output.provenance import git_rev, versions
 
@@ -230,6 +383,7 @@ def measure(
             "steps": steps,
             "repeats": repeats,
             "episodes": episodes,
+            "batch": batch,
             "control_freq_hz": 100.0,
         },
     }
@@ -241,7 +395,80 @@ def measure(
     out["predict"] = predict_times(specs or default_policies())
     progress("timing episodes/s with workers 1 and 2 ...")
     out["episodes"] = [episodes_per_second(w, episodes) for w in WORKERS]
+    progress("timing the vector env at N = 1, 64, 1024 and batched predict ...")
+    out["vector"] = [vector_steps(n, steps, repeats) for n in VECTOR_SIZES]
+    out["batched_predict"] = batched_predict_times(specs or default_policies(), steps)
+    progress(f"timing batched eval ({batch} episodes of nnbc and clik) ...")
+    out["batch_episodes"] = [batch_episodes_per_second(batch, p) for p in ("nnbc", "clik")]
+    if peers:
+        progress("racing the peers (PandaReach-v3, Reacher-v5) ...")
+        out["peers"] = peer_steps(steps, repeats)
     return out
+
+
+def markdown(res: dict) -> str:
+    """The figures of `measure` as Markdown: `## Conditions` and `## Figures` (the README's block)."""
+    m, st = res["machine"], res["settings"]
+    load = m["loadavg_1_5_15_at_start"]
+    lines = [
+        "# mobman speed",
+        "",
+        "## Conditions",
+        "",
+        (
+            f"{m['cpus']} CPUs ({m['platform']}), load average {load[0]:.1f} at the start (1 min)"
+            if load
+            else f"{m['cpus']} CPUs ({m['platform']})"
+        )
+        + f"; {res['when']}; best of {st['repeats']} repeats of {st['steps']} steps; {SPEED_ENV}, 100 Hz; steps/s "
+        "per CPU-second of this process except the `eval.run` rows (wall time, worker start-up included).",
+        "",
+        "## Figures",
+        "",
+        "| figure | value |",
+        "|---|---|",
+    ]
+    env = {(b["dynamics"], b["n_substeps"]): b for b in res["env"]}
+    kin = env[("kinematic", 2)]
+    lines.append(f"| kinematic env (one robot, `gym.make`) | {kin['env_steps_per_s']:,.0f} steps/s |")
+    for n in SUBSTEPS:
+        b = env[("physics", n)]
+        lines.append(
+            f"| physics env, {n} substeps | {b['env_steps_per_s']:,.0f} steps/s; bare PyBullet "
+            f"{b['bare_steps_per_s']:,.0f}: env/bare {b['ratio_env_to_bare']:.2f} |"
+        )
+    for v in res.get("vector", []):
+        lines.append(
+            f"| vector env, N = {v['num_envs']:,} (kinematic, one process) | {v['robot_steps_per_s']:,.0f} "
+            f"robot-steps/s ({v['robot_steps_per_s'] / kin['env_steps_per_s']:.1f}x one env) |"
+        )
+    pred = [r for r in res["predict"] if r["status"] == "ok"]
+    if pred:
+        text = ", ".join(f"`{r['policy']}` {r['predict_us_median']:.0f}" for r in pred)
+        lines.append(f"| `predict`, median us, one env | {text} |")
+    bp = [r for r in res.get("batched_predict", []) if r["status"] == "ok"]
+    if bp:
+        text = ", ".join(f"`{r['policy']}` {r['us_per_robot_step']:.1f}" for r in bp)
+        lines.append(f"| batched `predict`, us per robot-step (N = {bp[0]['num_envs']}) | {text} |")
+    for e in res["episodes"]:
+        lines.append(
+            f"| episodes/s, 20 s kinematic `{e['policy']}`, `eval.run` with {e['workers']} worker(s) | "
+            f"{e['episodes_per_s']:.2f} |"
+        )
+    for e in res.get("batch_episodes", []):
+        if e["status"] == "ok":
+            lines.append(
+                f"| episodes/s, 20 s kinematic `{e['policy']}`, one batch of {e['episodes']} "
+                f"(`eval.batch_rollout`) | {e['episodes_per_s']:.2f} |"
+            )
+    for p in res.get("peers", []):
+        if p["status"] == "ok":
+            lines.append(
+                f"| vs {p['peer']} `{p['id']}` (interleaved, same process) | peer {p['peer_steps_per_s']:,.0f} "
+                f"steps/s, mobman kinematic {p['mobman_kinematic_steps_per_s']:,.0f}: "
+                f"{p['ratio_mobman_to_peer']:.2f}x |"
+            )
+    return "\n".join(lines) + "\n"
 
 
 def print_table(res: dict) -> None:

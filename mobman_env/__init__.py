@@ -20,6 +20,8 @@ and the tasks
 | `Random` | a random smooth path per seed, each axis within 0.3 m, 20 s |
 
 `gym.make("mobman_env:WheeledPuma-Circle-v0")` works without importing this package first.
+`gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point", dynamics="kinematic")` returns the native
+numpy vector env `mobman_env.vector.WheeledPumaVectorEnv` (physics mode: a `SyncVectorEnv` of single envs).
 """
 
 from __future__ import annotations
@@ -87,7 +89,12 @@ def register_envs() -> None:
             kwargs: dict = {"path": dict(spec)}
             if robot != "puma560":
                 kwargs["robot"] = robot
-            register(id=env_id, entry_point="mobman_env.env:WheeledPumaEnv", kwargs=kwargs)
+            register(
+                id=env_id,
+                entry_point="mobman_env.env:WheeledPumaEnv",
+                vector_entry_point="mobman_env.vector:make_vector_env",
+                kwargs=kwargs,
+            )
 
 
 register_envs()

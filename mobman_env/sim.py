@@ -160,6 +160,14 @@ class Sim:
         with _quiet_stdout():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self.client_id = self.client._client
+        # the per-step calls of physics mode, bound once: each `self.client.<name>` goes through
+        # BulletClient.__getattr__, which builds a new partial per call (0.7 us each, measured); these are the
+        # same partials, bound to this client
+        c = self.client
+        self._get_joint_states, self._motor_array = c.getJointStates, c.setJointMotorControlArray
+        self._step_sim, self._get_link_state = c.stepSimulation, c.getLinkState
+        self._base_pos_orn, self._base_vel = c.getBasePositionAndOrientation, c.getBaseVelocity
+        self._euler = c.getEulerFromQuaternion
         self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
         self.body: int | None = None
         self._body_hash: str | None = None
@@ -337,14 +345,14 @@ class Sim:
         return hits
 
     def _step_physics(self, u: np.ndarray) -> int:
-        c = self.client
-        q_arm = np.array([s[0] for s in c.getJointStates(self.body, self.arm_ids)])
+        q_arm = np.array([s[0] for s in self._get_joint_states(self.body, self.arm_ids)])
         u, hits = self._limit(q_arm, u)
-        c.setJointMotorControlArray(
+        self._motor_array(
             self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=u.tolist(), forces=self.torque_limits
         )
+        step = self._step_sim
         for _ in range(self.n_substeps):
-            c.stepSimulation()
+            step()
         return hits
 
     # --- state -----------------------------------------------------------------------------------------
@@ -368,14 +376,14 @@ class Sim:
         )
 
     def _state_physics(self) -> RobotState:
-        c, p = self.client, self._params
-        js = c.getJointStates(self.body, self.act_ids)
+        p = self._params
+        js = self._get_joint_states(self.body, self.act_ids)
         q = np.array([s[0] for s in js])
         qd = np.array([s[1] for s in js])
-        ls = c.getLinkState(self.body, self.ee_id, computeLinkVelocity=1, computeForwardKinematics=1)
-        pos, orn = c.getBasePositionAndOrientation(self.body)
-        lin, ang = c.getBaseVelocity(self.body)
-        roll, pitch, yaw_wrapped = c.getEulerFromQuaternion(orn)
+        ls = self._get_link_state(self.body, self.ee_id, computeLinkVelocity=1, computeForwardKinematics=1)
+        pos, orn = self._base_pos_orn(self.body)
+        lin, ang = self._base_vel(self.body)
+        roll, pitch, yaw_wrapped = self._euler(orn)
         # continuous yaw: the wrapped angle's nearest representative to the last one
         self._yaw += (yaw_wrapped - self._yaw + math.pi) % (2 * math.pi) - math.pi
         yaw = self._yaw

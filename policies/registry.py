@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
+from policies.batched import BatchedPolicy, is_vector_env
 
 
 @dataclass(frozen=True)
@@ -233,6 +234,8 @@ def _load_entry(name: str, entry: _Entry) -> tuple[type, type]:
 
 def make(spec: str, env: Any, seed: int | None = None) -> Any:
     """Build the policy named by `spec` for `env` (a gym.Env, any wrappers, or an SB3 VecEnv with one env).
+    For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
+    robots (row i: this spec built for robot i).
 
     `seed` seeds the policy's own Generator (controllers re-seed on `reset(seed=...)`). Returns an object with
     `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).
@@ -243,6 +246,8 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
             f"got {spec!r}; known: {_known_text()}"
         )
     spec = spec.strip()
+    if is_vector_env(env):  # one batched policy for the N robots of a gymnasium vector env (policies.batched)
+        return BatchedPolicy.for_vector_env(spec, env, lambda s, view: make(s, view, seed))
     if spec.startswith("sb3:"):
         from policies.sb3 import SB3Policy
 

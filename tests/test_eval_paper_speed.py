@@ -88,6 +88,8 @@ def test_speed_writes_speed_json(tmp_path):
             "1",
             "--episodes",
             "2",
+            "--batch",
+            "2",
             "--policy",
             "zero",
             "--out",
@@ -108,6 +110,15 @@ def test_speed_writes_speed_json(tmp_path):
     assert pred["zero"]["status"] == "ok" and pred["zero"]["calls"] == 2000
     assert pred["zero"]["predict_us_p99"] >= pred["zero"]["predict_us_median"] > 0
     assert [(e["workers"], e["processes"]) for e in res["episodes"]] == [(1, 1), (2, 2)]
+    assert [v["num_envs"] for v in res["vector"]] == [1, 64, 1024]
+    assert all(v["robot_steps_per_s"] == max(v["robot_steps_per_s_all"]) for v in res["vector"])
+    assert [(r["policy"], r["status"]) for r in res["batched_predict"]] == [("zero", "ok")]
+    assert [(e["policy"], e["episodes"], e["status"]) for e in res["batch_episodes"]] == [
+        ("nnbc", 2, "ok"),
+        ("clik", 2, "ok"),
+    ]
+    text = (out / "speed.md").read_text()
+    assert "## Figures" in text and "vector env, N = 1,024" in text and "peers" not in res
 
 
 def test_speed_refuses_an_unknown_policy_before_measuring(tmp_path, capsys, monkeypatch):
@@ -233,3 +244,15 @@ def test_paper_says_what_clik_and_the_ceiling_mean():
     assert "(eq. (10) with the same knowledge, `oracle`: 1/3)" in md
     assert "`nnbc`'s median is ~200 times it" in md
     assert "| clik (kinematic) |" in md.replace("| nnbc (kinematic) | jmpi (kinematic) ", "| ")
+
+
+def test_speed_peers_are_raced_interleaved_with_ratios():
+    pytest.importorskip("panda_gym")
+    pytest.importorskip("mujoco")
+    from eval import speed
+
+    rows = speed.peer_steps(steps=5, repeats=2)
+    assert [(r["id"], r["status"]) for r in rows] == [("PandaReach-v3", "ok"), ("Reacher-v5", "ok")]
+    for r in rows:
+        ratio = r["mobman_kinematic_steps_per_s"] / r["peer_steps_per_s"]
+        assert r["ratio_mobman_to_peer"] == pytest.approx(ratio)

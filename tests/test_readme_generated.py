@@ -52,3 +52,11 @@ def test_the_readme_command_writes_and_checks(tmp_path, capsys):
     (tmp_path / "plain.md").write_text("no blocks\n")
     assert main(["readme", str(tmp_path / "plain.md")]) == 2
     assert "no generated block found" in capsys.readouterr().err
+
+
+def test_eval_readme_blocks_equal_the_committed_results():
+    path = ROOT / "eval" / "README.md"
+    text = path.read_text()
+    rendered, used = render_generated(text, path.parent)
+    assert "../docs/results/speed/speed.md" in used
+    assert rendered == text, "eval/README.md's generated blocks differ; run `mobman-eval readme eval/README.md`"

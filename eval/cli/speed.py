@@ -25,6 +25,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         help=f"policies whose predict is timed (default: every built-in name); each is built first, an unknown "
         f"one stops the benchmark before it starts. {TRUST_NOTE}",
     )
+    p.add_argument("--batch", type=int, default=d("batch"), help="episodes of the batched-eval block (one vector env)")
+    p.add_argument(
+        "--peers",
+        action="store_true",
+        help="also race the installed peers (panda-gym PandaReach-v3, MuJoCo Reacher-v5; pip install 'mobman[bench]')",
+    )
     p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     p.add_argument("--quiet", action="store_true", help="no table")
@@ -41,15 +47,18 @@ def add_parser(sub) -> None:
 
 
 def main(args) -> int:
-    for name in ("steps", "repeats", "episodes"):
+    for name in ("steps", "repeats", "episodes", "batch"):
         integer(f"--{name}", getattr(args, name), low=1, error=EvalError)
     out = resolve_out(args.out, "speed")
     check_out(out, args.overwrite)
     speed.check_policies(args.policies)
     out = make_out(out, exclusive=not args.out)
     say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    res = speed.measure(args.steps, args.repeats, args.episodes, args.policies, progress=say)
+    res = speed.measure(
+        args.steps, args.repeats, args.episodes, args.policies, progress=say, batch=args.batch, peers=args.peers
+    )
     atomic_write_json(out / "speed.json", res)
+    (out / "speed.md").write_text(speed.markdown(res), encoding="utf-8")
     if not args.quiet:
         speed.print_table(res)
         print(f"speed.json in {out}")
