@@ -20,7 +20,7 @@ from gymnasium import spaces
 from mobman_env.params import MAX_REL_STD, RobotParams
 from mobman_env.paths import Path, path_from_spec, validate_spec
 from mobman_env.robots.sources import ROBOT_NAMES, RobotSource, robot_source
-from mobman_env.sensors import SENSOR_KEYS, Sensors
+from mobman_env.sensors import SENSOR_KEYS, Sensors, sensor_count
 from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
 from mobman_env.validation import integer, number, vector
 
@@ -387,7 +387,11 @@ class WheeledPumaEnv(gym.Env):
         cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
         self._check_wear(self.dynamics, cond["wear_rate"], _duration(spec))
         self._sensors = Sensors(
-            cond["obs_noise"], cond["obs_noise_vel"], cond["obs_noise_joint_vel"], int(cond["obs_delay"])
+            cond["obs_noise"],
+            cond["obs_noise_vel"],
+            cond["obs_noise_joint_vel"],
+            int(cond["obs_delay"]),
+            n_sensor=sensor_count(len(self.action_scale)),
         )
         self._wear = cond["wear_rate"]
         # one RNG stream, in a fixed order: the arm and its start (random family only), the true robot, then the

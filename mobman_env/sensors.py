@@ -17,8 +17,14 @@ import numpy as np
 
 #: the sensor readings of an observation, in order (all in the world frame, SI units)
 SENSOR_KEYS = ("ee_pos", "ee_vel", "arm_base_pos", "arm_base_vel", "base_yaw", "joint_pos", "joint_vel")
-#: number of entries of the readings, flattened in `SENSOR_KEYS` order (3 + 3 + 2 + 2 + 1 + 8 + 8)
+#: number of entries of the PUMA's readings, flattened in `SENSOR_KEYS` order (3 + 3 + 2 + 2 + 1 + 8 + 8)
 N_SENSOR = 27
+
+
+def sensor_count(n_actuators: int) -> int:
+    """Number of entries of the readings of a robot with `n_actuators` (n arm joints + 2 wheels):
+    3 + 3 + 2 + 2 + 1 for the Cartesian readings, then joint_pos and joint_vel (`N_SENSOR` for the PUMA's 8)."""
+    return 11 + 2 * n_actuators
 
 
 class Sensors:
@@ -29,15 +35,18 @@ class Sensors:
         obs_noise_vel: std of the noise on ee_vel and arm_base_vel, m/s.
         obs_noise_joint_vel: std of the noise on joint_vel (arm joints and wheels), rad/s.
         obs_delay: age of the readings handed out, control steps (0: current).
+        n_sensor: number of reading entries the delay holds (`sensor_count` of the robot's actuators).
     """
 
     def __init__(
-        self, obs_noise: float = 0.0, obs_noise_vel: float = 0.0, obs_noise_joint_vel: float = 0.0, obs_delay: int = 0
+        self, obs_noise: float = 0.0, obs_noise_vel: float = 0.0, obs_noise_joint_vel: float = 0.0, obs_delay: int = 0,
+        n_sensor: int = N_SENSOR,
     ):
         self.obs_noise = obs_noise
         self.obs_noise_vel = obs_noise_vel
         self.obs_noise_joint_vel = obs_noise_joint_vel
         self.obs_delay = obs_delay
+        self.n_sensor = n_sensor
         self._buffer: deque[np.ndarray] = deque(maxlen=max(obs_delay, 1))
 
     def read(self, state: Any, rng: np.random.Generator) -> list[np.ndarray]:
@@ -56,14 +65,14 @@ class Sensors:
         return [ee_pos, ee_vel, pc, pc_vel, state.base_pose[2:], state.joint_pos, joint_vel]
 
     def start(self, flat: np.ndarray) -> None:
-        """At reset: fill the delay buffer with the reset reading (the first `N_SENSOR` entries of `flat`)."""
+        """At reset: fill the delay buffer with the reset reading (the first `n_sensor` entries of `flat`)."""
         if self.obs_delay > 0:
             self._buffer.clear()
-            self._buffer.extend(flat[:N_SENSOR].copy() for _ in range(self.obs_delay))
+            self._buffer.extend(flat[: self.n_sensor].copy() for _ in range(self.obs_delay))
 
     def delay(self, flat: np.ndarray) -> None:
         """After a step: store this reading and put the one of `obs_delay` steps ago into `flat` (in place)."""
         if self.obs_delay > 0:
-            now = flat[:N_SENSOR].copy()
-            flat[:N_SENSOR] = self._buffer.popleft()
+            now = flat[: self.n_sensor].copy()
+            flat[: self.n_sensor] = self._buffer.popleft()
             self._buffer.append(now)

@@ -34,8 +34,8 @@ keep release 0.1's numbers. `robot="random"` (`SYNC_ROBOTS`) falls back, in kine
 `SyncVectorEnv` of single envs: each reset draws a new arm (its own DH twists, limits, start) and checks it with
 the kinematic ceiling (about 0.2 s per candidate and 3.9 candidates per arm, `mobman_env.robots.sources`),
 more than a whole 20 s episode's kinematic steps cost (about 90 us each), so batching the steps would save little; the native class refuses
-it with that fix. (The single env's delay buffer holds the first `sensors.N_SENSOR` = 27 readings, the PUMA's
-count, also for the Panda's 29; the vector env copies it so as to stay equal.)
+it with that fix. (The delay holds every reading entry, `sensors.sensor_count` of the robot's actuators: 27 for
+the PUMA, 29 for the Panda, as in the single env.)
 
 Speed (`mobman-eval speed`): the robot-steps per second at N = 1, 64, 1024 are measured there; sensor noise loops
 over the robots' generators (one draw per robot and step), the rest is one pass. Imports gymnasium, numpy and
@@ -56,7 +56,7 @@ from mobman_env import env as single
 from mobman_env import vector_kinematics as VK
 from mobman_env.params import RobotParams
 from mobman_env.paths import path_from_spec, validate_spec
-from mobman_env.sensors import N_SENSOR
+from mobman_env.sensors import sensor_count
 
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
 #: the per-robot lengths of the kinematic model that wear scales (a and d are (N, n) arrays, the rest (N,))
@@ -112,7 +112,8 @@ class _Episodes:
         self.start = np.zeros((n, 3))
         self.paths: list[Any] = [None] * n
         self.hashes = np.full(n, "", dtype=object)
-        self.history = np.zeros((n, 1, N_SENSOR), dtype=np.float32)  # delay ring buffers
+        self.n_sensor = sensor_count(n_joints + 2)
+        self.history = np.zeros((n, 1, self.n_sensor), dtype=np.float32)  # delay ring buffers
 
 
 class WheeledPumaVectorEnv(gym.vector.VectorEnv):
@@ -349,11 +350,11 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             return
         r, dl = rows[late], delay[late]
         if start:
-            ep.history[r, :] = flat[late, None, :N_SENSOR]
+            ep.history[r, :] = flat[late, None, : ep.n_sensor]
             return
         k = ep.steps[r]
-        now = flat[late, :N_SENSOR].copy()
-        flat[late, :N_SENSOR] = ep.history[r, (k + 1) % (dl + 1)]
+        now = flat[late, : ep.n_sensor].copy()
+        flat[late, : ep.n_sensor] = ep.history[r, (k + 1) % (dl + 1)]
         ep.history[r, k % (dl + 1)] = now
 
     def _targets(self, sel: Any, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -507,7 +508,7 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         delay = int(cond["obs_delay"])
         ep.delay[rows] = delay
         if delay + 1 > ep.history.shape[1]:
-            grown = np.zeros((self.num_envs, delay + 1, N_SENSOR), dtype=np.float32)
+            grown = np.zeros((self.num_envs, delay + 1, ep.n_sensor), dtype=np.float32)
             grown[:, : ep.history.shape[1]] = ep.history
             ep.history = grown
         ep.steps[rows] = 0

@@ -40,14 +40,20 @@ def test_joint_velocity_noise_statistics_and_nothing_else_changes(make_env, dyna
         np.testing.assert_array_equal(ci["ee_pos_true"], ni["ee_pos_true"])
 
 
-@pytest.mark.parametrize("dynamics", ["kinematic", "physics"])
-@pytest.mark.parametrize("k", [1, 5])
-def test_delay_shifts_sensor_readings_by_exactly_k_steps(make_env, dynamics, k):
+@pytest.mark.parametrize(
+    ("dynamics", "robot", "k"),
+    [("kinematic", "puma560", 1), ("kinematic", "puma560", 5), ("physics", "puma560", 1), ("physics", "puma560", 5)]
+    + [("kinematic", "panda", 1), ("kinematic", "panda", 3), ("kinematic", "ur5", 2)],
+)
+def test_delay_shifts_sensor_readings_by_exactly_k_steps(make_env, dynamics, robot, k):
     """With obs_delay = k the sensor keys of step n are those of step n - k of the undelayed env (the reset
-    reading before that), noise included; target, time and info are current."""
+    reading before that), noise included; target, time and info are current. Every entry is delayed, whatever
+    the robot's actuator count (the Panda's 9: its last joint speeds too)."""
     rng = np.random.default_rng(3)
-    actions = list(rng.uniform(-0.5, 0.5, (40, 8)))
+    n_act = make_env(dynamics="kinematic", path=TWO_S, robot=robot).action_space.shape[0]
+    actions = list(rng.uniform(-0.5, 0.5, (40, n_act)))
     kw = dict(dynamics=dynamics, path=TWO_S, obs_noise=0.002, obs_noise_vel=0.01, obs_noise_joint_vel=0.01)
+    kw["robot"] = robot
     now = _run(make_env(**kw), 11, actions)
     late = _run(make_env(**kw, obs_delay=k), 11, actions)
     for n, (obs, info) in enumerate(late):
