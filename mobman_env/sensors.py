@@ -39,7 +39,11 @@ class Sensors:
     """
 
     def __init__(
-        self, obs_noise: float = 0.0, obs_noise_vel: float = 0.0, obs_noise_joint_vel: float = 0.0, obs_delay: int = 0,
+        self,
+        obs_noise: float = 0.0,
+        obs_noise_vel: float = 0.0,
+        obs_noise_joint_vel: float = 0.0,
+        obs_delay: int = 0,
         n_sensor: int = N_SENSOR,
     ):
         self.obs_noise = obs_noise
