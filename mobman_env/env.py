@@ -362,12 +362,12 @@ class WheeledPumaEnv(gym.Env):
         if self._closed:
             raise RuntimeError(_CLOSED)
 
-    # --- gym API ---------------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
-        self._check_open()
-        if isinstance(seed, bool):  # gymnasium would take True as seed 1
-            raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
-        super().reset(seed=seed)
+    def _episode_settings(
+        self, options: Any, nominal: RobotParams, dynamics: str
+    ) -> tuple[dict, np.ndarray | None, np.ndarray, dict]:
+        """The checked reset options over this env's own settings: (path spec, arm start or None when the
+        robot draws its start, base pose, conditions). The vector env resolves its rows' resets through this
+        too, with `dynamics` "kinematic"."""
         if options is not None and not isinstance(options, Mapping):
             raise ValueError(
                 f"reset options must be a dict such as {{'path': {{'type': 'circle', 'radius': 0.2}}}}, "
@@ -380,12 +380,21 @@ class WheeledPumaEnv(gym.Env):
         spec = validate_spec(options["path"]) if "path" in options else self.path_spec
         q0: np.ndarray | None
         if "arm_joint_pos" in options:
-            q0 = self._joint_vector(options["arm_joint_pos"], self._nominal_params)
+            q0 = self._joint_vector(options["arm_joint_pos"], nominal)
         else:
             q0 = self.arm_joint_pos
         pose = _base_pose(options["base_pose"]) if "base_pose" in options else self.base_pose
         cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
-        self._check_wear(self.dynamics, cond["wear_rate"], _duration(spec))
+        self._check_wear(dynamics, cond["wear_rate"], _duration(spec))
+        return spec, q0, pose, cond
+
+    # --- gym API ---------------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        self._check_open()
+        if isinstance(seed, bool):  # gymnasium would take True as seed 1
+            raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
+        super().reset(seed=seed)
+        spec, q0, pose, cond = self._episode_settings(options, self._nominal_params, self.dynamics)
         self._sensors = Sensors(
             cond["obs_noise"],
             cond["obs_noise_vel"],

@@ -55,7 +55,7 @@ from gymnasium.vector.utils import batch_space
 from mobman_env import env as single
 from mobman_env import vector_kinematics as VK
 from mobman_env.params import RobotParams
-from mobman_env.paths import path_from_spec, validate_spec
+from mobman_env.paths import path_from_spec
 from mobman_env.sensors import sensor_count
 
 AUTORESET_MODES = (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP)
@@ -469,27 +469,8 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
     def _reset_rows(self, rows: np.ndarray, options: dict | None, infos: dict | None = None):
         """Start new episodes in `rows` as each single env's reset (its generator as it stands)."""
         tpl = self._template
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(
-                f"reset options must be a dict such as {{'path': {{'type': 'circle', 'radius': 0.2}}}}, got "
-                f"{options!r}; accepted keys: {', '.join(map(repr, single.RESET_OPTIONS))}"
-            )
-        options = dict(options or {})
-        unknown = sorted(set(options) - set(single.RESET_OPTIONS), key=str)
-        if unknown:
-            raise ValueError(
-                f"unknown reset option(s) {unknown}; accepted: {', '.join(map(repr, single.RESET_OPTIONS))}"
-            )
-        spec = validate_spec(options["path"]) if "path" in options else tpl.path_spec
-        q0: np.ndarray | None
-        if "arm_joint_pos" in options:
-            q0 = tpl._joint_vector(options["arm_joint_pos"], self._nominal)
-        else:
-            q0 = tpl.arm_joint_pos
+        spec, q0, pose0, cond = tpl._episode_settings(options, self._nominal, "kinematic")
         assert q0 is not None  # a fixed arm has its start (the random family is in SYNC_ROBOTS)
-        pose0 = single._base_pose(options["base_pose"]) if "base_pose" in options else tpl.base_pose
-        cond = {k: single._condition(k, options[k]) if k in options else v for k, v in tpl._conditions.items()}
-        tpl._check_wear("kinematic", cond["wear_rate"], single._duration(spec))
         ep = self._ep
         params = []
         for i in rows:
