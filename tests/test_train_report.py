@@ -278,3 +278,80 @@ def test_report_end_to_end_with_cache(tmp_path, monkeypatch):
         f.write(b"\0")
     with pytest.raises(AssertionError, match="from the cache"):
         R.build_report(cfg)
+
+
+# --- runs carried over from an earlier report (train.report_archive) ----------------------------------------
+def _caching_evaluation(calls):
+    """The fake evaluation of `_fake_evaluation`, written to the cache files a real one leaves (inputs.json,
+    results.json in cfg.out), which is what --include reads back."""
+    fake = _fake_evaluation(calls)
+
+    def run(cfg, extra):
+        records = fake(cfg, extra)
+        out = Path(cfg.out)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "inputs.json").write_text(json.dumps(R._inputs(cfg, extra)))
+        (out / "results.json").write_text(json.dumps({"episodes": records}))
+        return records
+
+    return run
+
+
+def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch):
+    import shutil
+
+    calls: list = []
+    monkeypatch.setattr(R, "cached_evaluation", _caching_evaluation(calls))
+    common = dict(episodes=4, controllers=("zero",), models_dir=str(tmp_path / "models"), plots=False)
+    old = [_run_folder(tmp_path / "machine1", f"ppo-kin-s{s}", "ppo", s) for s in range(3)]
+    first = R.build_report(
+        R.ReportConfig(
+            runs=tuple(map(str, old)), out=str(tmp_path / "a"), ship=(("my-ppo", "ppo-kinematic"),), **common
+        )
+    )
+    assert first["median_seed_models"]["ppo-kinematic"]["run"] == "ppo-kin-s1"
+    shutil.rmtree(tmp_path / "machine1")  # the old machine is gone: only the committed report is left
+    new = _run_folder(tmp_path / "machine2", "ppo-kin-s3", "ppo", 3)
+    calls.clear()
+    cfg = R.ReportConfig(
+        runs=(str(new),),
+        include=(str(tmp_path / "a"),),
+        out=str(tmp_path / "b"),
+        train_commit="abc1234",
+        ship=(("my-ppo", "ppo-kinematic"),),
+        **common,
+    )
+    second = R.build_report(cfg)
+    # only the new run is evaluated; the carried runs keep their measured episodes, curves and budgets
+    assert [c for c in calls if c[0].startswith("sb3:")] == [(f"sb3:{new}/model.zip",)]
+    fam = second["families"][0]
+    assert (
+        fam["n_seeds"] == 4 and fam["seeds"] == [0, 1, 2, 3] and fam["wall_s_total"] == pytest.approx(20 + 21 + 22 + 23)
+    )
+    assert fam["max_error_m"]["per_seed_iqm"][:3] == first["families"][0]["max_error_m"]["per_seed_iqm"]
+    carried = {r["name"]: r for r in second["runs"] if r.get("archived_from")}
+    assert sorted(carried) == ["ppo-kin-s0", "ppo-kin-s1", "ppo-kin-s2"]
+    assert carried["ppo-kin-s0"]["archived_from"] == str(tmp_path / "a")
+    from train.report_archive import archived_curves
+
+    assert archived_curves(tmp_path / "b") == archived_curves(tmp_path / "a") | {
+        "ppo-kin-s3": archived_curves(tmp_path / "b")["ppo-kin-s3"]
+    }
+    assert [c["timesteps"] for c in archived_curves(tmp_path / "b")["ppo-kin-s0"]] == [0.0, 1000.0, 2000.0]
+    assert (tmp_path / "b" / "evals" / "ppo-kin-s0" / "inputs.json").is_file()  # the evidence moves with them
+    assert second["train_commits"] == {
+        "not recorded": ["ppo-kin-s0", "ppo-kin-s1", "ppo-kin-s2"],
+        "abc1234": ["ppo-kin-s3"],
+    }
+    assert "runs carried over from" in (tmp_path / "b" / "summary.md").read_text()
+    # the median of four seeds is still ppo-kin-s1, whose model is gone but already shipped: its README is redone
+    assert second["median_seed_models"]["ppo-kinematic"]["run"] == "ppo-kin-s1"
+    assert (tmp_path / "models" / "my-ppo" / "model.zip").read_bytes() == b"model ppo-kin-s1"
+    assert "4 finished seed(s)" in (tmp_path / "models" / "my-ppo" / "README.md").read_text()
+    # a carried run is never re-evaluated: a report with other episodes refuses it and names the difference
+    with pytest.raises(ValueError, match=r"run ppo-kin-s0 was evaluated with other settings \(episodes differ"):
+        R.build_report(R.ReportConfig(**{**cfg.__dict__, "episodes": 3, "out": str(tmp_path / "c")}))
+    # a shipped model that is not the archived median's cannot be replaced without its run folder
+    (tmp_path / "models" / "my-ppo" / "model.zip").write_bytes(b"another model")
+    with pytest.raises(ValueError, match=r"median-seed run ppo-kin-s1 has no model at .*give its run folder"):
+        R.build_report(cfg)

@@ -101,23 +101,32 @@ class ReportConfig:
     README.md (e.g. ("ppo-circle", "ppo-kinematic")); `policies.sb3.ALIASES` must name it to be `sb3:alias`."""
     models_dir: str = "policies/models"
     """Where `ship` puts the models (the folder of the shipped `sb3:` aliases)."""
+    include: tuple[str, ...] = ()
+    """Folders of earlier reports whose finished runs are carried over as they were measured (`train.report_archive`:
+    their curves, budgets and cached final evaluations; their models need not be on disk). A run folder in `runs`
+    wins over an archived run of the same name."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "runs", tuple(str(r) for r in self.runs))
         object.__setattr__(self, "controllers", tuple(self.controllers))
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
         object.__setattr__(self, "ship", tuple((str(a), str(f)) for a, f in self.ship))
+        object.__setattr__(self, "include", tuple(str(p) for p in self.include))
         integer("episodes", self.episodes, low=1, hint="e.g. --episodes 20")
         integer("seed", self.seed, low=10_000, hint="reported seeds start at 10000; tune on 0-999")
         integer("workers", self.workers, low=1, hint="e.g. --workers 1")
-        if not self.runs:
-            raise ValueError("no run folder given; e.g. mobman-train report runs/ppo-s0 runs/ppo-s1 --out DIR")
+        if not self.runs and not self.include:
+            raise ValueError(
+                "no run folder given; e.g. mobman-train report runs/ppo-s0 runs/ppo-s1 --out DIR "
+                "(or --include an earlier report's folder)"
+            )
 
     def to_dict(self) -> dict:
         d = asdict(self)
         d["runs"] = list(self.runs)
         d["controllers"] = list(self.controllers)
         d["ship"] = [list(pair) for pair in self.ship]
+        d["include"] = list(self.include)
         return json.loads(json.dumps(d))
 
 
@@ -341,9 +350,13 @@ def build_report(config: ReportConfig) -> dict:
     """Read, evaluate, aggregate and write the report (see the module docstring); the results dict."""
     from eval.output.files import atomic_write_json, atomic_write_text
     from eval.output.provenance import git_rev, provenance
+    from train.report_archive import archived_runs, copy_cached_eval
     from train.report_text import curves_figure, summary_markdown
 
-    runs = sorted((read_run(p) for p in config.runs), key=lambda r: (r["family"], r["seed"]))
+    live = [{**read_run(p), "train_commit": config.train_commit} for p in config.runs]
+    names = {r["name"] for r in live}
+    archived = [r for folder in config.include for r in archived_runs(folder, config) if r["name"] not in names]
+    runs = sorted(live + archived, key=lambda r: (r["family"], r["seed"]))
     env_ids = sorted({r["config"]["env_id"] for r in runs})
     if len(env_ids) != 1:
         raise ValueError(f"the runs were trained on several envs {env_ids}; report one env at a time")
@@ -355,7 +368,9 @@ def build_report(config: ReportConfig) -> dict:
     for r in runs:
         check_task(config, r)
     for r in runs:
-        if r["status"] == "done":
+        if "archived_from" in r:
+            copy_cached_eval(r, out)
+        elif r["status"] == "done":
             r.update(evaluate_run(config, r, out / "evals" / r["name"]))
     modes = sorted({r["config"]["dynamics"] for r in runs}, key=list(BENCH_CONDITION).index)
     controllers = {
@@ -394,6 +409,7 @@ def build_report(config: ReportConfig) -> dict:
         "bench_condition": {m: BENCH_CONDITION[m] for m in modes},
         "condition_kwargs": {m: condition_kwargs(m, config.env_kwargs) for m in modes},
         "train_commit": config.train_commit,
+        "train_commits": _train_commits(runs),
         "report_git": git_rev(),
         "provenance": provenance(),
         "runs": [{k: v for k, v in r.items() if k not in ("curve", "episodes")} for r in runs],
@@ -435,14 +451,29 @@ def ship_model(results: dict, family: str, alias: str, models_dir: Path, results
         raise ValueError(f"--ship {alias}={family}: no finished run of family {family!r}; families: {sorted(medians)}")
     run = next(r for r in results["runs"] if r["name"] == medians[family]["run"])
     src, dest = Path(run["path"]), models_dir / alias
+    shipped = (dest / "model.zip").is_file() and sha256(dest / "model.zip") == run["model_sha256"]
+    if not (src / "model.zip").is_file() and not shipped:
+        raise ValueError(
+            f"--ship {alias}={family}: the median-seed run {run['name']} has no model at {src} (an archived run) and "
+            f"{dest / 'model.zip'} is not that model (SHA-256 {run['model_sha256'][:12]}...); give its run folder"
+        )
     dest.mkdir(parents=True, exist_ok=True)
-    for name in SHIPPED_FILES:
-        if (src / name).is_file():
-            shutil.copyfile(src / name, dest / name)
+    if not shipped:  # an archived run's model already shipped under this alias keeps its files
+        for name in SHIPPED_FILES:
+            if (src / name).is_file():
+                shutil.copyfile(src / name, dest / name)
     if sha256(dest / "model.zip") != run["model_sha256"]:
         raise ValueError(f"{src / 'model.zip'} changed since the report evaluated it; rerun the report")
     atomic_write_text(dest / "README.md", model_readme(results, family, alias, str(results_file)))
     return dest
+
+
+def _train_commits(runs: list[dict]) -> dict[str, list[str]]:
+    """{training commit: the runs it trained} ("not recorded" where a run has none)."""
+    out: dict[str, list[str]] = {}
+    for r in runs:
+        out.setdefault(r.get("train_commit") or "not recorded", []).append(r["name"])
+    return out
 
 
 def run_final(episodes: list[dict]) -> dict:

@@ -18,7 +18,15 @@ def build_parser() -> argparse.ArgumentParser:
         "controllers and write learning curves with IQM and 95%% intervals over seeds, final tables and "
         "provenance into one results folder (see train.report).",
     )
-    p.add_argument("runs", nargs="+", metavar="RUN_DIR", help="run folders of mobman-train")
+    p.add_argument("runs", nargs="*", metavar="RUN_DIR", help="run folders of mobman-train")
+    p.add_argument(
+        "--include",
+        action="append",
+        default=[],
+        metavar="REPORT_DIR",
+        help="carry over the finished runs of an earlier report folder as they were measured (repeatable; see "
+        "train.report_archive)",
+    )
     p.add_argument("--out", default=d.out, metavar="DIR", help=f"results folder (default {d.out})")
     p.add_argument("--episodes", type=int, default=d.episodes, metavar="N", help=f"reported episodes ({d.episodes})")
     p.add_argument("--seed", type=int, default=d.seed, metavar="S", help=f"first reported seed ({d.seed})")
@@ -79,6 +87,7 @@ def main(argv: list[str] | None = None) -> int:
             plots=not args.no_plots,
             ship=tuple(_pair(s) for s in args.ship),
             models_dir=args.models_dir,
+            include=tuple(args.include),
         )
         results = build_report(config)
     except (ValueError, EvalError) as exc:

@@ -174,7 +174,7 @@ def summary_markdown(results: dict) -> str:
         f"max tracking error <= {cfg['tolerance'] * 1e3:g} mm over the whole episode. Agents: IQM over training "
         "seeds x episodes, 95% stratified-bootstrap intervals over training seeds (episodes as strata); "
         "controllers: IQM over episodes, bootstrap interval over episodes, Wilson interval of the success rate. "
-        f"Training code: git {results['train_commit'] or 'not recorded'}; report: git {results['report_git']}.",
+        f"Training code: {training_code(results)}; report: git {results['report_git']}.",
         "",
     ]
     for m in modes:
@@ -259,6 +259,19 @@ def curves_figure(results: dict, run_curves: dict[str, list[dict]]) -> Any:
     return fig
 
 
+def training_code(results: dict) -> str:
+    """Which commit trained which runs ("git X" when one did them all); carried-over runs say from where."""
+    commits = results.get("train_commits") or {results["train_commit"] or "not recorded": []}
+    if len(commits) == 1:
+        text = f"git {next(iter(commits))}"
+    else:
+        text = "; ".join(f"git {c} ({', '.join(f'`{n}`' for n in names)})" for c, names in commits.items())
+    sources = sorted({r["archived_from"] for r in results["runs"] if r.get("archived_from")})
+    if sources:
+        text += f" (runs carried over from {', '.join(f'`{s}`' for s in sources)}, as they were measured there)"
+    return text
+
+
 def _machine(results: dict) -> str:
     prov = results.get("provenance") or {}
     return f"Machine of the report: {prov.get('cpu') or 'unknown CPU'}, {prov.get('cpu_count') or '?'} cores."
@@ -333,7 +346,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         run["train_command"],
         "```",
         "",
-        f"Hyperparameters: {hp_note}. Training code: git {results['train_commit'] or 'not recorded'}; "
+        f"Hyperparameters: {hp_note}. Training code: git {run.get('train_commit') or results['train_commit'] or 'not recorded'}; "
         f"versions: {', '.join(f'{k} {v}' for k, v in run['versions'].items() if v)}. Periodic evaluation on "
         "development seeds only (900-904); the reported seeds were never seen in training or selection.",
         "",

@@ -1,0 +1,136 @@
+"""Runs carried over from an earlier report: `mobman-train report NEW_RUN... --include OLD_REPORT_DIR`.
+
+Training runs outlive the machine that trained them only through what a report committed: `results.json`
+(each run's config, hyperparameters, versions, budget, model SHA-256, training commit), `curves.csv` (each
+run's learning curve) and `evals/<run>/` (its final evaluation: `results.json` and the `inputs.json` it was
+cached under). `archived_runs(folder, config)` turns those back into the run entries that `train.report`
+builds from a live run folder, so that a family can grow by seeds trained in a later session (the five PPO
+seeds of one machine and the new SAC seeds of another in one table) without retraining what is already
+measured and without a model file that is no longer on disk.
+
+What is carried over is exactly what was measured: an archived run is never re-evaluated. Its cached final
+evaluation must have been made with the evaluation this report makes (the same `EvalConfig` without its
+output settings: episodes, seeds, condition, tolerance; and the same model SHA-256), else the run is refused
+with the difference named: a model that is not on disk cannot be evaluated again. Runs still training when the
+old report was written are not carried over (their curves stop where that report stopped). A run folder given
+on the command line wins over an archived run of the same name.
+
+Every carried run says where it came from (`archived_from`) and which code trained it (`train_commit`, from
+the old report's record).
+
+Imports: the standard library and `train.report` (lazily: `train.report` imports this module's functions only
+inside `build_report`).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+from typing import Any
+
+#: The schema of the report results this module reads (`train.report.build_report` writes it).
+REPORT_SCHEMA = "mobman-rl-report-1"
+
+#: Columns of curves.csv that name the run rather than hold its curve.
+RUN_COLUMNS = ("family", "run", "seed")
+
+#: The `EvalConfig` fields that define what an evaluation measures; an archived evaluation must agree on all of
+#: them (settings of how it runs, e.g. workers or batching, do not change its records and are not compared).
+DEFINING_FIELDS = (
+    "command",
+    "envs",
+    "policies",
+    "dynamics",
+    "episodes",
+    "seed",
+    "model_error",
+    "obs_noise",
+    "env_kwargs",
+    "tolerance",
+    "settle_time",
+)
+
+
+def _read_json(path: Path) -> dict:
+    from train.report import _json
+
+    return _json(path)
+
+
+def archived_curves(folder: Path) -> dict[str, list[dict]]:
+    """Each run's learning-curve rows from `folder/curves.csv` (the columns of its `learning_curve.csv`, as
+    `train.curve.read_curve` reads them: floats), by run name."""
+    path = folder / "curves.csv"
+    if not path.is_file():
+        raise ValueError(f"{folder} holds no curves.csv; --include takes a folder written by mobman-train report")
+    curves: dict[str, list[dict]] = {}
+    with open(path, newline="") as f:
+        for row in csv.DictReader(f):
+            curves.setdefault(row["run"], []).append({k: float(v) for k, v in row.items() if k not in RUN_COLUMNS})
+    return curves
+
+
+def archived_runs(folder: str | Path, config: Any) -> list[dict]:
+    """The finished runs of the report in `folder` as `train.report` run entries (see the module docstring);
+    ValueError naming the run and the difference when one cannot be carried over as measured."""
+    from train.evaluation import eval_command
+    from train.report import _eval_config, _inputs, _slim
+
+    folder = Path(folder)
+    res_path = folder / "results.json"
+    if not res_path.is_file():
+        raise ValueError(f"--include {folder}: no results.json; give a folder written by mobman-train report")
+    old = _read_json(res_path)
+    if old.get("schema") != REPORT_SCHEMA:
+        raise ValueError(
+            f"--include {folder}: results.json has schema {old.get('schema')!r}, expected {REPORT_SCHEMA!r}"
+        )
+    curves = archived_curves(folder)
+    runs = []
+    for entry in old["runs"]:
+        if entry.get("status") != "done":
+            continue
+        name = entry["name"]
+        cached = folder / "evals" / name
+        if not (cached / "inputs.json").is_file() or not (cached / "results.json").is_file():
+            raise ValueError(f"--include {folder}: run {name} has no cached evaluation in {cached}")
+        policy = f"sb3:{entry['path']}/model.zip"
+        cfg = _eval_config(config, entry["config"]["env_id"], (policy,), entry["config"]["dynamics"], cached)
+        wanted = json.loads(json.dumps(_inputs(cfg, {"model_sha256": entry["model_sha256"]})))
+        have = _read_json(cached / "inputs.json")
+        had = have.get("eval_config", {})
+        differ = [k for k in DEFINING_FIELDS if k not in had or wanted["eval_config"].get(k) != had[k]]
+        if have.get("model_sha256") != entry["model_sha256"]:
+            differ.append("model_sha256")
+        if differ:
+            raise ValueError(
+                f"--include {folder}: run {name} was evaluated with other settings ({', '.join(differ)} differ from "
+                "this report's); its model is not here to evaluate again: report with the earlier settings, or give "
+                "the run folder instead"
+            )
+        records = _read_json(cached / "results.json")["episodes"]
+        run = {k: v for k, v in entry.items() if k not in ("final", "command")}
+        run.update(
+            curve=curves.get(name, []),
+            episodes=[_slim(r) for r in records],
+            command=eval_command(cfg),
+            archived_from=str(entry.get("archived_from") or folder),
+            train_commit=entry.get("train_commit") or old.get("train_commit"),
+            _cached_eval=str(cached),
+        )
+        runs.append(run)
+    return runs
+
+
+def copy_cached_eval(run: dict, out: Path) -> None:
+    """Keep the archived run's evaluation in the new report's `out/evals/<name>/` (when it is another folder),
+    so that a report folder always holds the evaluations behind its tables."""
+    src, dest = Path(run.pop("_cached_eval")), out / "evals" / run["name"]
+    if src.resolve() == dest.resolve():
+        return
+    dest.mkdir(parents=True, exist_ok=True)
+    for name in ("inputs.json", "results.json", "results.csv", "summary.md", "config.json"):
+        if (src / name).is_file():
+            shutil.copyfile(src / name, dest / name)
