@@ -290,9 +290,14 @@ def _eval_config(config: ReportConfig, env_id: str, policies: tuple[str, ...], d
     )
 
 
+#: `EvalConfig` fields that say where and how an evaluation runs, not what it measures: a cached evaluation made
+#: with other values is reused (their records are the same).
+NOT_INPUTS = ("out", "workers", "progress", "batch_size")
+
+
 def _inputs(cfg, extra: dict) -> dict:
     d = cfg.to_dict()
-    return {"eval_config": {k: d[k] for k in sorted(d) if k not in ("out", "workers", "progress")}, **extra}
+    return {"eval_config": {k: d[k] for k in sorted(d) if k not in NOT_INPUTS}, **extra}
 
 
 def cached_evaluation(cfg, extra: dict) -> list[dict]:
