@@ -154,6 +154,7 @@ class BatchedController(BatchedPolicy):
         self.num_envs = n
         self.facts = facts
         self._scale = facts.scale
+        self._neg_scale = -self._scale
         self.rngs = [np.random.default_rng(seed) for _ in range(n)]
         self.initialised = np.zeros(n, dtype=bool)
         self._ready = False  # every row initialised
@@ -188,7 +189,7 @@ class BatchedController(BatchedPolicy):
             mask = ~self.initialised if starts is None else starts | ~self.initialised
             self._start(np.flatnonzero(mask), obs)
         # np.minimum(np.maximum(...)) is np.clip at a third of its cost for small arrays
-        u = np.minimum(np.maximum(self._act(obs), -self._scale), self._scale)
+        u = np.minimum(np.maximum(self._act(obs), self._neg_scale), self._scale)
         self.last_u = u
         return (u / self._scale).astype(np.float32)
 

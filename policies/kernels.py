@@ -14,7 +14,11 @@ N = 1 call on row i. Two rules keep that exact:
 
 `damped_pinv_apply_rows` is `policies.nnbc.damped_pinv_apply` for N rows (the law of NNBC, JMPI, CLIK and the
 oracle); `ModelJacobians` evaluates the paper's or the whole-body Jacobian of each row's robot (nominal or true)
-with `mobman_env.vector_kinematics`, which equals `mobman_env.kinematics` bit for bit.
+with `mobman_env.vector_kinematics`, which equals `mobman_env.kinematics` bit for bit (the env's own contract,
+and `tests/test_batched_policies.py` checks it for these Jacobians); a batch of one row calls
+`mobman_env.kinematics` itself, whose 4 x 4 products cost less than the batched ones' bookkeeping at N = 1. The
+model is the robot's, not the law: the law (`damped_pinv_apply_rows` and the controllers' feedback) is the same
+code for every N.
 
 Imports numpy, the standard library and `mobman_env` modules only.
 """
@@ -27,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from mobman_env import kinematics as K
 from mobman_env import vector_kinematics as VK
 
 _THIRD_TURN = 2.0 * math.pi / 3.0
@@ -118,14 +123,14 @@ def damped_pinv_apply_rows(J: np.ndarray, v: np.ndarray, damping: float, sigma_t
         w0, w1, w2, det = _solve3((a00, a01, a02, a11, a12, a22), v[0].tolist(), damping, sigma_threshold)
         if det == 0.0 or not math.isfinite(det):
             return np.linalg.lstsq(J[0], v[0], rcond=None)[0][None]
-        w = np.array([[w0, w1, w2]])
+        w = np.array([[[w0, w1, w2]]])
     else:
         entries = (JJt[:, 0, 0], JJt[:, 0, 1], JJt[:, 0, 2], JJt[:, 1, 1], JJt[:, 1, 2], JJt[:, 2, 2])
         with np.errstate(divide="ignore", invalid="ignore"):
             w0, w1, w2, det = _solve3(entries, (v[:, 0], v[:, 1], v[:, 2]), damping, sigma_threshold)
-        w = np.stack([w0, w1, w2], axis=1)
+        w = np.stack([w0, w1, w2], axis=1)[:, None, :]
         bad = np.flatnonzero((det == 0.0) | ~np.isfinite(det))
-    u = np.matmul(w[:, None, :], J)[:, 0, :]
+    u = np.matmul(w, J)[:, 0, :]
     if n > 1:
         for i in bad.tolist():
             u[i] = np.linalg.lstsq(J[i], v[i], rcond=None)[0]
@@ -189,6 +194,10 @@ class ModelJacobians:
         self._lengths = {k: np.zeros((self._n, nj) if k in ("a", "d") else self._n) for k in _LENGTHS}
 
     def __call__(self, joint_pos: np.ndarray, base_yaw: np.ndarray, full: bool, rows: Any = None) -> np.ndarray:
+        if joint_pos.shape[0] == 1:  # one row: the single env's kinematics, equal bit for bit and 2-3x faster
+            i = 0 if rows is None else int(np.asarray(rows).reshape(-1)[0])
+            jacobian = K.whole_body_jacobian if full else K.paper_jacobian
+            return jacobian(self.params[i], joint_pos[0], float(base_yaw[0, 0]))[None]
         th = joint_pos[:, : self._nj]
         if self._offset is not None:
             th = th + self._offset

@@ -277,8 +277,8 @@ class NNBCLaw(BatchedController):
         u1 = self.last_u  # u_{k-1}: the command issued (and clipped) at the previous step, (N, n + 2)
         n_probe = self._n_probe
         if lo > n_probe:  # every row runs the ZNN law: whole arrays, no masks
-            self._znn_update(slice(None), y, u1)
-            return self._command(slice(None), obs)
+            self._znn_update(None, y, u1)
+            return self._command(None, obs)
         u = np.zeros_like(u1)
         probe = k < n_probe
         if probe.any():
@@ -297,16 +297,20 @@ class NNBCLaw(BatchedController):
             u[rows] = self._command(rows, obs)
         return u
 
-    def _command(self, rows: Any, obs: dict) -> np.ndarray:
-        """Eq. (11) for the rows `rows` (an index array or a slice)."""
+    def _command(self, rows: np.ndarray | None, obs: dict) -> np.ndarray:
+        """Eq. (11) for the rows `rows` (an index array; None: every row)."""
         c = self.config
-        v = obs["target_vel"][rows] + c.gamma * (obs["target_pos"][rows] - obs["ee_pos"][rows])
+        tv, tp, ee, J = obs["target_vel"], obs["target_pos"], obs["ee_pos"], self.J_hat
+        if rows is not None:
+            tv, tp, ee, J = tv[rows], tp[rows], ee[rows], J[rows]
+        v = tv + c.gamma * (tp - ee)
         if not self._full:
-            v[:, :2] -= obs["arm_base_vel"][rows]
-        return damped_pinv_apply_rows(self.J_hat[rows], v, c.damping, c.sigma_threshold)
+            v[:, :2] -= obs["arm_base_vel"] if rows is None else obs["arm_base_vel"][rows]
+        return damped_pinv_apply_rows(J, v, c.damping, c.sigma_threshold)
 
-    def _znn_update(self, rows: Any, y: np.ndarray, u1: np.ndarray) -> None:
-        """One explicit-Euler step of eq. (15) with backward differences (module docstring), for `rows`.
+    def _znn_update(self, rows: np.ndarray | None, y: np.ndarray, u1: np.ndarray) -> None:
+        """One explicit-Euler step of eq. (15) with backward differences (module docstring), for the rows `rows`
+        (an index array; None: every row, in place).
 
         Computed in an algebraically identical, cheaper form. With eps_{k-1} = y_{k-1} - J_{k-1} u_{k-2} (the
         stored a-posteriori residual) the bracket
@@ -315,13 +319,19 @@ class NNBCLaw(BatchedController):
         residual is eps_k = y_k - J_k u_{k-1} = a_k - rho b with rho = u^T u / (u^T u + eps_u): one 3 x 8
         product per step instead of three.
         """
-        J, u = self.J_hat[rows], u1[rows]
-        a = y[rows] - _bmv(J, u)
-        b = a - self._decay * self.residual[rows]
+        J, u, eps = self.J_hat, u1, self.residual
+        if rows is not None:
+            J, u, eps, y = J[rows], u[rows], eps[rows], y[rows]
+        a = y - _bmv(J, u)
+        b = a - self._decay * eps
         uu = np.matmul(u[:, None, :], u[:, :, None])[:, 0, 0]
         inv = 1.0 / (uu + self.config.eps_u)
-        self.J_hat[rows] = J + b[:, :, None] * (u * inv[:, None])[:, None, :]
-        self.residual[rows] = a - (uu * inv)[:, None] * b
+        J += b[:, :, None] * (u * inv[:, None])[:, None, :]  # in place for every row; a copy for a subset
+        eps = a - (uu * inv)[:, None] * b
+        if rows is None:
+            self.residual = eps
+        else:
+            self.J_hat[rows], self.residual[rows] = J, eps
 
     def _probe_step(self, rows: np.ndarray, k: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Steps 0..15 of the rows `rows` (at their steps k): +a_i at step 2i, -a_i at step 2i+1; the responses

@@ -65,8 +65,11 @@ class RandomLaw(BatchedController):
         pass
 
     def _act(self, obs: dict) -> np.ndarray:
-        a, m = self.config.amplitude, len(self._scale)
-        return np.stack([rng.uniform(-a, a, m) for rng in self.rngs]) * self._scale
+        a = self.config.amplitude
+        u = np.empty((self.num_envs, len(self._scale)))
+        for i, rng in enumerate(self.rngs):
+            u[i] = rng.uniform(-a, a, len(self._scale))
+        return u * self._scale
 
 
 class Zero(LawView):
