@@ -2,7 +2,7 @@
 practitioner's closed loop on the nominal model) and the oracle (the same closed loop on the true model).
 
 Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:n]`, `base_yaw`), and
-invert it with the same damped pseudo-inverse as NNBC (`policies.nnbc.damped_pinv_apply`; the damping is zero
+invert it with the same damped pseudo-inverse as NNBC (`policies.kernels.damped_pinv_apply_rows`; the damping is zero
 away from singularities, so these are the plain pseudo-inverse methods on this task).
 
 * `jmpi` - the conventional Jacobian pseudo-inverse method the paper compares against:
@@ -18,9 +18,10 @@ away from singularities, so these are the plain pseudo-inverse methods on this t
   runs: the oracle's eq. (10) with the *nominal* model's Jacobian, u = J_nom^+ (r_d_dot - [p_c_dot; 0] +
   gamma (r_d - r_a)); `clik-full`: u = J_wb,nom^+ (r_d_dot + gamma (r_d - r_a)). The feedback corrects the
   model error that makes `jmpi` drift, so this, not `jmpi`, is the baseline a model-free method must beat.
-  All three are one law and one implementation (`_ModelPolicy`): u = J^+ (v) with
-  v = r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a); JMPI is its gamma = 0 case on the nominal model, CLIK the
-  gamma = 20 case on the nominal model, the oracle the gamma = 20 case on the true model.
+  All three are one law and one implementation (`ModelLaw`, batched over N robots; the single-env classes are
+  its N = 1 case): u = J^+ (v) with v = r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a); JMPI is its gamma = 0 case
+  on the nominal model, CLIK the gamma = 20 case on the nominal model, the oracle the gamma = 20 case on the
+  true model (row i's own robot in a batch).
 
 Units: gamma in 1/s; v in m/s; u in rad/s (the base class clips u to the speed limits); damping and
 sigma_threshold in m/rad. Default gamma = 20 1/s, the benchmark's one task-space gain for every closed-loop law

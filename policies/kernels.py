@@ -9,8 +9,11 @@ N = 1 call on row i. Two rules keep that exact:
 * The 3 x 3 algebra after J J^T (the smallest eigenvalue, the damping, the cofactor solve) is about 60 scalar
   operations: written out once (`_solve3`), on Python floats when N = 1 (numpy's per-call overhead, ~0.5 us,
   would otherwise dominate the single-env `predict`) and on (N,) arrays when N > 1. +, -, *, / and sqrt round
-  alike in both; arccos and cos are numpy's in both (`math.acos` differs from `np.arccos` in the last bit on
-  about 9% of arguments on our machines; `np.cos` equals `math.cos` there, but the kernel does not rely on it).
+  alike in both. arccos does not: `np.arccos` differs from `math.acos` in the last bit on about 9% of arguments
+  on our machines, which changes sigma_min's last bit. That bit matters only where the damping acts (sigma_min
+  below the threshold), so those rows (with a margin) take sigma_min from the float path, one row at a time:
+  rows of a batch, the single-env policy and release 0.1's single-env code then agree bit for bit (checked:
+  `nnbc` over whole Circle and Line episodes, damped steps included).
 
 `damped_pinv_apply_rows` is `policies.nnbc.damped_pinv_apply` for N rows (the law of NNBC, JMPI, CLIK and the
 oracle); `ModelJacobians` evaluates the paper's or the whole-body Jacobian of each row's robot (nominal or true)
@@ -38,12 +41,11 @@ _THIRD_TURN = 2.0 * math.pi / 3.0
 
 
 def _acos(x: Any) -> Any:
-    """numpy's arccos for a float or an array (a float back for a float)."""
-    return float(np.arccos(x)) if isinstance(x, float) else np.arccos(x)
+    return math.acos(x) if isinstance(x, float) else np.arccos(x)
 
 
 def _cos(x: Any) -> Any:
-    return float(np.cos(x)) if isinstance(x, float) else np.cos(x)
+    return math.cos(x) if isinstance(x, float) else np.cos(x)
 
 
 def _sqrt(x: Any) -> Any:
@@ -84,6 +86,10 @@ def _solve3(A: Sequence[Any], v: Sequence[Any], damping: float, sigma_threshold:
     if isinstance(s2, float):
         lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
     else:
+        # rows that may be damped take sigma_min from the float path: numpy's arccos and math's differ in the
+        # last bit, and only a damped row's command depends on that bit (the margin covers the boundary)
+        for i in np.flatnonzero(s2 < t2 * (1.0 + 1e-6) + 1e-12).tolist():
+            s2[i] = sigma_min_3_entries(*(float(x[i]) for x in (a00, a01, a02, a11, a12, a22)))
         lam2 = np.where(s2 < t2, damping * damping * (1.0 - s2 / t2), 0.0)
     a00 = a00 + lam2
     a11 = a11 + lam2
@@ -135,6 +141,35 @@ def damped_pinv_apply_rows(J: np.ndarray, v: np.ndarray, damping: float, sigma_t
         for i in bad.tolist():
             u[i] = np.linalg.lstsq(J[i], v[i], rcond=None)[0]
     return u
+
+
+def sigma_min_3(A: list) -> float:
+    """Smallest eigenvalue of a symmetric 3 x 3 matrix given as nested lists (closed form, Smith 1961).
+
+    Used on A = J J^T, so it returns sigma_min(J)^2. Pure-Python floats: ~3x faster than `eigvalsh` here
+    (`sigma_min_3_entries`, which takes (N,) arrays too).
+    """
+    return sigma_min_3_entries(A[0][0], A[0][1], A[0][2], A[1][1], A[1][2], A[2][2])
+
+
+def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
+    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in `policies.nnbc`'s module docstring.
+
+    The one-row case of `damped_pinv_apply_rows` (what the laws run): J J^T + lambda^2 I is
+    inverted in closed form (cofactors, pure-Python floats for one row): exact for 3 x 3 and several times faster
+    than `np.linalg.solve` for such a small system.
+    """
+    J1, v1 = np.asarray(J, dtype=float)[None], np.asarray(v, dtype=float)[None]
+    return damped_pinv_apply_rows(J1, v1, damping, sigma_threshold)[0]
+
+
+def damped_pinv(J: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
+    """The damped pseudo-inverse matrix itself (n x 3), same damping rule (for diagnostics and tests)."""
+    JJt = J @ J.T
+    s2 = sigma_min_3(JJt.tolist())
+    t2 = sigma_threshold * sigma_threshold
+    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
+    return J.T @ np.linalg.inv(JJt + lam2 * np.eye(3))
 
 
 def obs_rows(observation: dict, keys: Sequence[str]) -> dict[str, np.ndarray]:

@@ -37,7 +37,7 @@ y_0 = 0, u_{-1} = 0) stays zero up to the u^+ regularisation, whatever mu is: J_
 measured response along the command that caused it exactly, and mu only shapes how an initial or injected
 residual decays.
 The code evaluates the bracket in the algebraically identical form a_k - (1 - mu dt) eps_{k-1}, with the a-priori
-residual a_k = y_k - J_{k-1} u_{k-1} (one matrix-vector product per step; `NNBC._znn_update`).
+residual a_k = y_k - J_{k-1} u_{k-1} (one matrix-vector product per step; `NNBCLaw._znn_update`).
 
 The pseudo-inverse of a vector is regularised, u^+ = u^T / (u^T u + eps_u) with eps_u = 1e-6 (rad/s)^2 by
 default: for |u| >> 1 mrad/s it is the exact u^T / |u|^2, and as u -> 0 the update fades to zero instead of
@@ -104,40 +104,14 @@ import numpy as np
 
 from policies.base import EnvFacts, current_model
 from policies.batched import BatchedController, LawView
-from policies.kernels import ModelJacobians, damped_pinv_apply_rows, sigma_min_3_entries
+from policies.kernels import ModelJacobians, damped_pinv_apply_rows
+from policies.kernels import damped_pinv as damped_pinv  # re-exported: the pseudo-inverse of the module docstring
+from policies.kernels import damped_pinv_apply as damped_pinv_apply
+from policies.kernels import sigma_min_3 as sigma_min_3
 
 #: Observation keys NNBC reads.
 NNBC_OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_vel", "target_pos", "target_vel")
 J0_MODES = ("probe", "nominal")
-
-
-def sigma_min_3(A: list) -> float:
-    """Smallest eigenvalue of a symmetric 3 x 3 matrix given as nested lists (closed form, Smith 1961).
-
-    Used on A = J J^T, so it returns sigma_min(J)^2. Pure-Python floats: ~3x faster than `eigvalsh` here
-    (`policies.kernels.sigma_min_3_entries`, which takes (N,) arrays too).
-    """
-    return sigma_min_3_entries(A[0][0], A[0][1], A[0][2], A[1][1], A[1][2], A[2][2])
-
-
-def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
-    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in the module docstring.
-
-    The one-row case of `policies.kernels.damped_pinv_apply_rows` (what the laws run): J J^T + lambda^2 I is
-    inverted in closed form (cofactors, pure-Python floats for one row): exact for 3 x 3 and several times faster
-    than `np.linalg.solve` for such a small system.
-    """
-    J1, v1 = np.asarray(J, dtype=float)[None], np.asarray(v, dtype=float)[None]
-    return damped_pinv_apply_rows(J1, v1, damping, sigma_threshold)[0]
-
-
-def damped_pinv(J: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
-    """The damped pseudo-inverse matrix itself (n x 3), same damping rule (for diagnostics and tests)."""
-    JJt = J @ J.T
-    s2 = sigma_min_3(JJt.tolist())
-    t2 = sigma_threshold * sigma_threshold
-    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
-    return J.T @ np.linalg.inv(JJt + lam2 * np.eye(3))
 
 
 @dataclass(frozen=True)

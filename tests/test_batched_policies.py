@@ -175,3 +175,26 @@ def test_damped_pinv_rows_equal_one_row_at_a_time():
     u = damped_pinv_apply_rows(J, v, 0.02, 0.02)
     for i in range(64):
         np.testing.assert_array_equal(u[i], damped_pinv_apply_rows(J[i : i + 1], v[i : i + 1], 0.02, 0.02)[0])
+
+
+def test_nnbc_rows_stay_exact_where_the_damping_acts():
+    """Over most of a Line-v0 episode J_hat degenerates and the damping of its pseudo-inverse acts (sigma_min below
+    0.02 m/rad): there the command depends on the last bit of sigma_min, which the batched rows take from the
+    same float path as the single policy, so the chaotic law stays bit-identical (np.arccos alone would not)."""
+    n, seed = 3, 10_000
+    venv = _venv("WheeledPuma-Line-v0", n)
+    batched = policies.make("nnbc", venv)
+    singles = [policies.make("nnbc", _RobotView(venv, i)) for i in range(n)]
+    obs, info = venv.reset(seed=seed)
+    batched.reset(obs, info, seed=seed)
+    for i, pol in enumerate(singles):
+        pol.reset({k: v[i] for k, v in obs.items()}, None, seed=policy_seed(seed + i))
+    damped = 0
+    for _ in range(1200):
+        actions, _ = batched.predict(obs)
+        for i, pol in enumerate(singles):
+            np.testing.assert_array_equal(actions[i], pol.predict({k: v[i] for k, v in obs.items()})[0])
+        damped += int((np.linalg.svd(batched.J_hat, compute_uv=False)[:, -1] < 0.02).sum())
+        obs, *_ = venv.step(actions)
+    assert damped > 50  # the property was exercised
+    venv.close()
