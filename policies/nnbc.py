@@ -296,12 +296,13 @@ class NNBCLaw(BatchedController):
         J, u, eps = self.J_hat, u1, self.residual
         if rows is not None:
             J, u, eps, y = J[rows], u[rows], eps[rows], y[rows]
-        a = y - _bmv(J, u)
+        u_col, u_row = u[:, :, None], u[:, None, :]
+        a = y - np.matmul(J, u_col)[:, :, 0]
         b = a - self._decay * eps
-        uu = np.matmul(u[:, None, :], u[:, :, None])[:, 0, 0]
+        uu = np.matmul(u_row, u_col)  # (N, 1, 1)
         inv = 1.0 / (uu + self.config.eps_u)
-        J += b[:, :, None] * (u * inv[:, None])[:, None, :]  # in place for every row; a copy for a subset
-        eps = a - (uu * inv)[:, None] * b
+        J += b[:, :, None] * (u_row * inv)  # in place for every row; a copy for a subset
+        eps = a - (uu * inv)[:, 0] * b
         if rows is None:
             self.residual = eps
         else:
