@@ -153,19 +153,17 @@ def arm_point_and_jacobian(
     return p, J
 
 
-def ee_and_jacobian(
+def _parts(
     lengths: dict[str, np.ndarray],
     ca: np.ndarray,
     sa: np.ndarray,
     th: np.ndarray,
     modified: bool,
-    pose: np.ndarray,
     cos_yaw: np.ndarray,
     sin_yaw: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """`kinematics.ee_and_jacobian` and `arm_base_xy` for N robots: r_a (N, 3), the whole-body Jacobian
-    (N, 3, n + 2), d p_c_dot / d u (N, 2, n + 2) and p_c (N, 2). `lengths`: the per-robot arrays a (N, n),
-    d (N, n), tool, wheel_radius, half_track, mount_offset, shoulder_height (N,); th (N, n) the DH angles."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """`kinematics._paper_parts` for N robots: g = R(phi) f (N, 3), the paper's J (N, 3, n + 2) and
+    d p_c_dot / d u (N, 2, n + 2)."""
     n, nj = th.shape
     f, J_arm = arm_point_and_jacobian(lengths["a"], lengths["d"], ca, sa, lengths["tool"], th, modified)
     c, s = cos_yaw, sin_yaw
@@ -185,7 +183,44 @@ def ee_and_jacobian(
     J[:, 2, nj:] = 0.0 * dphi
     J_pc = np.zeros((n, 2, nj + 2))
     J_pc[:, :, nj:] = dpc
+    return g, J, J_pc
+
+
+def jacobian(
+    lengths: dict[str, np.ndarray],
+    ca: np.ndarray,
+    sa: np.ndarray,
+    th: np.ndarray,
+    modified: bool,
+    cos_yaw: np.ndarray,
+    sin_yaw: np.ndarray,
+    full: bool,
+) -> np.ndarray:
+    """`kinematics.paper_jacobian` (full=False) or `kinematics.whole_body_jacobian` (full=True) for N robots,
+    (N, 3, n + 2), bit for bit. `lengths` as for `ee_and_jacobian` (shoulder_height is not read); th (N, n) the DH
+    angles; cos_yaw, sin_yaw (N,) of the heading. The model-based controllers' batched kernels use it."""
+    _, J, J_pc = _parts(lengths, ca, sa, th, modified, cos_yaw, sin_yaw)
+    if full:
+        J[:, :2] += J_pc
+    return J
+
+
+def ee_and_jacobian(
+    lengths: dict[str, np.ndarray],
+    ca: np.ndarray,
+    sa: np.ndarray,
+    th: np.ndarray,
+    modified: bool,
+    pose: np.ndarray,
+    cos_yaw: np.ndarray,
+    sin_yaw: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """`kinematics.ee_and_jacobian` and `arm_base_xy` for N robots: r_a (N, 3), the whole-body Jacobian
+    (N, 3, n + 2), d p_c_dot / d u (N, 2, n + 2) and p_c (N, 2). `lengths`: the per-robot arrays a (N, n),
+    d (N, n), tool, wheel_radius, half_track, mount_offset, shoulder_height (N,); th (N, n) the DH angles."""
+    g, J, J_pc = _parts(lengths, ca, sa, th, modified, cos_yaw, sin_yaw)
     J[:, :2] += J_pc
+    c, s, dm = cos_yaw, sin_yaw, lengths["mount_offset"]
     pc = np.stack([pose[:, 0] + dm * c, pose[:, 1] + dm * s], axis=1)
     ee = np.stack([pc[:, 0] + g[:, 0], pc[:, 1] + g[:, 1], lengths["shoulder_height"] + g[:, 2]], axis=1)
     return ee, J, J_pc, pc

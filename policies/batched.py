@@ -1,28 +1,43 @@
-"""`BatchedPolicy`: one policy object for the N robots of a vector env, speaking SB3's batched `predict`.
+"""`policies.make(spec, vector_env)`: one policy object for the N robots of a vector env, speaking SB3's batched
+`predict` (one row per robot).
 
 ```python
 venv = gym.make_vec("WheeledPuma-Circle-v0", num_envs=64, vectorization_mode="vector_entry_point",
                     dynamics="kinematic")
-policy = policies.make("clik", venv)             # a BatchedPolicy
+policy = policies.make("clik", venv)             # a BatchedPolicy (here a BatchedController: a vectorised law)
 obs, info = venv.reset(seed=10_000)
 policy.reset(obs, info, seed=10_000)             # row i: policy_seed(10_000 + i), as a single env's policy
 actions, _ = policy.predict(obs)                 # (64, 8) float32
 actions, _ = policy.predict(obs, episode_start=mask)   # re-initialise the rows of mask only
 ```
 
-Rows. Row i is the single-env policy of the same spec, built for robot i (`_RobotView`: the vector env's dt,
-action scale, single observation space and nominal robot; the oracle's true robot is robot i's, read at each of
-its episode starts) and fed row i of each batched observation (float32 rows, as a single env hands them out).
-So robot i's actions are those of a single policy reset with `policy_seed(S + i)` on the same observations, bit
-for bit, for every law: the law is written once, in its single-env class, and this class loops it over the rows
-(STYLE 14's "the batched one loops the single kernel"). `zero` needs no loop and is one array. The other laws
-loop in Python (their cost per robot-step is that of one single `predict`: `mobman-eval speed` measures it); a
-vectorised kernel for a law can replace its loop here without changing this interface.
+Two kinds behind one interface (`BatchedPolicy`):
+
+* Vectorised laws (`BatchedController`): `zero`, `random`, `jmpi`, `jmpi-full`, `clik`, `clik-full`, `oracle`,
+  `oracle-full`, `nnbc`, `nnbc-full`. The law's state is (N, ...) arrays and one `predict` advances every row
+  with whole-array numpy operations (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal
+  or true robots' Jacobians batched by `mobman_env.vector_kinematics`). The single-env class of the spec
+  (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`: the same law with N = 1 (STYLE 14: one implementation per
+  law). So robot i's actions are those of a single policy reset with `policy_seed(S + i)` on the same
+  observations; bit for bit on our machines (products are numpy stacked `matmul`s, the same BLAS kernel per row
+  whatever N; the 3 x 3 algebra is the same expressions on floats and on (N,) arrays), which
+  `tests/test_batched_policies.py` checks to 1e-9 over 200 steps and finds exact. The oracle's true robot is
+  robot i's (`venv.true_params(i)`), read at each of the row's episode starts; nnbc's rows probe, finish the
+  probe and run the ZNN law each at its own step count. Cost per robot-step at N = 64 and 1,024: a few
+  microseconds, against 25-85 us for one single `predict` (`mobman-eval speed`; `random` keeps one draw per
+  row's Generator and step, so its cost stays that of N small draws).
+* Every other spec (`qp`, `qp-oracle`, `nnbc-plus`, `broyden`, `rls`, `sb3:`, `module:attr`): this class loops
+  N single-env policies, row i built for robot i (`_RobotView`: the vector env's dt, action scale, single
+  observation space and nominal robot; the true robot is robot i's, read at each of its episode starts) and
+  fed row i of each batched observation (float32 rows, as a single env hands them out): bit for bit the single
+  policy, at the cost of one single `predict` per robot-step. A vectorised kernel for a law replaces its loop
+  without changing this interface (its single-env class gets a `batched` constructor, `policies.registry`).
 
 `reset(obs, info=None, *, seed=None)`: `seed` is the vector env's reset seed S (row i gets `policy_seed(S + i)`,
 the documented rule of `policies.base.policy_seed`), or a list of N policy seeds (None entries: no reseed).
 `episode_start` (N,) re-initialises the rows where it is True from their observation, as a single policy's
-`episode_start` does (its generator continues). `jacobian_estimates()` returns each row's `jacobian_estimate`.
+`episode_start` does (its generator continues). `rows[i]` offers row i's `jacobian_kind` and `jacobian_estimate`
+(the single policies of the loop; views of a vectorised law); `jacobian_estimates()` returns each row's estimate.
 """
 
 from __future__ import annotations
@@ -32,7 +47,8 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import policy_seed
+from policies.base import ControllerPolicy, EnvFacts, first_flag, policy_seed, unbatch
+from policies.kernels import obs_rows
 
 
 def is_vector_env(env: Any) -> bool:
@@ -69,51 +85,31 @@ class _RobotView:
 
 
 class BatchedPolicy:
-    """N single-env policies as one batched policy (see the module docstring)."""
+    """One policy for the N robots of a vector env (see the module docstring). This class is the interface and
+    the row loop of the laws written only for one env; `BatchedController` runs a vectorised law."""
 
     def __init__(self, spec: str, rows: Sequence[Any]):
         self.spec = spec
         self.rows = list(rows)
         self.num_envs = len(self.rows)
-        self._zero = spec.split(":", 1)[0] == "zero"
-        if self._zero:
-            self._zero_action = np.zeros((self.num_envs, len(self.rows[0]._scale)), dtype=np.float32)
 
     @classmethod
     def for_vector_env(cls, spec: str, venv: Any, build: Callable[[str, Any], Any]) -> BatchedPolicy:
         """Build row i with `build(spec, view of robot i)` (`policies.make` passes itself)."""
-        if not is_vector_env(venv):
-            raise TypeError(f"expected a gymnasium vector env (num_envs, single_observation_space), got {venv!r}")
+        check_vector_env(venv)
         return cls(spec, [build(spec, _RobotView(venv, i)) for i in range(venv.num_envs)])
 
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
-        n = self.num_envs
-        if seed is None:
-            seeds: list[int | None] = [None] * n
-        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            seeds = [policy_seed(int(seed) + i) for i in range(n)]
-        else:
-            seeds = list(seed)  # type: ignore[arg-type]
-            if len(seeds) != n:
-                raise ValueError(
-                    f"reset(seed=...) needs the vector reset seed S or a list of {n} seeds, got {len(seeds)}"
-                )
+        seeds = self._seeds(seed)
         for i, row in enumerate(self.rows):
             row.reset(_row(obs, i), None, seed=seeds[i])
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
-        n = self.num_envs
-        first = np.asarray(next(iter(observation.values())))
-        if first.ndim != 2 or first.shape[0] != n:
-            raise ValueError(
-                f"a batched policy of {n} rows needs observations with a leading axis of {n}, got shape {first.shape}"
-            )
-        starts = np.zeros(n, dtype=bool) if episode_start is None else np.asarray(episode_start, dtype=bool).reshape(n)
-        if self._zero:
-            for j in np.flatnonzero(starts).tolist():
-                self.rows[j]._start(None)
-            return self._zero_action.copy(), state
-        out = np.empty((n, len(self.rows[0]._scale)), dtype=np.float32)
+        self._check(observation)
+        starts = self._starts(episode_start)
+        if starts is None:
+            starts = np.zeros(self.num_envs, dtype=bool)
+        out = np.empty((self.num_envs, len(self.rows[0]._scale)), dtype=np.float32)
         for i, row in enumerate(self.rows):
             out[i] = row.predict(_row(observation, i), None, starts[i : i + 1], deterministic)[0]
         return out, state
@@ -121,6 +117,203 @@ class BatchedPolicy:
     def jacobian_estimates(self) -> list[np.ndarray | None]:
         """Each row's current `jacobian_estimate` (None where a row has none)."""
         return [getattr(row, "jacobian_estimate", None) for row in self.rows]
+
+    # --- shared by the loop and the vectorised laws -------------------------------------------------------
+    def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
+        """The N policy seeds of `reset(seed=...)`: S -> policy_seed(S + i); a list as given; None: no reseed."""
+        n = self.num_envs
+        if seed is None:
+            return [None] * n
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [policy_seed(int(seed) + i) for i in range(n)]
+        seeds = list(seed)  # type: ignore[arg-type]
+        if len(seeds) != n:
+            raise ValueError(f"reset(seed=...) needs the vector reset seed S or a list of {n} seeds, got {len(seeds)}")
+        return seeds
+
+    def _check(self, observation: dict) -> None:
+        n = self.num_envs
+        first = np.asarray(next(iter(observation.values())))
+        if first.ndim != 2 or first.shape[0] != n:
+            raise ValueError(
+                f"a batched policy of {n} rows needs observations with a leading axis of {n}, got shape {first.shape}"
+            )
+
+    def _starts(self, episode_start: Any) -> np.ndarray | None:
+        """episode_start as an (N,) bool array, or None when no row starts."""
+        if episode_start is None:
+            return None
+        starts = np.asarray(episode_start, dtype=bool).reshape(self.num_envs)
+        return starts if starts.any() else None
+
+
+class BatchedController(BatchedPolicy):
+    """Base of the vectorised laws: N rows whose state is (N, ...) arrays, advanced by one call per step.
+
+    A subclass implements `_reset_rows(rows, obs)` (re-initialise the rows `rows`, an index array, from their
+    observations: `obs` holds every row's, (N, k) float64, of the keys in `uses_keys`) and `_act(obs)` (the
+    actuator speeds u of every row, (N, n + 2), rad/s). This class clips u to the speed limits, keeps it as
+    `last_u` (the commands issued) and returns u / action_scale as float32, as `ControllerPolicy` does for one
+    env; its single-env class is a `LawView` of an instance with N = 1. `rngs[i]` is row i's Generator
+    (`reset(seed=S)` seeds it with policy_seed(S + i)); rows never reset start on their first `predict`.
+    """
+
+    name = "controller"
+    #: observation keys `_reset_rows`/`_act` read
+    uses_keys: tuple[str, ...] = ()
+    #: see `ControllerPolicy.jacobian_kind`
+    jacobian_kind: str | None = None
+
+    def __init__(self, facts: Any, n: int, seed: int | None = None):
+        self.spec = self.name
+        self.num_envs = n
+        self.facts = facts
+        self._scale = facts.scale
+        self._neg_scale = -self._scale
+        self.rngs = [np.random.default_rng(seed) for _ in range(n)]
+        self.initialised = np.zeros(n, dtype=bool)
+        self._ready = False  # every row initialised
+        self.last_u = np.zeros((n, len(self._scale)))
+
+    @property
+    def rows(self) -> list[Any]:  # type: ignore[override]
+        """Per-row views (`jacobian_kind`, `jacobian_estimate`), as the loop's rows offer them."""
+        return [_Row(self, i) for i in range(self.num_envs)]
+
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
+        for i, s in enumerate(self._seeds(seed)):
+            if s is not None:
+                self.rngs[i] = np.random.default_rng(s)
+        self._start(np.arange(self.num_envs), obs_rows(obs, self.uses_keys))
+
+    def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        self._check(observation)
+        return self.step(obs_rows(observation, self.uses_keys), self._starts(episode_start)), state
+
+    def jacobian_estimates(self) -> list[np.ndarray | None]:
+        return [self.jacobian_estimate_row(i) for i in range(self.num_envs)]
+
+    def jacobian_estimate_row(self, i: int) -> np.ndarray | None:
+        """Row i's `jacobian_estimate` (see `ControllerPolicy.jacobian_estimate`); None by default."""
+        return None
+
+    def step(self, obs: dict[str, np.ndarray], starts: np.ndarray | None) -> np.ndarray:
+        """One step of every row: (re)start the rows of `starts` (None: none) and those never started, then act.
+        `obs`: the keys of `uses_keys` as (N, k) float64. Returns the actions (N, n + 2), float32."""
+        if starts is not None or not self._ready:
+            mask = ~self.initialised if starts is None else starts | ~self.initialised
+            self._start(np.flatnonzero(mask), obs)
+        # np.minimum(np.maximum(...)) is np.clip at a third of its cost for small arrays
+        u = np.minimum(np.maximum(self._act(obs), self._neg_scale), self._scale)
+        self.last_u = u
+        return (u / self._scale).astype(np.float32)
+
+    def _start(self, rows: np.ndarray, obs: dict[str, np.ndarray]) -> None:
+        self.last_u[rows] = 0.0
+        self._reset_rows(rows, obs)
+        self.initialised[rows] = True
+        self._ready = bool(self.initialised.all())
+
+    # --- to implement ------------------------------------------------------------------------------------
+    def _reset_rows(self, rows: np.ndarray, obs: dict[str, np.ndarray]) -> None:
+        raise NotImplementedError
+
+    def _act(self, obs: dict[str, np.ndarray]) -> np.ndarray:
+        raise NotImplementedError
+
+
+class _Row:
+    """Row i of a `BatchedController`, as the loop's rows are read (eval's Jacobian recorder)."""
+
+    def __init__(self, law: BatchedController, i: int):
+        self._law, self._i = law, i
+        self.name = law.name
+        self.jacobian_kind = law.jacobian_kind
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        return self._law.jacobian_estimate_row(self._i)
+
+
+_ROW0 = np.zeros(1, dtype=np.intp)
+_START = np.ones(1, dtype=bool)
+
+
+class LawView(ControllerPolicy):
+    """The single-env controller of a vectorised law: its N = 1 case (STYLE 14).
+
+    `self.law` is a `BatchedController` with one row; `predict` hands it the observation as a batch of one and
+    returns its row (unbatched or batched of one, as given), `reset` and `episode_start` restart it. `last_u`,
+    `rng` and `jacobian_estimate` are the row's. A subclass sets `self.law` before calling `LawView.__init__`.
+    """
+
+    law: BatchedController
+
+    def __init__(self, facts: EnvFacts, seed: int | None = None):
+        self.facts = facts
+        self._scale = facts.scale
+        self._seed = seed
+        self.name = self.law.name
+        self.jacobian_kind = self.law.jacobian_kind
+        self.uses_keys = self.law.uses_keys
+
+    @property
+    def rng(self) -> np.random.Generator:
+        return self.law.rngs[0]
+
+    @rng.setter
+    def rng(self, value: np.random.Generator) -> None:
+        self.law.rngs[0] = value
+
+    @property
+    def last_u(self) -> np.ndarray:
+        return self.law.last_u[0]
+
+    @last_u.setter
+    def last_u(self, value: np.ndarray) -> None:
+        self.law.last_u[0] = value
+
+    @property
+    def _initialised(self) -> bool:
+        return bool(self.law.initialised[0])
+
+    @_initialised.setter
+    def _initialised(self, value: bool) -> None:
+        self.law.initialised[0] = value
+
+    @property
+    def jacobian_estimate(self) -> np.ndarray | None:
+        return self.law.jacobian_estimate_row(0)
+
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
+        if seed is not None:
+            self.law.rngs[0] = np.random.default_rng(seed)
+        self.law._start(_ROW0, _single_rows(obs, self.law.uses_keys)[0])
+
+    def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        obs, batched = _single_rows(observation, self.law.uses_keys)
+        action = self.law.step(obs, _START if first_flag(episode_start) else None)
+        return (action if batched else action[0]), state
+
+    def _start(self, single: dict) -> None:
+        self.law._start(_ROW0, _single_rows(single, self.law.uses_keys)[0])
+
+
+def _single_rows(observation: dict, keys: tuple[str, ...]) -> tuple[dict[str, np.ndarray], bool]:
+    """A single env's observation (unbatched, or batched with one row) as (1, k) float64 arrays of `keys`, and
+    whether it came batched; a longer batch raises as `policies.base.unbatch` does."""
+    if not isinstance(observation, dict):
+        raise ValueError(f"observation must be a dict (the env's Dict observation), got {type(observation).__name__}")
+    first = np.asarray(observation.get("ee_pos", next(iter(observation.values()))))
+    batched = first.ndim == 2
+    if batched and first.shape[0] != 1:
+        unbatch(observation, keys)  # raises, naming the fix
+    return obs_rows(observation, keys), batched
+
+
+def check_vector_env(venv: Any) -> None:
+    if not is_vector_env(venv):
+        raise TypeError(f"expected a gymnasium vector env (num_envs, single_observation_space), got {venv!r}")
 
 
 def _row(observation: dict, i: int) -> dict:

@@ -2,7 +2,7 @@
 practitioner's closed loop on the nominal model) and the oracle (the same closed loop on the true model).
 
 Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:n]`, `base_yaw`), and
-invert it with the same damped pseudo-inverse as NNBC (`policies.nnbc.damped_pinv_apply`; the damping is zero
+invert it with the same damped pseudo-inverse as NNBC (`policies.kernels.damped_pinv_apply_rows`; the damping is zero
 away from singularities, so these are the plain pseudo-inverse methods on this task).
 
 * `jmpi` - the conventional Jacobian pseudo-inverse method the paper compares against:
@@ -18,9 +18,10 @@ away from singularities, so these are the plain pseudo-inverse methods on this t
   runs: the oracle's eq. (10) with the *nominal* model's Jacobian, u = J_nom^+ (r_d_dot - [p_c_dot; 0] +
   gamma (r_d - r_a)); `clik-full`: u = J_wb,nom^+ (r_d_dot + gamma (r_d - r_a)). The feedback corrects the
   model error that makes `jmpi` drift, so this, not `jmpi`, is the baseline a model-free method must beat.
-  All three are one law and one implementation (`_ModelPolicy`): u = J^+ (v) with
-  v = r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a); JMPI is its gamma = 0 case on the nominal model, CLIK the
-  gamma = 20 case on the nominal model, the oracle the gamma = 20 case on the true model.
+  All three are one law and one implementation (`ModelLaw`, batched over N robots; the single-env classes are
+  its N = 1 case): u = J^+ (v) with v = r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a); JMPI is its gamma = 0 case
+  on the nominal model, CLIK the gamma = 20 case on the nominal model, the oracle the gamma = 20 case on the
+  true model (row i's own robot in a batch).
 
 Units: gamma in 1/s; v in m/s; u in rad/s (the base class clips u to the speed limits); damping and
 sigma_threshold in m/rad. Default gamma = 20 1/s, the benchmark's one task-space gain for every closed-loop law
@@ -37,10 +38,10 @@ from typing import Any
 
 import numpy as np
 
-from mobman_env import kinematics as K
 from mobman_env.validation import number
-from policies.base import ControllerPolicy, EnvFacts, current_model
-from policies.nnbc import damped_pinv_apply
+from policies.base import EnvFacts, current_model
+from policies.batched import BatchedController, LawView
+from policies.kernels import ModelJacobians, damped_pinv_apply_rows
 
 #: The benchmark's task-space feedback gain for every closed-loop law, 1/s (DESIGN, Release 0.2).
 DEFAULT_GAMMA = 20.0
@@ -87,31 +88,54 @@ class OracleConfig(JMPIConfig):
     """Position feedback gain of eq. (10), 1/s (the benchmark's 20; the paper's experiments use 10)."""
 
 
-class _ModelPolicy(ControllerPolicy):
-    """The one law of this module, u = J^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a)) (whole body: no
-    p_c_dot term), with J a model's Jacobian at the measured state. Subclasses only say where the model comes
-    from (`self.params`, set at construction or at every episode start)."""
+class ModelLaw(BatchedController):
+    """The one law of this module for N robots, u = J^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a)) (whole
+    body: no p_c_dot term), with J row i's model's Jacobian at its measured state (batched,
+    `policies.kernels.ModelJacobians`). `params(i)` returns row i's `RobotParams` (nominal or true); it is read
+    at each of the row's episode starts. The single-env classes below are its N = 1 case."""
 
     _keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")
 
-    def __init__(self, facts: EnvFacts, config: Any, seed: int | None):
-        super().__init__(facts, seed)
+    def __init__(self, facts: EnvFacts, config: Any, n: int, seed: int | None, params: Callable[[int], Any], name: str):
+        super().__init__(facts, n, seed)
+        self.name = self.spec = name
         self.config = config
-        self._jac = K.whole_body_jacobian if config.full else K.paper_jacobian
-        self.params: Any = None  # the RobotParams the law inverts (set at every episode start)
-        self._n_arm = facts.n_arm
+        self._full = bool(config.full)
+        self._model = ModelJacobians(n, params)
         self.uses_keys = self._keys + (("target_pos", "ee_pos") if config.gamma > 0 else ())
 
+    @property
+    def params(self) -> list[Any]:
+        """The `RobotParams` each row inverts this episode (None before its first episode start)."""
+        return self._model.params
+
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
+        self._model.load(rows.tolist())
+
     def _act(self, obs: dict) -> np.ndarray:
-        gamma = self.config.gamma
-        if gamma > 0:
-            v = obs["target_vel"] + gamma * (obs["target_pos"] - obs["ee_pos"])
+        c = self.config
+        if c.gamma > 0:
+            v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
         else:  # open loop (JMPI): the position is not read at all
             v = obs["target_vel"].copy()
-        if not self.config.full:
-            v[:2] -= obs["arm_base_vel"]
-        J = self._jac(self.params, obs["joint_pos"][: self._n_arm], float(obs["base_yaw"][0]))
-        return damped_pinv_apply(J, v, self.config.damping, self.config.sigma_threshold)
+        if not self._full:
+            v[:, :2] -= obs["arm_base_vel"]
+        J = self._model(obs["joint_pos"], obs["base_yaw"], self._full)
+        return damped_pinv_apply_rows(J, v, c.damping, c.sigma_threshold)
+
+
+class _ModelPolicy(LawView):
+    """A single-env model-based controller: the N = 1 case of `ModelLaw`. Subclasses say where the model comes
+    from (`_provider`, a callable f(i) for the law); `params` is the `RobotParams` inverted this episode."""
+
+    def __init__(self, facts: EnvFacts, config: Any, seed: int | None, provider: Callable[[int], Any]):
+        self.law: ModelLaw = ModelLaw(facts, config, 1, seed, provider, self.name)
+        super().__init__(facts, seed)
+        self.config = config
+
+    @property
+    def params(self) -> Any:
+        return self.law.params[0]
 
 
 class JMPI(_ModelPolicy):
@@ -140,12 +164,12 @@ class JMPI(_ModelPolicy):
                 f"{cls} needs nominal_params (a RobotParams: the catalogue model it inverts, or a callable returning "
                 "the episode's nominal RobotParams)"
             )
-        super().__init__(facts, config or self.config_cls(), seed)
-        self._nominal = nominal_params
-        self.params = None if callable(nominal_params) else nominal_params
+        super().__init__(facts, config or self.config_cls(), seed, lambda i: current_model(nominal_params))
 
-    def _reset(self, obs: dict) -> None:
-        self.params = current_model(self._nominal)
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: Any, n: int, seed: int | None, *, nominal_params: Any) -> ModelLaw:
+        """The batched law for n robots (`policies.make(spec, vector_env)`); `nominal_params(i)`: row i's model."""
+        return ModelLaw(facts, config, n, seed, nominal_params, cls.name)
 
 
 class CLIK(JMPI):
@@ -181,8 +205,10 @@ class Oracle(_ModelPolicy):
             raise TypeError(f"Oracle got unexpected keyword argument(s) {sorted(extra)}; accepted: params_provider")
         if params_provider is None or not callable(params_provider):
             raise ValueError("Oracle needs params_provider: a callable returning the env's current true RobotParams")
-        super().__init__(facts, config or OracleConfig(), seed)
-        self._provider = params_provider
+        self._provider = params_provider  # read through self at each episode start (a test spies on it)
+        super().__init__(facts, config or OracleConfig(), seed, lambda i: self._provider())
 
-    def _reset(self, obs: dict) -> None:
-        self.params = self._provider()
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: Any, n: int, seed: int | None, *, params_provider: Any) -> ModelLaw:
+        """The batched law for n robots; `params_provider(i)` returns robot i's current true robot."""
+        return ModelLaw(facts, config, n, seed, params_provider, cls.name)

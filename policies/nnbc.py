@@ -37,7 +37,7 @@ y_0 = 0, u_{-1} = 0) stays zero up to the u^+ regularisation, whatever mu is: J_
 measured response along the command that caused it exactly, and mu only shapes how an initial or injected
 residual decays.
 The code evaluates the bracket in the algebraically identical form a_k - (1 - mu dt) eps_{k-1}, with the a-priori
-residual a_k = y_k - J_{k-1} u_{k-1} (one matrix-vector product per step; `NNBC._znn_update`).
+residual a_k = y_k - J_{k-1} u_{k-1} (one matrix-vector product per step; `NNBCLaw._znn_update`).
 
 The pseudo-inverse of a vector is regularised, u^+ = u^T / (u^T u + eps_u) with eps_u = 1e-6 (rad/s)^2 by
 default: for |u| >> 1 mrad/s it is the exact u^T / |u|^2, and as u -> 0 the update fades to zero instead of
@@ -102,80 +102,16 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import ControllerPolicy, EnvFacts, current_model
+from policies.base import EnvFacts, current_model
+from policies.batched import BatchedController, LawView
+from policies.kernels import ModelJacobians, damped_pinv_apply_rows
+from policies.kernels import damped_pinv as damped_pinv  # re-exported: the pseudo-inverse of the module docstring
+from policies.kernels import damped_pinv_apply as damped_pinv_apply
+from policies.kernels import sigma_min_3 as sigma_min_3
 
 #: Observation keys NNBC reads.
 NNBC_OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_vel", "target_pos", "target_vel")
 J0_MODES = ("probe", "nominal")
-
-
-def sigma_min_3(A: list) -> float:
-    """Smallest eigenvalue of a symmetric 3 x 3 matrix given as nested lists (closed form, Smith 1961).
-
-    Used on A = J J^T, so it returns sigma_min(J)^2. Pure-Python floats: ~3x faster than `eigvalsh` here.
-    """
-    a00, a01, a02 = A[0]
-    a11, a12 = A[1][1], A[1][2]
-    a22 = A[2][2]
-    p1 = a01 * a01 + a02 * a02 + a12 * a12
-    q = (a00 + a11 + a22) / 3.0
-    b00, b11, b22 = a00 - q, a11 - q, a22 - q
-    p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * p1
-    if p2 <= 1e-30 * (q * q + 1e-300):
-        return q
-    p = math.sqrt(p2 / 6.0)
-    det = b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02) + a02 * (a01 * a12 - b11 * a02)
-    r = det / (2.0 * p * p * p)
-    r = -1.0 if r < -1.0 else (1.0 if r > 1.0 else r)
-    phi = math.acos(r) / 3.0
-    return q + 2.0 * p * math.cos(phi + 2.0 * math.pi / 3.0)
-
-
-def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
-    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in the module docstring.
-
-    J J^T + lambda^2 I is inverted in closed form (cofactors, pure-Python floats): exact for 3 x 3 and several
-    times faster than `np.linalg.solve` for such a small system.
-    """
-    A = (J @ J.T).tolist()
-    s2 = sigma_min_3(A)
-    t2 = sigma_threshold * sigma_threshold
-    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
-    a00, a01, a02 = A[0]
-    a11, a12 = A[1][1], A[1][2]
-    a22 = A[2][2]
-    a00 += lam2
-    a11 += lam2
-    a22 += lam2
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    if det == 0.0 or not math.isfinite(det):
-        # exactly singular with no damping (damping=0 and a rank-deficient J): least-squares fallback
-        return np.linalg.lstsq(J, v, rcond=None)[0]
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    v0, v1, v2 = float(v[0]), float(v[1]), float(v[2])
-    inv = 1.0 / det
-    w = np.array(
-        [
-            (c00 * v0 + c01 * v1 + c02 * v2) * inv,
-            (c01 * v0 + c11 * v1 + c12 * v2) * inv,
-            (c02 * v0 + c12 * v1 + c22 * v2) * inv,
-        ]
-    )
-    return w @ J
-
-
-def damped_pinv(J: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
-    """The damped pseudo-inverse matrix itself (n x 3), same damping rule (for diagnostics and tests)."""
-    JJt = J @ J.T
-    s2 = sigma_min_3(JJt.tolist())
-    t2 = sigma_threshold * sigma_threshold
-    lam2 = damping * damping * (1.0 - s2 / t2) if s2 < t2 else 0.0
-    return J.T @ np.linalg.inv(JJt + lam2 * np.eye(3))
 
 
 @dataclass(frozen=True)
@@ -217,15 +153,196 @@ class NNBCConfig:
             )
 
 
-class NNBC(ControllerPolicy):
+class NNBCLaw(BatchedController):
+    """The paper's NNBC for N robots at once (the one implementation; `NNBC` is its N = 1 case).
+
+    `NNBCLaw(facts, config=None, n=1, seed=None, *, J0=None, nominal_params=None)`: as `NNBC`, with
+    `nominal_params` a `RobotParams` or a callable f(i) returning row i's nominal robot. State per row: `J_hat`
+    (N, 3, n + 2), `residual` (N, 3), `steps` (N,) (controller steps since the row's episode start). Rows probe,
+    finish the probe and run the ZNN law each at its own step, so rows restarted by `episode_start` rejoin at
+    their own pace; while every row is past the probe, a step is a few whole-array operations.
+    """
+
+    name = "nnbc"
+
+    def __init__(
+        self,
+        facts: EnvFacts,
+        config: NNBCConfig | None = None,
+        n: int = 1,
+        seed: int | None = None,
+        *,
+        J0: Any = None,
+        nominal_params: Any = None,
+    ):
+        super().__init__(facts, n, seed)
+        self.config = config or NNBCConfig()
+        m = len(self._scale)
+        missing = [k for k in NNBC_OBS_KEYS if facts.obs_keys and k not in facts.obs_keys]
+        if missing:
+            raise ValueError(f"NNBC needs the observation keys {list(NNBC_OBS_KEYS)}; the env lacks {missing}")
+        if J0 is not None:
+            if self.config.j0 == "nominal":
+                raise ValueError("give either J0=<matrix> or config.j0='nominal', not both")
+            J0 = np.array(J0, dtype=float)
+            if J0.shape != (3, m) or not np.all(np.isfinite(J0)):
+                raise ValueError(f"J0 must be a finite 3 x {m} matrix, got shape {J0.shape}")
+            self.j0_source = "matrix"
+        else:
+            self.j0_source = self.config.j0
+        if self.j0_source == "nominal" and nominal_params is None:
+            raise ValueError(
+                "NNBC with j0='nominal' needs nominal_params (the registry passes the env's nominal "
+                "model); use j0='probe' for the model-free start"
+            )
+        self._J0 = J0
+        self._model: ModelJacobians | None = None
+        if self.j0_source == "nominal":
+            provider = nominal_params if callable(nominal_params) else (lambda i: nominal_params)
+            self._model = ModelJacobians(n, provider)
+        self._full = bool(self.config.full)
+        self.jacobian_kind = "whole_body" if self._full else "paper"
+        self._decay = 1.0 - self.config.mu * facts.dt  # eps_k = (1 - mu dt) eps_{k-1}: the discrete eq. (13)
+        self.uses_keys = NNBC_OBS_KEYS + (("joint_pos", "base_yaw") if self.j0_source == "nominal" else ())
+        self._probe_u = self.config.probe_amp * self._scale  # rad/s per actuator
+        self._n_probe = 2 * m if self.j0_source == "probe" else 0
+        self.J_hat = np.zeros((n, 3, m))
+        self.residual = np.zeros((n, 3))
+        self._y_plus = np.zeros((n, 3))
+        self.steps = np.zeros(n, dtype=int)
+        self._lo = 0  # the smallest step count of the rows (every row past the probe: the whole-array path)
+
+    def jacobian_estimate_row(self, i: int) -> np.ndarray | None:
+        if not self.initialised[i] or (self._n_probe and self.steps[i] <= self._n_probe):
+            return None
+        return self.J_hat[i].copy()
+
+    # --- helpers -------------------------------------------------------------------------------------
+    def _measured_y(self, obs: dict) -> np.ndarray:
+        """y = r_a_dot - [p_c_dot; 0] (paper) or r_a_dot (full), (N, 3)."""
+        y = obs["ee_vel"].copy()
+        if not self._full:
+            y[:, :2] -= obs["arm_base_vel"]
+        return y
+
+    # --- BatchedController ---------------------------------------------------------------------------
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
+        self.steps[rows] = 0
+        self._lo = 0
+        self._y_plus[rows] = 0.0
+        if self._n_probe:
+            self.J_hat[rows] = 0.0
+            self.residual[rows] = 0.0
+            return
+        if self._model is not None:
+            self._model.load(rows)
+            self.J_hat[rows] = self._model(obs["joint_pos"][rows], obs["base_yaw"][rows], self._full, rows)
+        else:
+            self.J_hat[rows] = self._J0
+        # eps_0 = y_0 - J_hat u_{-1} with u_{-1} = 0 (nothing issued yet). The residual carries everything the
+        # update needs from the past (y_{k-1} and u_{k-2}; see _znn_update).
+        self.residual[rows] = self._measured_y(obs)[rows]
+
+    def _act(self, obs: dict) -> np.ndarray:
+        k = self.steps
+        self.steps = k + 1
+        lo, self._lo = self._lo, self._lo + 1
+        y = self._measured_y(obs)
+        u1 = self.last_u  # u_{k-1}: the command issued (and clipped) at the previous step, (N, n + 2)
+        n_probe = self._n_probe
+        if lo > n_probe:  # every row runs the ZNN law: whole arrays, no masks
+            self._znn_update(None, y, u1)
+            return self._command(None, obs)
+        u = np.zeros_like(u1)
+        probe = k < n_probe
+        if probe.any():
+            rows = np.flatnonzero(probe)
+            u[rows] = self._probe_step(rows, k[rows], y)
+        if n_probe:
+            rows = np.flatnonzero(k == n_probe)
+            if rows.size:
+                self._set_probe_columns(rows, np.full(rows.size, len(self._scale) - 1), y)
+                self.residual[rows] = y[rows] - _bmv(self.J_hat[rows], u1[rows])  # eps_k0 with the measured J_hat(0)
+        rows = np.flatnonzero(k > n_probe)
+        if rows.size:
+            self._znn_update(rows, y, u1)
+        rows = np.flatnonzero(~probe)
+        if rows.size:
+            u[rows] = self._command(rows, obs)
+        return u
+
+    def _command(self, rows: np.ndarray | None, obs: dict) -> np.ndarray:
+        """Eq. (11) for the rows `rows` (an index array; None: every row)."""
+        c = self.config
+        tv, tp, ee, J = obs["target_vel"], obs["target_pos"], obs["ee_pos"], self.J_hat
+        if rows is not None:
+            tv, tp, ee, J = tv[rows], tp[rows], ee[rows], J[rows]
+        v = tv + c.gamma * (tp - ee)
+        if not self._full:
+            v[:, :2] -= obs["arm_base_vel"] if rows is None else obs["arm_base_vel"][rows]
+        return damped_pinv_apply_rows(J, v, c.damping, c.sigma_threshold)
+
+    def _znn_update(self, rows: np.ndarray | None, y: np.ndarray, u1: np.ndarray) -> None:
+        """One explicit-Euler step of eq. (15) with backward differences (module docstring), for the rows `rows`
+        (an index array; None: every row, in place).
+
+        Computed in an algebraically identical, cheaper form. With eps_{k-1} = y_{k-1} - J_{k-1} u_{k-2} (the
+        stored a-posteriori residual) the bracket
+            (y_k - y_{k-1}) - J_{k-1} (u_{k-1} - u_{k-2}) + mu dt eps_{k-1}
+        equals a_k - (1 - mu dt) eps_{k-1} with a_k = y_k - J_{k-1} u_{k-1} (the a-priori residual), and the new
+        residual is eps_k = y_k - J_k u_{k-1} = a_k - rho b with rho = u^T u / (u^T u + eps_u): one 3 x 8
+        product per step instead of three.
+        """
+        J, u, eps = self.J_hat, u1, self.residual
+        if rows is not None:
+            J, u, eps, y = J[rows], u[rows], eps[rows], y[rows]
+        u_col, u_row = u[:, :, None], u[:, None, :]
+        a = y - np.matmul(J, u_col)[:, :, 0]
+        b = a - self._decay * eps
+        uu = np.matmul(u_row, u_col)  # (N, 1, 1)
+        inv = 1.0 / (uu + self.config.eps_u)
+        J += b[:, :, None] * (u_row * inv)  # in place for every row; a copy for a subset
+        eps = a - (uu * inv)[:, 0] * b
+        if rows is None:
+            self.residual = eps
+        else:
+            self.J_hat[rows], self.residual[rows] = J, eps
+
+    def _probe_step(self, rows: np.ndarray, k: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Steps 0..15 of the rows `rows` (at their steps k): +a_i at step 2i, -a_i at step 2i+1; the responses
+        arrive one step later."""
+        prev = k - 1
+        plus = (k > 0) & (prev % 2 == 0)  # the previous command was +a_i: remember its response
+        self._y_plus[rows[plus]] = y[rows[plus]]
+        minus = (k > 0) & (prev % 2 == 1)  # it was -a_i: column i from the two responses
+        if minus.any():
+            self._set_probe_columns(rows[minus], prev[minus] // 2, y)
+        i = k // 2
+        amp = self._probe_u[i]
+        u = np.zeros((rows.size, len(self._scale)))
+        u[np.arange(rows.size), i] = np.where(k % 2 == 1, -amp, amp)
+        return u
+
+    def _set_probe_columns(self, rows: np.ndarray, cols: np.ndarray, y_minus: np.ndarray) -> None:
+        self.J_hat[rows, :, cols] = (self._y_plus[rows] - y_minus[rows]) / (2.0 * self._probe_u[cols])[:, None]
+
+
+def _bmv(J: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """J_i u_i for J (N, 3, m) and u (N, m), one BLAS product per row."""
+    return np.matmul(J, u[:, :, None])[:, :, 0]
+
+
+class NNBC(LawView):
     """The paper's model-free controller; see the module docstring for every discretisation choice.
 
     `NNBC(facts, config=None, seed=None, *, J0=None, nominal_params=None)`: `facts` is the `EnvFacts` of the
     env (dt, speed limits, observation keys); `J0` an optional 3 x 8 initial estimate; `nominal_params` is only
-    needed (and only allowed to matter) with `config.j0 == "nominal"`.
+    needed (and only allowed to matter) with `config.j0 == "nominal"`. It is the one-row case of `NNBCLaw`
+    (`self.law`), the law every batched `nnbc` policy runs.
 
-    Diagnostics: `J_hat` (the current estimate, 3 x 8; `jacobian_estimate` is its documented copy), `residual` (eps of eq. (12) after the last update),
-    `probing` (True while J_hat(0) is being measured), `step_count` (controller steps this episode).
+    Diagnostics: `J_hat` (the current estimate, 3 x 8; `jacobian_estimate` is its documented copy), `residual`
+    (eps of eq. (12) after the last update), `probing` (True while J_hat(0) is being measured), `step_count`
+    (controller steps this episode).
     """
 
     name = "nnbc"
@@ -242,134 +359,30 @@ class NNBC(ControllerPolicy):
     ):
         if extra:
             raise TypeError(f"NNBC got unexpected keyword argument(s) {sorted(extra)}; accepted: J0, nominal_params")
+        nominal = None if nominal_params is None else (lambda i: current_model(nominal_params))
+        self.law: NNBCLaw = NNBCLaw(facts, config, 1, seed, J0=J0, nominal_params=nominal)
         super().__init__(facts, seed)
-        self.config = config or NNBCConfig()
-        n = len(self._scale)
-        missing = [k for k in NNBC_OBS_KEYS if facts.obs_keys and k not in facts.obs_keys]
-        if missing:
-            raise ValueError(f"NNBC needs the observation keys {list(NNBC_OBS_KEYS)}; the env lacks {missing}")
-        if J0 is not None:
-            if self.config.j0 == "nominal":
-                raise ValueError("give either J0=<matrix> or config.j0='nominal', not both")
-            J0 = np.array(J0, dtype=float)
-            if J0.shape != (3, n) or not np.all(np.isfinite(J0)):
-                raise ValueError(f"J0 must be a finite 3 x {n} matrix, got shape {J0.shape}")
-            self.j0_source = "matrix"
-        else:
-            self.j0_source = self.config.j0
-        if self.j0_source == "nominal" and nominal_params is None:
-            raise ValueError(
-                "NNBC with j0='nominal' needs nominal_params (the registry passes the env's nominal "
-                "model); use j0='probe' for the model-free start"
-            )
-        self._J0 = J0
-        self._nominal: Any = nominal_params if self.j0_source == "nominal" else None
-        self._full = bool(self.config.full)
-        self.jacobian_kind = "whole_body" if self._full else "paper"
-        self._dt = facts.dt
-        self._decay = 1.0 - self.config.mu * facts.dt  # eps_k = (1 - mu dt) eps_{k-1}: the discrete eq. (13)
-        self.uses_keys = NNBC_OBS_KEYS + (("joint_pos", "base_yaw") if self.j0_source == "nominal" else ())
-        self._probe_u = self.config.probe_amp * self._scale  # rad/s per actuator
-        self._n_probe = 2 * n if self.j0_source == "probe" else 0
-        self.J_hat = np.zeros((3, n))
-        self.residual = np.zeros(3)
-        self.step_count = 0
+        self.config = self.law.config
+        self.j0_source = self.law.j0_source
+        self._n_probe = self.law._n_probe
+
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: NNBCConfig, n: int, seed: int | None, **models: Any) -> NNBCLaw:
+        """The batched law for n robots (`policies.make(spec, vector_env)`); `models`: row-indexed providers."""
+        return NNBCLaw(facts, config, n, seed, **models)
+
+    @property
+    def J_hat(self) -> np.ndarray:
+        return self.law.J_hat[0]
+
+    @property
+    def residual(self) -> np.ndarray:
+        return self.law.residual[0]
+
+    @property
+    def step_count(self) -> int:
+        return int(self.law.steps[0])
 
     @property
     def probing(self) -> bool:
         return self._initialised and self.step_count < self._n_probe
-
-    @property
-    def jacobian_estimate(self) -> np.ndarray | None:
-        """A copy of J_hat (3 x 8, m/rad: u in rad/s to m/s) after the last update: the paper's J of eq. (6)
-        (`jacobian_kind` "paper") or, for `nnbc-full`, the whole-body Jacobian ("whole_body"). None until the
-        probe has measured every column."""
-        if not self._initialised or (self._n_probe and self.step_count <= self._n_probe):
-            return None
-        return self.J_hat.copy()
-
-    # --- helpers -------------------------------------------------------------------------------------
-    def _measured_y(self, obs: dict) -> np.ndarray:
-        """y = r_a_dot - [p_c_dot; 0] (paper) or r_a_dot (full)."""
-        y = obs["ee_vel"].copy()
-        if not self._full:
-            y[:2] -= obs["arm_base_vel"]
-        return y
-
-    def _initial_jacobian(self, obs: dict) -> np.ndarray:
-        if self.j0_source == "matrix":
-            return self._J0.copy()
-        from mobman_env import kinematics as K  # only for j0="nominal": model knowledge by choice
-
-        model = current_model(self._nominal)
-        q, yaw = obs["joint_pos"][: model.n_joints], float(obs["base_yaw"][0])
-        fn = K.whole_body_jacobian if self._full else K.paper_jacobian
-        return fn(model, q, yaw)
-
-    # --- ControllerPolicy ----------------------------------------------------------------------------
-    def _reset(self, obs: dict) -> None:
-        n = len(self._scale)
-        self.step_count = 0
-        self._y_plus = np.zeros(3)
-        if self._n_probe:
-            self.J_hat = np.zeros((3, n))
-            self.residual = np.zeros(3)
-        else:
-            self.J_hat = self._initial_jacobian(obs)
-            # eps_0 = y_0 - J_hat u_{-1} with u_{-1} = 0 (nothing issued yet). The residual carries everything
-            # the update needs from the past (y_{k-1} and u_{k-2}; see _znn_update).
-            self.residual = self._measured_y(obs)
-
-    def _act(self, obs: dict) -> np.ndarray:
-        k = self.step_count
-        self.step_count = k + 1
-        y = self._measured_y(obs)
-        u1 = self.last_u  # u_{k-1}: the command issued (and clipped) at the previous step
-        if k < self._n_probe:
-            return self._probe_step(k, y)
-        if k == self._n_probe and self._n_probe:
-            self._finish_probe(y)
-            self.residual = y - self.J_hat @ u1  # eps_k0 with the measured J_hat(0)
-        elif k > 0:
-            self._znn_update(y, u1)
-        c = self.config
-        v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
-        if not self._full:
-            v[:2] -= obs["arm_base_vel"]
-        return damped_pinv_apply(self.J_hat, v, c.damping, c.sigma_threshold)
-
-    def _znn_update(self, y: np.ndarray, u1: np.ndarray) -> None:
-        """One explicit-Euler step of eq. (15) with backward differences (module docstring).
-
-        Computed in an algebraically identical, cheaper form. With eps_{k-1} = y_{k-1} - J_{k-1} u_{k-2} (the
-        stored a-posteriori residual) the bracket
-            (y_k - y_{k-1}) - J_{k-1} (u_{k-1} - u_{k-2}) + mu dt eps_{k-1}
-        equals a_k - (1 - mu dt) eps_{k-1} with a_k = y_k - J_{k-1} u_{k-1} (the a-priori residual), and the new
-        residual is eps_k = y_k - J_k u_{k-1} = a_k - rho b with rho = u^T u / (u^T u + eps_u): one 3 x 8
-        product per step instead of three.
-        """
-        a = y - self.J_hat @ u1
-        b = a - self._decay * self.residual
-        uu = float(u1 @ u1)
-        inv = 1.0 / (uu + self.config.eps_u)
-        self.J_hat += b[:, None] * (u1 * inv)[None, :]
-        self.residual = a - (uu * inv) * b
-
-    def _probe_step(self, k: int, y: np.ndarray) -> np.ndarray:
-        """Steps 0..15: +a_i at step 2i, -a_i at step 2i+1; the responses arrive one step later."""
-        if k > 0:
-            i_prev, minus = divmod(k - 1, 2)  # the command issued at step k-1 and its sign
-            if minus == 0:
-                self._y_plus = y
-            else:
-                self._set_probe_column(i_prev, y)
-        i, minus = divmod(k, 2)
-        u = np.zeros(len(self._scale))
-        u[i] = -self._probe_u[i] if minus else self._probe_u[i]
-        return u
-
-    def _set_probe_column(self, i: int, y_minus: np.ndarray) -> None:
-        self.J_hat[:, i] = (self._y_plus - y_minus) / (2.0 * self._probe_u[i])
-
-    def _finish_probe(self, y: np.ndarray) -> None:
-        self._set_probe_column(len(self._scale) - 1, y)

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
-from policies.batched import BatchedPolicy, is_vector_env
+from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_vector_env
 
 
 @dataclass(frozen=True)
@@ -235,7 +235,8 @@ def _load_entry(name: str, entry: _Entry) -> tuple[type, type]:
 def make(spec: str, env: Any, seed: int | None = None) -> Any:
     """Build the policy named by `spec` for `env` (a gym.Env, any wrappers, or an SB3 VecEnv with one env).
     For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
-    robots (row i: this spec built for robot i).
+    robots: the spec's vectorised law where its class has one (a `batched` constructor: `zero`, `random`,
+    `jmpi`, `clik`, `oracle`, `nnbc` and their `-full` forms), else a loop of this spec built for each robot.
 
     `seed` seeds the policy's own Generator (controllers re-seed on `reset(seed=...)`). Returns an object with
     `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).
@@ -247,6 +248,9 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         )
     spec = spec.strip()
     if is_vector_env(env):  # one batched policy for the N robots of a gymnasium vector env (policies.batched)
+        name = spec.partition(":")[0]
+        if name in _REGISTRY and hasattr(_load_entry(name, _REGISTRY[name])[0], "batched"):
+            return _make_builtin_batched(spec, env, seed)
         return BatchedPolicy.for_vector_env(spec, env, lambda s, view: make(s, view, seed))
     if spec.startswith("sb3:"):
         from policies.sb3 import SB3Policy
@@ -276,6 +280,25 @@ def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
     elif entry.model == "true":
         extra["params_provider"] = true_params_provider(env)
     return cls(facts, config, seed, **extra)
+
+
+def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
+    """The vectorised law of a built-in spec for the N robots of `venv` (its class's `batched`): the model-based
+    ones get row-indexed providers, nominal (`venv.nominal_params`) or true (`venv.true_params(i)`)."""
+    check_vector_env(venv)
+    name, options = parse_spec(spec)
+    entry = _REGISTRY[name]
+    cls, cfg_cls = _load_entry(name, entry)
+    config = build_config(cfg_cls, {**entry.preset, **options}, spec)
+    facts = EnvFacts.from_env(_RobotView(venv, 0))
+    extra: dict[str, Any] = {}
+    if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
+        extra["nominal_params"] = lambda i: venv.nominal_params
+    elif entry.model == "true":
+        extra["params_provider"] = venv.true_params
+    law = getattr(cls, "batched")(facts, config, venv.num_envs, seed, **extra)  # noqa: B009  (not every class has it)
+    law.spec = spec
+    return law
 
 
 def nominal_params_provider(env: Any) -> Callable[[], Any]:

@@ -12,7 +12,8 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import ControllerPolicy, EnvFacts
+from policies.base import EnvFacts
+from policies.batched import BatchedController, LawView
 
 
 @dataclass(frozen=True)
@@ -33,41 +34,75 @@ class RandomConfig:
             raise ValueError(f"RandomConfig.amplitude must be in (0, 1], got {a!r}")
 
 
-class Zero(ControllerPolicy):
-    """Always commands zero speed."""
+class ZeroLaw(BatchedController):
+    """`zero` for N robots (`Zero` is its N = 1 case)."""
 
     name = "zero"
-    uses_keys = ()
 
-    def __init__(self, facts: EnvFacts, config: ZeroConfig | None = None, seed: int | None = None, **extra: Any):
-        if extra:
-            raise TypeError(f"Zero got unexpected keyword argument(s) {sorted(extra)}")
-        super().__init__(facts, seed)
+    def __init__(self, facts: EnvFacts, config: ZeroConfig | None = None, n: int = 1, seed: int | None = None):
+        super().__init__(facts, n, seed)
         self.config = config or ZeroConfig()
-        self._u = np.zeros(len(self._scale))
+        self._u = np.zeros((n, len(self._scale)))
 
-    def _reset(self, obs: dict) -> None:
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
         pass
 
     def _act(self, obs: dict) -> np.ndarray:
         return self._u
 
 
-class Random(ControllerPolicy):
-    """Uniform random actions from the controller's own Generator (`reset(seed=...)` makes them repeatable)."""
+class RandomLaw(BatchedController):
+    """`random` for N robots: row i draws from its own Generator `rngs[i]` (one draw of n + 2 per row and step,
+    as the single policy), so it equals a single `Random` seeded alike. `Random` is its N = 1 case."""
 
     name = "random"
-    uses_keys = ()
 
-    def __init__(self, facts: EnvFacts, config: RandomConfig | None = None, seed: int | None = None, **extra: Any):
-        if extra:
-            raise TypeError(f"Random got unexpected keyword argument(s) {sorted(extra)}")
-        super().__init__(facts, seed)
+    def __init__(self, facts: EnvFacts, config: RandomConfig | None = None, n: int = 1, seed: int | None = None):
+        super().__init__(facts, n, seed)
         self.config = config or RandomConfig()
 
-    def _reset(self, obs: dict) -> None:
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
         pass
 
     def _act(self, obs: dict) -> np.ndarray:
         a = self.config.amplitude
-        return self.rng.uniform(-a, a, len(self._scale)) * self._scale
+        u = np.empty((self.num_envs, len(self._scale)))
+        for i, rng in enumerate(self.rngs):
+            u[i] = rng.uniform(-a, a, len(self._scale))
+        return u * self._scale
+
+
+class Zero(LawView):
+    """Always commands zero speed."""
+
+    name = "zero"
+
+    def __init__(self, facts: EnvFacts, config: ZeroConfig | None = None, seed: int | None = None, **extra: Any):
+        if extra:
+            raise TypeError(f"Zero got unexpected keyword argument(s) {sorted(extra)}")
+        self.law: ZeroLaw = ZeroLaw(facts, config, 1, seed)
+        super().__init__(facts, seed)
+        self.config = self.law.config
+
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: ZeroConfig, n: int, seed: int | None) -> ZeroLaw:
+        """The batched law for n robots (`policies.make(spec, vector_env)`)."""
+        return ZeroLaw(facts, config, n, seed)
+
+
+class Random(LawView):
+    """Uniform random actions from the controller's own Generator (`reset(seed=...)` makes them repeatable)."""
+
+    name = "random"
+
+    def __init__(self, facts: EnvFacts, config: RandomConfig | None = None, seed: int | None = None, **extra: Any):
+        if extra:
+            raise TypeError(f"Random got unexpected keyword argument(s) {sorted(extra)}")
+        self.law: RandomLaw = RandomLaw(facts, config, 1, seed)
+        super().__init__(facts, seed)
+        self.config = self.law.config
+
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: RandomConfig, n: int, seed: int | None) -> RandomLaw:
+        """The batched law for n robots: row i's Generator as a single `Random`'s."""
+        return RandomLaw(facts, config, n, seed)

@@ -1,6 +1,7 @@
 """Batched policies (`policies.make(spec, vector_env)`): robot i's actions equal a single-env policy reset with
-`policy_seed(S + i)` on the same observations (here bit for bit: the rows run the single law), and
-`episode_start` re-initialises its rows only. Seeds >= 10,000."""
+`policy_seed(S + i)` on the same observations (bit for bit here: a vectorised law's single-env class runs the same
+kernel with N = 1, and the other specs loop their single-env rows), and `episode_start` re-initialises its rows
+only. Seeds >= 10,000."""
 
 from __future__ import annotations
 
@@ -10,8 +11,11 @@ import pytest
 
 import policies
 from mobman_env import TASKS, WheeledPumaEnv
+from mobman_env import kinematics as K
+from mobman_env.params import RobotParams
 from policies.base import policy_seed
-from policies.batched import BatchedPolicy
+from policies.batched import BatchedController, BatchedPolicy, _RobotView
+from policies.kernels import ModelJacobians, damped_pinv_apply_rows
 
 SPECS = ("zero", "random", "jmpi", "clik", "clik-full", "oracle", "nnbc", "nnbc-plus", "broyden", "rls")
 ENV_ID = "WheeledPuma-Lemniscate-v0"
@@ -69,4 +73,128 @@ def test_bad_batches_raise():
         pol.predict({k: v[:1] for k, v in obs.items()})
     with pytest.raises(ValueError, match="list of 2 seeds"):
         pol.reset(obs, seed=[1, 2, 3])
+    venv.close()
+
+
+#: the specs with a vectorised law (`policies.batched.BatchedController`); the others loop their rows
+VECTORISED = ("zero", "random", "jmpi", "jmpi-full", "clik", "clik-full", "oracle", "oracle-full", "nnbc", "nnbc-full")
+LOOPED = ("qp", "nnbc-plus", "broyden", "rls")
+
+
+def _venv(env_id: str, n: int):
+    return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", dynamics="kinematic")
+
+
+@pytest.mark.parametrize("env_id", ["WheeledPuma-Circle-v0", "WheeledPuma-Line-v0"])
+@pytest.mark.parametrize("spec", VECTORISED)
+def test_vectorised_law_equals_single_policies(spec, env_id):
+    """N = 5 robots for 200 steps driven by the batched actions: row i's action equals a single policy's (built for
+    robot i, reset with policy_seed(S + i)) on the same observation to 1e-9 (bit for bit, in fact: the single
+    policy runs the same kernel with N = 1), Jacobian estimates included; `episode_start` on rows 1 and 3 at step
+    60 restarts those rows only (nnbc: they probe again while the others run the ZNN law)."""
+    n, seed = 5, 10_200
+    venv = _venv(env_id, n)
+    batched = policies.make(spec, venv)
+    assert isinstance(batched, BatchedController) and batched.num_envs == n
+    singles = [policies.make(spec, _RobotView(venv, i)) for i in range(n)]
+    obs, info = venv.reset(seed=seed)
+    batched.reset(obs, info, seed=seed)
+    for i, pol in enumerate(singles):
+        pol.reset({k: v[i] for k, v in obs.items()}, None, seed=policy_seed(seed + i))
+    restart = np.isin(np.arange(n), [1, 3])
+    for t in range(200):
+        starts = restart if t == 60 else None
+        actions, _ = batched.predict(obs, episode_start=starts)
+        assert actions.shape == (n, 8) and actions.dtype == np.float32
+        for i, pol in enumerate(singles):
+            a, _ = pol.predict(
+                {k: v[i] for k, v in obs.items()}, episode_start=None if starts is None else starts[i : i + 1]
+            )
+            np.testing.assert_allclose(actions[i], a, rtol=0, atol=1e-9, err_msg=f"{spec} step {t} row {i}")
+            J_row, J_single = batched.rows[i].jacobian_estimate, pol.jacobian_estimate
+            assert (J_row is None) == (J_single is None), (t, i)
+            if J_row is not None:
+                np.testing.assert_allclose(J_row, J_single, rtol=0, atol=1e-9)
+        obs, _, term, trunc, _ = venv.step(actions)
+        assert not (term | trunc).any()
+    if spec.startswith("nnbc"):
+        steps = batched.steps  # the restarted rows count their steps from their new start
+        assert steps.tolist() == [200, 140, 200, 140, 200]
+    venv.close()
+
+
+@pytest.mark.parametrize("spec", ["nnbc", "clik", "oracle", "random"])
+def test_one_robot(spec):
+    """N = 1: the batched law of a one-robot vector env acts as the single policy of that robot."""
+    venv = _venv("WheeledPuma-Circle-v0", 1)
+    batched = policies.make(spec, venv)
+    single = policies.make(spec, _RobotView(venv, 0))
+    obs, info = venv.reset(seed=10_300)
+    batched.reset(obs, info, seed=10_300)
+    single.reset({k: v[0] for k, v in obs.items()}, None, seed=policy_seed(10_300))
+    for _ in range(40):
+        actions, _ = batched.predict(obs)
+        a, _ = single.predict(obs)  # a batch of one, as a DummyVecEnv passes it
+        assert actions.shape == a.shape == (1, 8)
+        np.testing.assert_array_equal(actions, a)
+        obs, *_ = venv.step(actions)
+    venv.close()
+
+
+@pytest.mark.parametrize("spec", LOOPED)
+def test_other_specs_loop_their_rows(spec):
+    venv = _venv(ENV_ID, 2)
+    pol = policies.make(spec, venv)
+    assert isinstance(pol, BatchedPolicy) and not isinstance(pol, BatchedController) and len(pol.rows) == 2
+    venv.close()
+
+
+def test_model_jacobians_equal_the_single_kinematics():
+    """`policies.kernels.ModelJacobians` (batched `mobman_env.vector_kinematics`) equals `mobman_env.kinematics`
+    bit for bit, per row of worn robots, for the paper's and the whole-body Jacobian (what lets the single-env
+    laws evaluate their one row with `mobman_env.kinematics`)."""
+    rng = np.random.default_rng(10_400)
+    nominal = RobotParams.nominal()
+    for _ in range(20):
+        robots = [nominal.perturbed(rng, 0.05) for _ in range(5)]
+        q, yaw = rng.uniform(-3.0, 3.0, (5, 8)), rng.uniform(-7.0, 7.0, (5, 1))
+        model = ModelJacobians(5, robots.__getitem__)
+        model.load(range(5))
+        for full, single in ((False, K.paper_jacobian), (True, K.whole_body_jacobian)):
+            J = model(q, yaw, full)
+            for i, p in enumerate(robots):
+                np.testing.assert_array_equal(J[i], single(p, q[i, :6], float(yaw[i, 0])))
+            np.testing.assert_array_equal(model(q[2:3], yaw[2:3], full, rows=[2])[0], J[2])
+
+
+def test_damped_pinv_rows_equal_one_row_at_a_time():
+    """The 3 x 3 algebra on (N,) arrays equals the one on floats (N = 1), row by row, damped rows included."""
+    rng = np.random.default_rng(10_500)
+    J = rng.normal(size=(64, 3, 8)) * np.geomspace(1e-3, 1.0, 64)[:, None, None]  # some below the threshold
+    v = rng.normal(size=(64, 3))
+    u = damped_pinv_apply_rows(J, v, 0.02, 0.02)
+    for i in range(64):
+        np.testing.assert_array_equal(u[i], damped_pinv_apply_rows(J[i : i + 1], v[i : i + 1], 0.02, 0.02)[0])
+
+
+def test_nnbc_rows_stay_exact_where_the_damping_acts():
+    """Over most of a Line-v0 episode J_hat degenerates and the damping of its pseudo-inverse acts (sigma_min below
+    0.02 m/rad): there the command depends on the last bit of sigma_min, which the batched rows take from the
+    same float path as the single policy, so the chaotic law stays bit-identical (np.arccos alone would not)."""
+    n, seed = 3, 10_000
+    venv = _venv("WheeledPuma-Line-v0", n)
+    batched = policies.make("nnbc", venv)
+    singles = [policies.make("nnbc", _RobotView(venv, i)) for i in range(n)]
+    obs, info = venv.reset(seed=seed)
+    batched.reset(obs, info, seed=seed)
+    for i, pol in enumerate(singles):
+        pol.reset({k: v[i] for k, v in obs.items()}, None, seed=policy_seed(seed + i))
+    damped = 0
+    for _ in range(1200):
+        actions, _ = batched.predict(obs)
+        for i, pol in enumerate(singles):
+            np.testing.assert_array_equal(actions[i], pol.predict({k: v[i] for k, v in obs.items()})[0])
+        damped += int((np.linalg.svd(batched.J_hat, compute_uv=False)[:, -1] < 0.02).sum())
+        obs, *_ = venv.step(actions)
+    assert damped > 50  # the property was exercised
     venv.close()
