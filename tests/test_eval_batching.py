@@ -1,0 +1,179 @@
+"""Batched execution (`eval.execution.batches`): `run` with `batch_size` > 1 gives the results of
+`batch_size=1` (timings and pid aside), for chaotic controllers too; a failing batch is re-run episode by
+episode so only the failing episode is recorded failed; Ctrl-C keeps the finished batches.
+
+Episodes are kinematic 1 s paths (100 steps)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import eval.execution.batches as B
+import eval.execution.tasks as T
+from eval import EvalConfig, run
+from eval.errors import RunInterrupted
+from eval.execution.batches import plan_units
+from eval.execution.dispatch import execute
+from eval.execution.tasks import Task
+from mobman_env import TASKS
+from policies.base import policy_seed
+
+TIMING = ("wall_s", "pid", "predict_us_median", "predict_us_p99")
+CIRCLE, LINE = "WheeledPuma-Circle-v0", "WheeledPuma-Line-v0"
+SPECS = ("clik", "jmpi", "nnbc", "nnbc-plus", "zero")
+
+
+def _config(tmp_path, name: str, **kw) -> EvalConfig:
+    base = {
+        "envs": (CIRCLE,),
+        "policies": ("clik",),
+        "episodes": 4,
+        "seed": 10_000,
+        "dynamics": ("kinematic",),
+        "env_kwargs": {"path": dict(TASKS[CIRCLE], duration=1.0)},
+        "out": str(tmp_path / name),
+        "plots": False,
+        "progress": False,
+    }
+    return EvalConfig(**{**base, **kw})
+
+
+def _fields(results: dict) -> list[dict]:
+    return [{k: v for k, v in r.items() if k not in TIMING} for r in results["episodes"]]
+
+
+def _drop_timing(rows: list[dict]) -> list[dict]:
+    return [{k: v for k, v in r.items() if not k.startswith("predict_us")} for r in rows]
+
+
+@pytest.mark.parametrize("env_id", [CIRCLE, LINE])
+def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id):
+    """results.json episode fields are equal with batch_size 64 and 1, for five controllers (nnbc chaotic)."""
+    kw = {
+        "envs": (env_id,),
+        "policies": SPECS,
+        "episodes": 3,
+        "obs_noise": 0.001,
+        "env_kwargs": {"path": dict(TASKS[env_id], duration=1.0)},
+    }
+    batched = run(_config(tmp_path, "batched", **kw))
+    single = run(_config(tmp_path, "single", batch_size=1, **kw))
+    on_disk = [json.loads((tmp_path / d / "results.json").read_text()) for d in ("batched", "single")]
+    assert _fields(on_disk[0]) == _fields(on_disk[1])
+    assert all(r["status"] == "ok" for r in batched.episodes)
+    assert _drop_timing(on_disk[0]["aggregate"]) == _drop_timing(on_disk[1]["aggregate"])
+    for spec in SPECS:  # a batch's episodes share its wall time / N: the batched path really ran
+        walls = {r["wall_s"] for r in batched.episodes if r["policy"] == spec}
+        assert len(walls) == 1, (spec, walls)
+    assert len({r["wall_s"] for r in single.episodes}) > 1
+
+
+def test_plan_units_batches_kinematic_builtin_specs_only():
+    cfg = EvalConfig(batch_size=3, workers=1)
+    tasks = []
+    for dyn in ("kinematic", "physics"):
+        for pol in ("nnbc", "sb3:sac-circle", "mine", "test_eval_helpers:SlowMarked"):
+            for k in range(4):
+                tasks.append(Task(len(tasks), CIRCLE, dyn, pol, k, 10_000 + k, None, None))
+    units = plan_units(cfg, {"mine": object()}, tasks)
+    sizes = [[t.index for t in u] for u in units]
+    assert sizes[:2] == [[0, 1, 2], [3]]  # kinematic nnbc: batches of at most batch_size, in order
+    assert all(len(u) == 1 for u in units[2:]) and len(units) == 2 + 28
+    assert sorted(t.index for u in units for t in u) == list(range(32))
+    # two workers: the 4 batchable episodes are split so that both get a batch
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64, workers=2), {}, tasks[:4], 2)] == [2, 2]
+    assert all(len(u) == 1 for u in plan_units(EvalConfig(batch_size=1), {}, tasks))
+
+
+def test_a_batch_of_any_seeds_equals_single_episodes():
+    """Non-consecutive seeds in any order (a sweep's seed list) batch bit-identically, through every backend
+    entry and with workers=2 dealing batches."""
+    seeds = [10_007, 10_000, 10_003, 12_345]
+    tasks = [Task(i, CIRCLE, "kinematic", "nnbc", i, s, 0.05, 0.001) for i, s in enumerate(seeds)]
+    env_kwargs = {"path": dict(TASKS[CIRCLE], duration=1.0)}
+    out = {}
+    for name, kw in {"single": {"batch_size": 1}, "batched": {}, "two": {"workers": 2}}.items():
+        cfg = EvalConfig(env_kwargs=env_kwargs, save_arrays="none", plots=False, **kw)
+        records, _ = execute(cfg, {}, tasks)
+        out[name] = [{k: v for k, v in records[i].items() if k not in TIMING} for i in range(len(tasks))]
+        if name != "single":
+            assert len({records[i]["wall_s"] for i in range(len(tasks))}) < len(tasks)  # batched
+    assert out["batched"] == out["single"] == out["two"]
+    assert [r["seed"] for r in out["batched"]] == seeds and [r["episode"] for r in out["batched"]] == [0, 1, 2, 3]
+
+
+class _FailsOnSeed:
+    """Wraps a policy (single or batched); `predict` raises at step 30 of the episode of seed BAD."""
+
+    BAD = 10_002
+
+    def __init__(self, inner):
+        self.inner = inner
+        self.armed = False
+        self.k = 0
+
+    def reset(self, obs, info=None, *, seed=None):
+        self.armed = policy_seed(self.BAD) in (seed if isinstance(seed, list) else [seed])  # batched: a list
+        self.k = 0
+        self.inner.reset(obs, info, seed=seed)
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        self.k += 1
+        if self.armed and self.k == 30:
+            raise RuntimeError(f"planted failure on seed {self.BAD}")
+        return self.inner.predict(obs, state, episode_start, deterministic)
+
+
+def test_a_failing_batch_is_rerun_one_by_one(tmp_path, monkeypatch):
+    batches = []
+
+    def wrapped(make):
+        def make_policy(spec, env, seed):
+            return _FailsOnSeed(make(spec, env, seed))
+
+        return make_policy
+
+    real_batch = B.rollout_batch
+
+    def counting(venv, policy, seeds, **kw):
+        batches.append(list(seeds))
+        return real_batch(venv, policy, seeds, **kw)
+
+    monkeypatch.setattr(T, "make_policy", wrapped(T.make_policy))
+    monkeypatch.setattr(B, "make_policy", wrapped(B.make_policy))
+    monkeypatch.setattr(B, "rollout_batch", counting)
+    result = run(_config(tmp_path, "failing"))
+    assert batches == [[10_000, 10_001, 10_002, 10_003]]  # one batch ran, failed, and was re-run singly
+    status = {r["seed"]: r["status"] for r in result.episodes}
+    assert status == {10_000: "ok", 10_001: "ok", 10_002: "failed", 10_003: "ok"}
+    bad = next(r for r in result.episodes if r["status"] == "failed")
+    assert "planted failure on seed 10002" in bad["error"] and bad["n_steps"] == 29
+    monkeypatch.undo()
+    clean = run(_config(tmp_path, "clean", batch_size=1))
+    ok = [r for r in _fields(result.results) if r["status"] == "ok"]
+    assert ok == [r for r in _fields(clean.results) if r["seed"] != 10_002]
+
+
+def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch):
+    real_batch = B.rollout_batch
+    calls = []
+
+    def interrupted_second(venv, policy, seeds, **kw):
+        calls.append(list(seeds))
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return real_batch(venv, policy, seeds, **kw)
+
+    monkeypatch.setattr(B, "rollout_batch", interrupted_second)
+    cfg = _config(tmp_path, "stopped", policies=("clik", "jmpi"), batch_size=3)
+    with pytest.raises(RunInterrupted):
+        run(cfg)
+    results = json.loads((tmp_path / "stopped" / "results.json").read_text())
+    status = [(r["policy"], r["seed"], r["status"]) for r in results["episodes"]]
+    # units: clik 10000-10002 (a batch), clik 10003 (single), jmpi 10000-10002 (stopped), jmpi 10003
+    assert calls == [[10_000, 10_001, 10_002]] * 2
+    assert [s for s in status if s[2] == "ok"] == [("clik", 10_000 + k, "ok") for k in range(4)]
+    assert [s for s in status if s[2] != "ok"] == [("jmpi", 10_000 + k, "interrupted") for k in range(4)]
+    assert [(a["policy"], a["n"]) for a in results["aggregate"]] == [("clik", 4)]
