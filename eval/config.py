@@ -49,7 +49,7 @@ class EvalConfig:
     on the single path. Results are the same either way (timing fields and `pid` aside); a failing batch is run
     again episode by episode; Ctrl-C loses the episodes of the batch in progress."""
     backend: str = "local"
-    """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per episode; needs
+    """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per batch or episode; needs
     `pip install "mobman[ray]"`)."""
     address: str | None = None
     """Ray cluster to connect to ("auto", "HOST:6379", "ray://HOST:10001"); None: start a local Ray instance

@@ -116,7 +116,7 @@ def add_backend_arguments(p) -> None:
         "--backend",
         choices=BACKEND_CHOICES,
         default=default(EvalConfig, "backend"),
-        help='where episodes run: local processes, or one Ray task per episode (pip install "mobman[ray]")',
+        help='where episodes run: local processes, or one Ray task per batch or episode (pip install "mobman[ray]")',
     )
     p.add_argument(
         "--address",
