@@ -177,3 +177,18 @@ def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch):
     assert [s for s in status if s[2] == "ok"] == [("clik", 10_000 + k, "ok") for k in range(4)]
     assert [s for s in status if s[2] != "ok"] == [("jmpi", 10_000 + k, "interrupted") for k in range(4)]
     assert [(a["policy"], a["n"]) for a in results["aggregate"]] == [("clik", 4)]
+
+
+def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time():
+    """robot="random" has a SyncVectorEnv: found out once per condition, then its episodes run singly."""
+    env_id = "WheeledRandomArm-Circle-v0"
+    cfg = EvalConfig(envs=(env_id,), env_kwargs={"path": dict(TASKS[CIRCLE], duration=0.2)}, save_arrays="none")
+    tasks = [Task(i, env_id, "kinematic", "zero", i, 10_000 + i, None, None) for i in range(2)]
+    runner = B.UnitRunner(cfg, {})
+    try:
+        (unit,) = plan_units(cfg, {}, tasks)
+        done = list(runner.run(unit))
+    finally:
+        runner.close()
+    assert runner._unbatchable == {(env_id, "kinematic", None, None, "zero")}
+    assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000, "ok"), (10_001, "ok")]

@@ -124,15 +124,20 @@ class UnitRunner:
             return None
         venv, policy = built
         meta = [{"env": t.env, "policy": t.policy, "episode": t.episode} for t in unit]
-        results = rollout_batch(
-            venv,
-            policy,
-            [t.seed for t in unit],
-            tolerance=self.config.tolerance,
-            settle_time=self.config.settle_time,
-            meta=meta,
-        )
-        if any(rec["status"] != "ok" for rec, _ in results):
+        try:
+            results = rollout_batch(
+                venv,
+                policy,
+                [t.seed for t in unit],
+                tolerance=self.config.tolerance,
+                settle_time=self.config.settle_time,
+                meta=meta,
+            )
+        except KeyboardInterrupt:
+            raise
+        except BaseException:  # outside its episode loop (it records what fails inside): run the episodes singly
+            results = []
+        if not results or any(rec["status"] != "ok" for rec, _ in results):
             self._batched.pop((key, len(unit)), None)
             venv.close()
             return None
