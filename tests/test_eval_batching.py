@@ -48,8 +48,14 @@ def _drop_timing(rows: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if not k.startswith("predict_us")} for r in rows]
 
 
+@pytest.fixture
+def small_batches(monkeypatch):
+    """Batches of 2 and 3 (below the speed floor `MIN_BATCH`), so that short tests exercise the batched path."""
+    monkeypatch.setattr(B, "MIN_BATCH", 2)
+
+
 @pytest.mark.parametrize("env_id", [CIRCLE, LINE])
-def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id):
+def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id, small_batches):
     """results.json episode fields are equal with batch_size 64 and 1, for five controllers (nnbc chaotic)."""
     kw = {
         "envs": (env_id,),
@@ -70,24 +76,29 @@ def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id):
     assert len({r["wall_s"] for r in single.episodes}) > 1
 
 
-def test_plan_units_batches_kinematic_builtin_specs_only():
-    cfg = EvalConfig(batch_size=3, workers=1)
+def test_plan_units_batches_kinematic_builtin_specs_only(monkeypatch):
     tasks = []
     for dyn in ("kinematic", "physics"):
         for pol in ("nnbc", "sb3:sac-circle", "mine", "test_eval_helpers:SlowMarked"):
-            for k in range(4):
+            for k in range(9):
                 tasks.append(Task(len(tasks), CIRCLE, dyn, pol, k, 10_000 + k, None, None))
-    units = plan_units(cfg, {"mine": object()}, tasks)
-    sizes = [[t.index for t in u] for u in units]
-    assert sizes[:2] == [[0, 1, 2], [3]]  # kinematic nnbc: batches of at most batch_size, in order
-    assert all(len(u) == 1 for u in units[2:]) and len(units) == 2 + 28
-    assert sorted(t.index for u in units for t in u) == list(range(32))
-    # two workers: the 4 batchable episodes are split so that both get a batch
-    assert [len(u) for u in plan_units(EvalConfig(batch_size=64, workers=2), {}, tasks[:4], 2)] == [2, 2]
-    assert all(len(u) == 1 for u in plan_units(EvalConfig(batch_size=1), {}, tasks))
+    user = {"mine": object()}
+    units = plan_units(EvalConfig(batch_size=5), user, tasks)
+    # kinematic nnbc: the fewest batches of at most batch_size, balanced, in order; the rest single
+    assert [[t.index for t in u] for u in units[:2]] == [[0, 1, 2, 3], [4, 5, 6, 7, 8]]
+    assert all(len(u) == 1 for u in units[2:]) and len(units) == 2 + 63
+    assert sorted(t.index for u in units for t in u) == list(range(72))
+    # two workers: the 9 batchable episodes are cut so that both get a batch
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64, workers=2), user, tasks)[:2]] == [4, 5]
+    assert all(len(u) == 1 for u in plan_units(EvalConfig(batch_size=1), user, tasks))
+    # below the speed floor (4 episodes) a group runs as single episodes
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64), user, tasks[:3])] == [1, 1, 1]
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64), user, tasks[:4])] == [4]
+    monkeypatch.setattr(B, "MIN_BATCH", 2)
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64), user, tasks[:3])] == [3]
 
 
-def test_a_batch_of_any_seeds_equals_single_episodes():
+def test_a_batch_of_any_seeds_equals_single_episodes(small_batches):
     """Non-consecutive seeds in any order (a sweep's seed list) batch bit-identically, through every backend
     entry and with workers=2 dealing batches."""
     seeds = [10_007, 10_000, 10_003, 12_345]
@@ -156,7 +167,7 @@ def test_a_failing_batch_is_rerun_one_by_one(tmp_path, monkeypatch):
     assert ok == [r for r in _fields(clean.results) if r["seed"] != 10_002]
 
 
-def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch):
+def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch, small_batches):
     real_batch = B.rollout_batch
     calls = []
 
@@ -172,14 +183,15 @@ def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch):
         run(cfg)
     results = json.loads((tmp_path / "stopped" / "results.json").read_text())
     status = [(r["policy"], r["seed"], r["status"]) for r in results["episodes"]]
-    # units: clik 10000-10002 (a batch), clik 10003 (single), jmpi 10000-10002 (stopped), jmpi 10003
-    assert calls == [[10_000, 10_001, 10_002]] * 2
-    assert [s for s in status if s[2] == "ok"] == [("clik", 10_000 + k, "ok") for k in range(4)]
-    assert [s for s in status if s[2] != "ok"] == [("jmpi", 10_000 + k, "interrupted") for k in range(4)]
-    assert [(a["policy"], a["n"]) for a in results["aggregate"]] == [("clik", 4)]
+    # units (4 episodes, at most 3 a batch): clik 10000-1, clik 10002-3 (stopped), jmpi 10000-1, jmpi 10002-3
+    assert calls == [[10_000, 10_001], [10_002, 10_003]]
+    assert [s for s in status if s[2] == "ok"] == [("clik", 10_000, "ok"), ("clik", 10_001, "ok")]
+    stopped = [("clik", 10_002), ("clik", 10_003)] + [("jmpi", 10_000 + k) for k in range(4)]
+    assert [s for s in status if s[2] != "ok"] == [(*p, "interrupted") for p in stopped]
+    assert [(a["policy"], a["n"]) for a in results["aggregate"]] == [("clik", 2)]
 
 
-def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time():
+def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_batches):
     """robot="random" has a SyncVectorEnv: found out once per condition, then its episodes run singly."""
     env_id = "WheeledRandomArm-Circle-v0"
     cfg = EvalConfig(envs=(env_id,), env_kwargs={"path": dict(TASKS[CIRCLE], duration=0.2)}, save_arrays="none")

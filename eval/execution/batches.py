@@ -1,6 +1,6 @@
 """Batches: the kinematic episodes that can share one vector env run together, through `eval.batch_rollout`.
 
-`plan_units(config, user, tasks, workers)` cuts the task list into *units*, each run by one process (or Ray
+`plan_units(config, user, tasks)` cuts the task list into *units*, each run by one process (or Ray
 task) with `UnitRunner.run`: a batch of N episodes stepped together through one native vector env
 (`mobman_env.vector.WheeledPumaVectorEnv`) and one batched policy (`policies.make(spec, vector_env)`), or a
 single episode on the single path (`eval.execution.tasks.Executor`, the one rollout loop of `eval.rollout`).
@@ -18,8 +18,10 @@ single episode on the single path (`eval.execution.tasks.Executor`, the one roll
   env) or cannot be built run single; that is found out once per condition, when its first batch is built.
 
 Tasks of the same env id, dynamics, model error, sensor noise and policy spec (the run's `env_kwargs` are common
-to all) form a group, cut in order into batches of `unit_size` episodes at most: `config.batch_size`, and with
-`workers` > 1 no more than ceil(batchable episodes / workers), so that every worker gets batches. Units keep the
+to all) form a group, cut in order into the fewest batches of `unit_size` episodes at most (`config.batch_size`,
+and with `config.workers` > 1 no more than ceil(batchable episodes / workers), so that every worker gets batches),
+their sizes differing by one at most. A batch smaller than `MIN_BATCH` (4) runs as single episodes: the vector
+env's fixed cost per step makes small batches slower than the single path (see `MIN_BATCH`). Units keep the
 order of the tasks' first appearance; local workers are dealt units round-robin.
 
 **Seeds.** A batch takes any N seeds: `venv.reset(seed=[s_0, ...])` (robot i bit-identical to a single env
@@ -55,6 +57,13 @@ from eval.config import EvalConfig
 from eval.execution.tasks import Executor, Task
 from eval.rollout import make_policy
 
+#: The smallest batch worth a vector env. Below it the vector env's fixed cost per step (about 0.3 ms, the
+#: `mobman-eval speed` figure at N = 1) outweighs what it saves over N single env steps (about 80 us each) while the
+#: laws still loop per robot (`policies.batched`). Measured with `rollout_batch` vs `rollout`, CPU time per 5 s
+#: episode, at load average 9 on 2 cores: batch of 2: 0.66x (nnbc), 0.77x (clik), 0.88x (zero) the speed of single
+#: episodes; 4: 1.02x, 1.10x, 1.65x; 8: 1.35x, 1.47x, 3.19x; 16: 1.64x, 2.20x, 5.93x.
+MIN_BATCH = 4
+
 
 def batch_key(config: EvalConfig, user: dict, task: Task) -> tuple | None:
     """The key of the tasks that can share a vector env and batched policy with `task`; None: run it single."""
@@ -74,8 +83,9 @@ def unit_size(config: EvalConfig, n_batchable: int, workers: int) -> int:
     return max(1, min(config.batch_size, math.ceil(n_batchable / workers)))
 
 
-def plan_units(config: EvalConfig, user: dict, tasks: list[Task], workers: int = 1) -> list[list[Task]]:
-    """The tasks cut into units (batches, and single tasks as units of one); see the module docstring."""
+def plan_units(config: EvalConfig, user: dict, tasks: list[Task]) -> list[list[Task]]:
+    """The tasks cut into units (batches, and single tasks as units of one) for `config.workers` processes; see
+    the module docstring."""
     groups: dict[Any, list[Task]] = {}
     n_batchable = 0
     for task in tasks:
@@ -85,10 +95,17 @@ def plan_units(config: EvalConfig, user: dict, tasks: list[Task], workers: int =
         else:
             n_batchable += 1
         groups.setdefault(key, []).append(task)
-    size = unit_size(config, n_batchable, workers)
-    units = []
+    size = unit_size(config, n_batchable, config.workers)
+    units: list[list[Task]] = []
     for group in groups.values():
-        units.extend(group[i : i + size] for i in range(0, len(group), size))
+        n = len(group)
+        k = math.ceil(n / size)  # the fewest batches of at most `size`, balanced
+        for a, b in zip([i * n // k for i in range(k)], [(i + 1) * n // k for i in range(k)]):
+            chunk = group[a:b]
+            if len(chunk) >= MIN_BATCH:
+                units.append(chunk)
+            else:
+                units.extend([t] for t in chunk)
     return units
 
 

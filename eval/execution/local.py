@@ -47,7 +47,7 @@ def execute_local(
         if on_result is not None:
             on_result(rec)
 
-    units = plan_units(config, user, tasks, config.workers)
+    units = plan_units(config, user, tasks)
     n_workers = min(config.workers, len(units))
     if n_workers <= 1:
         runner = UnitRunner(config, user)

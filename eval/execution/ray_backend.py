@@ -256,7 +256,7 @@ def _run_on_ray(
         remote = _remote_task()
         cfg_ref = ray.put(config)
         user_ref = ray.put(user_bytes)
-        units = plan_units(config, user, tasks, config.workers)
+        units = plan_units(config, user, tasks)
         pending = {
             remote.remote(cfg_ref, user_ref, unit, [keep_arrays(config, t) for t in unit]): unit for unit in units
         }
