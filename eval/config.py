@@ -45,8 +45,8 @@ class EvalConfig:
     batch_size: int = 64
     """Most kinematic episodes stepped together through one vector env and one batched policy
     (`eval.execution.batches`): episodes of the same env, condition and built-in policy spec are batched;
-    physics mode, `sb3:` agents, `module:attr` specs and policy objects always run one by one. 1: every episode
-    on the single path. Results are the same either way (timing fields and `pid` aside); a failing batch is run
+    physics mode, `sb3:` agents, `module:attr` specs, policy objects and batches smaller than
+    `eval.execution.batches.MIN_BATCH` (4) run one by one. 1: every episode on the single path. Results are the same either way (timing fields and `pid` aside); a failing batch is run
     again episode by episode; Ctrl-C loses the episodes of the batch in progress."""
     backend: str = "local"
     """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per batch or episode; needs
