@@ -204,3 +204,13 @@ def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_bat
         runner.close()
     assert runner._unbatchable == {(env_id, "kinematic", None, None, "zero")}
     assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000, "ok"), (10_001, "ok")]
+
+
+@pytest.mark.parametrize("command", [["run"], ["paper", "--dynamics", "kinematic"]])
+def test_a_bad_batch_size_is_refused_before_any_rollout(tmp_path, capsys, command):
+    from eval.cli import main
+
+    assert main([*command, "--batch-size", "0", "--out", str(tmp_path / "x"), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "batch_size" in err and "0" in err and "--batch-size 64" in err, err
+    assert not (tmp_path / "x").exists()
