@@ -7,15 +7,21 @@ repeat: actions, _ = policy.predict(obs)       # one call for every robot still 
         obs, reward, terminated, truncated, info = venv.step(actions)
 ```
 
+`seed` may also be a list of N seeds, one per robot, in any order (robot i: the single env's episode of
+`seed[i]`; `venv.reset(seed=[...])` and `policy.reset(..., seed=[policy_seed(s) ...])`, as Gymnasium's vector
+envs take a list), which is how `eval.execution` batches a sweep's arbitrary seeds; `meta` may likewise be one
+dict per robot (the `episode` field differs between them).
+
 `rollout_batch` returns, for each robot i, the (record, arrays) that `eval.rollout.rollout` returns for the
-episode of seed S + i with the same policy spec: the vector env (`mobman_env.vector`) is bit-identical to the
+episode of seed S + i (or `seed[i]`) with the same policy spec: the vector env (`mobman_env.vector`) is bit-identical to the
 single env and a batched policy's rows run the single-env law (`policies.batched`), so every array and metric is
 equal, for chaotic controllers too (`tests/test_batch_rollout.py`). What differs is the timing: `predict_us` of
 a row is the batched call's wall time divided by the robots it served, and `wall_s` is the batch's wall time
 divided by N. A robot whose episode ended stays out of the statistics (the vector env autoresets it; its later
 rows are ignored). An exception fails the whole batch: every record gets status "failed" and the traceback.
 
-Layer 3 (above `rollout`, whose helpers it reuses): imports `eval.metrics`, `eval.rollout` and numpy.
+Layer 3 (above `rollout`, whose helpers it reuses): imports `eval.metrics`, `eval.rollout`, `policies.base`,
+gymnasium (`make_vector_env`) and numpy.
 """
 
 from __future__ import annotations
@@ -23,12 +29,15 @@ from __future__ import annotations
 import os
 import time
 import traceback
+from collections.abc import Sequence
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 
 from eval import metrics as M
 from eval.rollout import _empty_record, _finish, _JacobianRecorder, _metrics_none
+from policies.base import policy_seed
 
 
 class _RobotBase:
@@ -46,6 +55,26 @@ class _RobotBase:
         return self._venv.true_params(self._i)
 
 
+def make_vector_env(
+    env_id: str,
+    num_envs: int,
+    dynamics: str | None = None,
+    model_error: float | None = None,
+    obs_noise: float | None = None,
+    env_kwargs: dict | None = None,
+) -> Any:
+    """`gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **kwargs)` with the eval flags
+    (None: the env's default) and extra constructor kwargs, as `eval.rollout.make_env` builds a single env.
+    Kinematic mode of a fixed arm gives the native `mobman_env.vector.WheeledPumaVectorEnv`."""
+    import mobman_env  # noqa: F401  (registers the ids)
+
+    kwargs = dict(env_kwargs or {})
+    for name, value in (("dynamics", dynamics), ("model_error", model_error), ("obs_noise", obs_noise)):
+        if value is not None:
+            kwargs[name] = value
+    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+
+
 def _row_info(info: dict, i: int) -> dict:
     return {
         "ee_pos_true": info["ee_pos_true"][i],
@@ -59,22 +88,36 @@ def _row_info(info: dict, i: int) -> dict:
 def rollout_batch(
     venv: Any,
     policy: Any,
-    seed: int,
+    seed: int | Sequence[int],
     *,
     tolerance: float = M.DEFAULT_TOLERANCE,
     settle_time: float = M.DEFAULT_SETTLE_TIME,
-    meta: dict | None = None,
+    meta: dict | Sequence[dict] | None = None,
 ) -> list[tuple[dict, dict | None]]:
-    """Run the N episodes of seeds `seed` .. `seed + N - 1` of `policy` (a `policies.batched.BatchedPolicy` for
-    `venv`) on the vector env `venv`; returns each robot's (record, arrays) as `eval.rollout.rollout` would."""
+    """Run the N episodes of seeds `seed` .. `seed + N - 1` (or the N seeds of the list `seed`) of `policy` (a
+    `policies.batched.BatchedPolicy` for `venv`) on the vector env `venv`; returns each robot's (record, arrays)
+    as `eval.rollout.rollout` would. `meta`: the caller's record fields, one dict for all or one per robot."""
     n = venv.num_envs
     bases = [_RobotBase(venv, i) for i in range(n)]
-    recs = [_empty_record(bases[i], seed + i, meta) for i in range(n)]
+    if isinstance(seed, (int, np.integer)):
+        seeds = [int(seed) + i for i in range(n)]
+        env_seed: int | list[int] = int(seed)
+        policy_seeds: int | list[int] = int(seed)  # the batched policy derives policy_seed(S + i) itself
+    else:
+        seeds = env_seed = [int(s) for s in seed]
+        policy_seeds = [policy_seed(s) for s in seeds]
+    metas = list(meta) if isinstance(meta, Sequence) else [meta] * n
+    if len(seeds) != n or len(metas) != n:
+        raise ValueError(
+            f"rollout_batch on {n} robots needs one seed (or a list of {n}) and one meta dict (or a list of {n}), "
+            f"got {len(seeds)} seeds and {len(metas)} meta dicts"
+        )
+    recs = [_empty_record(bases[i], seeds[i], metas[i]) for i in range(n)]
     wall0 = time.perf_counter()
     steps_run = np.zeros(n, dtype=int)
     arr: dict[str, np.ndarray] = {}
     try:
-        obs, info = venv.reset(seed=seed)
+        obs, info = venv.reset(seed=env_seed)
         n_steps = np.asarray(info["task"]["n_steps"], dtype=int)
         m = int(n_steps.max())
         n_act = len(np.asarray(bases[0].action_scale))
@@ -92,7 +135,7 @@ def rollout_batch(
             rec.update(
                 path=_path(info, i), start=info["task"]["start"][i], true_params_hash=info["true_params_hash"][i]
             )
-        policy.reset(obs, info, seed=seed)
+        policy.reset(obs, info, seed=policy_seeds)
         rows = getattr(policy, "rows", [policy] * n)
         jacs = [
             _JacobianRecorder(rows[i], bases[i], int(n_steps[i]))

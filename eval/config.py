@@ -42,8 +42,14 @@ class EvalConfig:
     """Parallel episodes. Local backend: processes (one PyBullet client each; 1 runs in this process). Ray
     backend: the CPUs of the local Ray instance started for the run (ignored when this process already called
     `ray.init`; must stay 1 with `address`, where the cluster's CPUs decide)."""
+    batch_size: int = 64
+    """Most kinematic episodes stepped together through one vector env and one batched policy
+    (`eval.execution.batches`): episodes of the same env, condition and built-in policy spec are batched;
+    physics mode, `sb3:` agents, `module:attr` specs, policy objects and batches smaller than
+    `eval.execution.batches.MIN_BATCH` (4) run one by one. 1: every episode on the single path. Results are the same either way (timing fields and `pid` aside); a failing batch is run
+    again episode by episode; Ctrl-C loses the episodes of the batch in progress."""
     backend: str = "local"
-    """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per episode; needs
+    """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per batch or episode; needs
     `pip install "mobman[ray]"`)."""
     address: str | None = None
     """Ray cluster to connect to ("auto", "HOST:6379", "ray://HOST:10001"); None: start a local Ray instance
@@ -92,6 +98,7 @@ class EvalConfig:
         integer("episodes", self.episodes, low=1, hint="e.g. --episodes 5", error=EvalError)
         integer("seed", self.seed, low=0, hint="reported seeds start at 10000", error=EvalError)
         integer("workers", self.workers, low=1, hint="e.g. --workers 2", error=EvalError)
+        integer("batch_size", self.batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
         self.validate_backend()
         for name in ("envs", "policies"):
             values = getattr(self, name)

@@ -9,9 +9,11 @@ Order of work, so that mistakes cost nothing:
 3. results.json, results.csv, summary.md, config.json, episodes.npz, plots and videos are written, each to a
    temporary name and renamed.
 
-Workers: `workers=N > 1` starts N spawned processes, each with its own PyBullet client(s). The episodes are
-dealt round-robin (worker i runs episodes i, i + N, ... of the run's list), so every worker really runs and the
-results do not depend on scheduling: every episode starts from `env.reset(seed=S + k)` and
+Batches: kinematic episodes of one env, condition and built-in policy spec run up to `batch_size` at a time
+through one vector env and one batched policy (`eval.execution.batches`), with the records of the single path
+(a batch that raises is run again episode by episode). Workers: `workers=N > 1` starts N spawned processes,
+each with its own PyBullet client(s). The batches and single episodes are dealt round-robin (worker i runs units
+i, i + N, ... of the run's list), so every worker really runs and the results do not depend on scheduling: every episode starts from `env.reset(seed=S + k)` and
 `policy.reset(..., seed=policy_seed(S + k))` (`policies.base.policy_seed`), whichever process runs it. Results equal those of `workers=1` except the
 timing fields (`wall_s`, `predict_us_*`) and `pid`.
 """

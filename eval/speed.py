@@ -9,7 +9,7 @@ What it measures, all in the same run so that the ratios compare like with like 
 | ratio | env steps/s / bare steps/s at the same substeps |
 | physics at 2, 4, 10 substeps | env and bare steps/s at each |
 | predict microseconds | the whole `predict` call of each built-in policy over one kinematic episode (median, p99) |
-| episodes/s | `eval.run` of 20 s kinematic `nnbc` episodes with `workers` 1 and 2 (worker start-up included) |
+| episodes/s | `eval.run` of 20 s kinematic `nnbc` episodes with `workers` 1 and 2, one episode at a time (`batch_size` 1) and batched (`EvalConfig`'s default `batch_size`: `eval.execution.batches`), worker start-up included |
 | vector env robot-steps/s | `gym.make_vec(..., vectorization_mode="vector_entry_point", dynamics="kinematic")` at N = 1, 64, 1024 (`mobman_env.vector`), random actions, no autoreset inside the timed block |
 | batched predict | the whole batched `predict` of `policies.make(spec, vector_env)` at N = 64, per robot-step |
 | batched episodes/s | `eval.batch_rollout.rollout_batch` of `--batch` 20 s kinematic `nnbc` and `clik` episodes in one process (one vector env, one batched policy) |
@@ -35,6 +35,8 @@ import numpy as np
 SPEED_ENV = "WheeledPuma-Circle-v0"
 SUBSTEPS = (2, 4, 10)
 WORKERS = (1, 2)
+#: `EvalConfig.batch_size` of the `eval.run` episodes/s rows: the single path, and the default (batched)
+EVAL_BATCH_SIZES = (1, None)
 #: the clock of every block run in this process: its CPU time. On a machine shared with other jobs the wall time
 #: mostly measures them (at a load average of 10 on 2 cores a process gets a fifth of a core); the `eval.run`
 #: episodes/s (worker processes) and the predict times inside the rollout loop stay wall time
@@ -176,9 +178,16 @@ def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     return rows
 
 
-def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed: int = 0) -> dict:
+def episodes_per_second(
+    workers: int, episodes: int, policy: str = "nnbc", seed: int = 0, batch_size: int | None = None
+) -> dict:
+    """Episodes/s of `eval.run` (wall time of its execution) with `workers` and `batch_size` (None: the
+    `EvalConfig` default)."""
     from eval.config import EvalConfig
     from eval.runner import run
+
+    if batch_size is None:
+        batch_size = EvalConfig.batch_size
 
     with tempfile.TemporaryDirectory(prefix="mobman-speed-") as tmp:
         cfg = EvalConfig(
@@ -189,6 +198,7 @@ def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed:
             out=tmp,
             overwrite=True,
             workers=workers,
+            batch_size=batch_size,
             dynamics=("kinematic",),
             plots=False,
             save_arrays="none",
@@ -202,6 +212,7 @@ def episodes_per_second(workers: int, episodes: int, policy: str = "nnbc", seed:
     steps = sum(r.get("n_steps") or 0 for r in result.episodes)
     return {
         "workers": workers,
+        "batch_size": batch_size,
         "episodes": episodes,
         "policy": policy,
         "dynamics": "kinematic",
@@ -393,8 +404,8 @@ def measure(
     out["env"] = blocks
     progress("timing predict per policy ...")
     out["predict"] = predict_times(specs or default_policies())
-    progress("timing episodes/s with workers 1 and 2 ...")
-    out["episodes"] = [episodes_per_second(w, episodes) for w in WORKERS]
+    progress("timing eval.run episodes/s with workers 1 and 2, unbatched and batched ...")
+    out["episodes"] = [episodes_per_second(w, episodes, batch_size=b) for b in EVAL_BATCH_SIZES for w in WORKERS]
     progress("timing the vector env at N = 1, 64, 1024 and batched predict ...")
     out["vector"] = [vector_steps(n, steps, repeats) for n in VECTOR_SIZES]
     out["batched_predict"] = batched_predict_times(specs or default_policies(), steps)
@@ -451,8 +462,9 @@ def markdown(res: dict) -> str:
         text = ", ".join(f"`{r['policy']}` {r['us_per_robot_step']:.1f}" for r in bp)
         lines.append(f"| batched `predict`, us per robot-step (N = {bp[0]['num_envs']}) | {text} |")
     for e in res["episodes"]:
+        batch = f", batch size {e['batch_size']}" if "batch_size" in e else ""  # files before batching: no key
         lines.append(
-            f"| episodes/s, 20 s kinematic `{e['policy']}`, `eval.run` with {e['workers']} worker(s) | "
+            f"| episodes/s, 20 s kinematic `{e['policy']}`, `eval.run` with {e['workers']} worker(s){batch} | "
             f"{e['episodes_per_s']:.2f} |"
         )
     for e in res.get("batch_episodes", []):
@@ -501,11 +513,13 @@ def print_table(res: dict) -> None:
         )
     c.print(t)
     t = Table(title="episodes/s (20 s kinematic nnbc episodes, worker start-up included)")
-    for h in ("workers", "processes", "episodes", "episodes/s", "steps/s incl. policy", "wall s", "s per episode"):
+    for h in ("workers", "batch size", "processes", "episodes", "episodes/s", "steps/s incl. policy", "wall s"):
         t.add_column(h, justify="right")
+    t.add_column("s per episode", justify="right")
     for e in res["episodes"]:
         t.add_row(
             str(e["workers"]),
+            str(e.get("batch_size", 1)),
             str(e["processes"]),
             str(e["episodes"]),
             f"{e['episodes_per_s']:.2f}",

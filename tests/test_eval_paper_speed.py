@@ -109,7 +109,13 @@ def test_speed_writes_speed_json(tmp_path):
     pred = {r["policy"]: r for r in res["predict"]}
     assert pred["zero"]["status"] == "ok" and pred["zero"]["calls"] == 2000
     assert pred["zero"]["predict_us_p99"] >= pred["zero"]["predict_us_median"] > 0
-    assert [(e["workers"], e["processes"]) for e in res["episodes"]] == [(1, 1), (2, 2)]
+    # eval.run one episode at a time, then batched (2 episodes, 2 workers: a batch of one each)
+    assert [(e["workers"], e["batch_size"], e["processes"]) for e in res["episodes"]] == [
+        (1, 1, 1),
+        (2, 1, 2),
+        (1, 64, 1),
+        (2, 64, 2),
+    ]
     assert [v["num_envs"] for v in res["vector"]] == [1, 64, 1024]
     assert all(v["robot_steps_per_s"] == max(v["robot_steps_per_s_all"]) for v in res["vector"])
     assert [(r["policy"], r["status"]) for r in res["batched_predict"]] == [("zero", "ok")]

@@ -31,6 +31,7 @@ from eval.errors import EvalError
 from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text, check_out
 from eval.sweep.config import SweepConfig
 from eval.sweep.run import run_sweep
+from mobman_env.validation import integer
 
 #: bench settings that must not change within one output directory
 FIXED_KEYS = ("tolerance", "settle_time", "env_kwargs")
@@ -89,6 +90,7 @@ def run_bench(
     backend: str = "local",
     address: str | None = None,
     workers: int = 1,
+    batch_size: int = EvalConfig.batch_size,
     max_episodes: int | None = None,
     retry_failed: bool = False,
     plots: bool = True,
@@ -102,6 +104,7 @@ def run_bench(
     ):
         raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
     EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
+    integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
     protocol = protocol_dict(cfg)
     _check_out_dir(out, protocol)
     sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
@@ -116,6 +119,7 @@ def run_bench(
             "backend": backend,
             "address": address,
             "workers": workers,
+            "batch_size": batch_size,
         },
     )
     n_expected = sum(s.n_episodes for s in sweeps.values())
@@ -142,6 +146,7 @@ def run_bench(
                 backend=backend,
                 address=address,
                 workers=workers,
+                batch_size=batch_size,
                 max_episodes=budget,
                 retry_failed=retry_failed,
                 plots=False,

@@ -173,6 +173,7 @@ def main(args) -> int:
             backend=args.backend,
             address=args.address,
             workers=args.workers,
+            batch_size=args.batch_size,
             max_episodes=args.max_episodes,
             retry_failed=args.retry_failed,
             plots=not args.no_plots,

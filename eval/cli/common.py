@@ -90,8 +90,21 @@ def env_kwargs_arg(text: str) -> dict:
     return value
 
 
+def add_batch_size_argument(p) -> None:
+    """--batch-size (run, sweep, bench and paper)."""
+    p.add_argument(
+        "--batch-size",
+        type=int,
+        default=default(EvalConfig, "batch_size"),
+        metavar="N",
+        help="most kinematic episodes of one env, condition and built-in policy stepped together through one "
+        "vector env (same results; 1: one episode at a time; physics, sb3: and module:attr always run singly)",
+    )
+
+
 def add_backend_arguments(p) -> None:
-    """--workers, --backend and --address (run and sweep)."""
+    """--workers, --batch-size, --backend and --address (run, sweep and bench)."""
+    add_batch_size_argument(p)
     p.add_argument(
         "--workers",
         type=int,
@@ -103,7 +116,7 @@ def add_backend_arguments(p) -> None:
         "--backend",
         choices=BACKEND_CHOICES,
         default=default(EvalConfig, "backend"),
-        help='where episodes run: local processes, or one Ray task per episode (pip install "mobman[ray]")',
+        help='where episodes run: local processes, or one Ray task per batch or episode (pip install "mobman[ray]")',
     )
     p.add_argument(
         "--address",

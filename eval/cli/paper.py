@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from eval import paper
-from eval.cli.common import HelpFormatter, param_default
+from eval.cli.common import HelpFormatter, add_batch_size_argument, param_default
 
 
 def add_parser(sub) -> None:
@@ -27,6 +27,7 @@ def add_parser(sub) -> None:
         help="dynamics mode(s)",
     )
     p.add_argument("--workers", type=int, default=param_default(paper.reproduce, "workers"), help="worker processes")
+    add_batch_size_argument(p)
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     p.add_argument("--video", action="store_true", help="also write videos of seed 10000 (slow)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
@@ -38,6 +39,7 @@ def main(args) -> int:
         seeds=args.seeds,
         dynamics=args.dynamics,
         workers=args.workers,
+        batch_size=args.batch_size,
         overwrite=args.overwrite,
         video=args.video,
         progress=not args.quiet,

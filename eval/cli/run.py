@@ -112,6 +112,7 @@ def main(args) -> int:
         out=args.out,
         overwrite=args.overwrite,
         workers=args.workers,
+        batch_size=args.batch_size,
         backend=args.backend,
         address=args.address,
         dynamics=tuple(args.dynamics or default(EvalConfig, "dynamics")),

@@ -1,7 +1,9 @@
-"""eval.execution: running episodes — `tasks` (what one episode is, and running tasks in this process), `local`
-(N spawned worker processes), `ray_backend` (one Ray task per episode) and `dispatch.execute` (the one entry,
-choosing by `config.backend`).
+"""eval.execution: running episodes — `tasks` (what one episode is, and running tasks in this process),
+`batches` (kinematic episodes of one condition and policy batched through a vector env, with a fallback to
+single episodes), `local` (this process or N spawned worker processes), `ray_backend` (one Ray task per batch or
+episode) and `dispatch.execute` (the one entry, choosing by `config.backend`).
 
-May import: `eval.errors`, `eval.config`, `eval.rollout`, `eval.metrics`; never `eval.output`, `eval.sweep`,
-`eval.cli` or the runners. Within the package: tasks <- local, ray_backend <- dispatch.
+May import: `eval.errors`, `eval.config`, `eval.rollout`, `eval.batch_rollout`, `eval.metrics`; never
+`eval.output`, `eval.sweep`, `eval.cli` or the runners. Within the package: tasks <- batches <- local,
+ray_backend <- dispatch.
 """

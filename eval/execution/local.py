@@ -1,5 +1,9 @@
-"""Local execution: the tasks in this process (`workers=1`) or dealt round-robin to N spawned worker processes,
-one pipe each; a worker that dies marks its unfinished episodes failed."""
+"""Local execution: the tasks in this process (`workers=1`) or in N spawned worker processes, one pipe each.
+
+The tasks are first cut into units (`eval.execution.batches.plan_units`: batches of kinematic episodes that
+share a vector env, and single episodes); units, not episodes, are dealt round-robin to the workers (worker i
+runs units i, i + N, ...). Results do not depend on the dealing: every episode starts from its own seeds. A
+worker that dies marks its unfinished episodes failed."""
 
 from __future__ import annotations
 
@@ -9,20 +13,22 @@ import signal
 import threading
 
 from eval.config import EvalConfig
-from eval.execution.tasks import ExecutionInterrupted, Executor, Task, failed_record, keep_arrays
+from eval.execution.batches import UnitRunner, plan_units
+from eval.execution.tasks import ExecutionInterrupted, Task, failed_record, keep_arrays
 
 
-def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, tasks: list[Task], out) -> None:
-    """Entry point of one worker process: run `tasks` in order, send each result through the pipe `out`."""
+def _worker_main(wid: int, config: EvalConfig, user_bytes: bytes | None, units: list[list[Task]], out) -> None:
+    """Entry point of one worker process: run `units` in order, send each episode's result through the pipe
+    `out` as it ends."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the whole group: the parent stops us
     user = pickle.loads(user_bytes) if user_bytes else {}
-    ex = Executor(config, user)
+    runner = UnitRunner(config, user)
     try:
-        for task in tasks:
-            rec, arrays = ex.run(task)
-            out.send(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
+        for unit in units:
+            for task, rec, arrays in runner.run(unit):
+                out.send(("result", task.index, rec, arrays if keep_arrays(config, task) else None))
     finally:
-        ex.close()
+        runner.close()
         out.send(("done", wid, None, None))
         out.close()
 
@@ -41,26 +47,34 @@ def execute_local(
         if on_result is not None:
             on_result(rec)
 
-    n_workers = min(config.workers, len(tasks))
+    units = plan_units(config, user, tasks)
+    n_workers = min(config.workers, len(units))
     if n_workers <= 1:
-        ex = Executor(config, user)
+        runner = UnitRunner(config, user)
         try:
-            for task in tasks:
-                rec, arr = ex.run(task)
-                take(task.index, rec, arr if keep_arrays(config, task) else None)
+            for unit in units:
+                for task, rec, arr in runner.run(unit):
+                    take(task.index, rec, arr if keep_arrays(config, task) else None)
         except KeyboardInterrupt:
             raise ExecutionInterrupted(records, arrays) from None
         finally:
-            ex.close()
+            runner.close()
         return records, arrays
-    _execute_workers(config, user_bytes, tasks, n_workers, records, arrays, take)
+    _execute_workers(config, user_bytes, tasks, units, n_workers, records, arrays, take)
     return records, arrays
 
 
 def _execute_workers(
-    config: EvalConfig, user_bytes, tasks: list[Task], n_workers: int, records: dict, arrays: dict, take
+    config: EvalConfig,
+    user_bytes,
+    tasks: list[Task],
+    units: list[list[Task]],
+    n_workers: int,
+    records: dict,
+    arrays: dict,
+    take,
 ) -> None:
-    """The tasks dealt round-robin to `n_workers` spawned processes. The workers ignore SIGINT (they are
+    """The units dealt round-robin to `n_workers` spawned processes. The workers ignore SIGINT (they are
     spawned with it ignored): on Ctrl-C this process takes what they sent, terminates them and raises
     `ExecutionInterrupted`."""
 
@@ -69,7 +83,7 @@ def _execute_workers(
 
     # one pipe per worker: send() is synchronous, so a result sent before a crash is never lost
     ctx = mp.get_context("spawn")
-    shares = [tasks[i::n_workers] for i in range(n_workers)]
+    shares = [units[i::n_workers] for i in range(n_workers)]
     readers, procs = [], []
     with _single_threaded_children(), _sigint_ignored():
         for i in range(n_workers):
@@ -100,7 +114,7 @@ def _execute_workers(
                         f"stderr; a script that calls eval.run with workers > 1 needs an "
                         f"`if __name__ == '__main__':` guard)"
                     )
-                    for t in shares[i]:
+                    for t in (t for unit in shares[i] for t in unit):
                         if t.index not in records:
                             take(t.index, failed_record(t, message), None)
     except KeyboardInterrupt:

@@ -1,8 +1,11 @@
-"""The Ray backend (`--backend ray [--address ADDRESS]`): every episode is one Ray task.
+"""The Ray backend (`--backend ray [--address ADDRESS]`): every unit is one Ray task — a batch of kinematic
+episodes sharing a vector env, or one episode (`eval.execution.batches.plan_units`, as the local backend cuts
+them).
 
-* **Same results as the local backend.** A task receives the run's config and one `Task` (env id, dynamics,
-  policy, seed, model error, noise), builds the env and the policy inside the Ray worker process (its own
-  PyBullet client), runs the one rollout loop of `eval.rollout` and closes the env, so no PyBullet client or
+* **Same results as the local backend.** A task receives the run's config and its `Task`s (env id, dynamics,
+  policy, seed, model error, noise), builds the env(s) and the policy inside the Ray worker process (its own
+  PyBullet client), runs the rollout loop of `eval.rollout` (or `eval.batch_rollout` for a batch, with the
+  same fallback to single episodes when a batch fails) and closes the envs, so no PyBullet client or
   temporary URDF outlives the task (Ray kills its worker processes without running their exit handlers).
   Every episode starts from `env.reset(seed)` and `policy.reset(..., seed=policy_seed(seed))`: the records equal those of
   `--backend local` except `wall_s`, `pid` and `predict_us_*` (tested on a local `ray.init(num_cpus=2)`).
@@ -10,7 +13,7 @@
   `status: "failed"` and the traceback; it is not retried (same seed, same crash). A *task* that fails — its
   worker process dies (segfault, `os._exit`, out of memory, node lost) or it raises outside the episode (e.g.
   the policy objects cannot be unpickled because their module is missing on that node) — is run once more by
-  Ray (`max_retries=1`, `retry_exceptions=True`); if the retry fails too, the episode is recorded as failed
+  Ray (`max_retries=1`, `retry_exceptions=True`); if the retry fails too, its episode(s) are recorded as failed
   with Ray's error (and the remote traceback), `pid` and `wall_s` null, and the other episodes finish.
 * **Where Ray runs.** If this process already called `ray.init` (your script, a test fixture), that instance is
   used as it is and left running. Otherwise the run connects to `address` (`"auto"` on a node of a cluster
@@ -46,7 +49,8 @@ from typing import Any
 
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.execution.tasks import ExecutionInterrupted, Executor, Task, failed_record, keep_arrays
+from eval.execution.batches import UnitRunner, plan_units
+from eval.execution.tasks import ExecutionInterrupted, Task, failed_record, keep_arrays
 
 #: Ray re-runs a task once when its worker dies or it raises outside the episode; then it is recorded failed.
 MAX_RETRIES = 1
@@ -98,15 +102,18 @@ def serialize_policies(user: dict[str, Any]) -> bytes | None:
         ) from None
 
 
-def run_task(config: EvalConfig, user_bytes: bytes | None, task: Task, keep: bool) -> tuple[dict, dict | None]:
-    """Body of one Ray task, in a Ray worker process: build the env and policy, run the episode, close."""
+def run_unit(
+    config: EvalConfig, user_bytes: bytes | None, unit: list[Task], keep: list[bool]
+) -> list[tuple[dict, dict | None]]:
+    """Body of one Ray task, in a Ray worker process: build the env(s) and policy, run the unit's episodes (a
+    batch, or one episode: `eval.execution.batches`), close; one (record, arrays or None) per task of `unit`."""
     user = pickle.loads(user_bytes) if user_bytes else {}
-    ex = Executor(config, user)
+    runner = UnitRunner(config, user)
     try:
-        rec, arrays = ex.run(task)
+        done = {task.index: (rec, arrays) for task, rec, arrays in runner.run(unit)}
     finally:
-        ex.close()
-    return rec, (arrays if keep else None)
+        runner.close()
+    return [(done[t.index][0], done[t.index][1] if k else None) for t, k in zip(unit, keep)]
 
 
 _REMOTE = None
@@ -116,7 +123,7 @@ def _remote_task():
     global _REMOTE
     if _REMOTE is None:
         ray = require_ray()
-        _REMOTE = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(run_task)
+        _REMOTE = ray.remote(num_cpus=1, max_retries=MAX_RETRIES, retry_exceptions=True)(run_unit)
     return _REMOTE
 
 
@@ -236,32 +243,38 @@ def execute_ray(
     if not tasks:
         return records, arrays
     try:
-        _run_on_ray(config, user_bytes, tasks, records, arrays, on_result)
+        _run_on_ray(config, user_bytes, user, tasks, records, arrays, on_result)
     except KeyboardInterrupt:  # the pending tasks are cancelled and the instance started for the run shut down
         raise ExecutionInterrupted(records, arrays) from None
     return records, arrays
 
 
-def _run_on_ray(config: EvalConfig, user_bytes, tasks: list[Task], records: dict, arrays: dict, on_result) -> None:
+def _run_on_ray(
+    config: EvalConfig, user_bytes, user: dict, tasks: list[Task], records: dict, arrays: dict, on_result
+) -> None:
     with ray_session(config) as ray:
         remote = _remote_task()
         cfg_ref = ray.put(config)
         user_ref = ray.put(user_bytes)
-        pending = {remote.remote(cfg_ref, user_ref, t, keep_arrays(config, t)): t for t in tasks}
+        units = plan_units(config, user, tasks)
+        pending = {
+            remote.remote(cfg_ref, user_ref, unit, [keep_arrays(config, t) for t in unit]): unit for unit in units
+        }
         try:
             while pending:
                 ready, _ = ray.wait(list(pending), num_returns=len(pending), timeout=POLL_S)
                 for ref in ready:
-                    task = pending.pop(ref)
+                    unit = pending.pop(ref)
                     try:
-                        rec, arr = ray.get(ref)
+                        results = ray.get(ref)
                     except Exception as exc:  # the task and its retry failed (RayTaskError, WorkerCrashedError, ...)
-                        rec, arr = failed_record(task, task_error_text(exc)), None
-                    records[task.index] = rec
-                    if arr is not None:
-                        arrays[task.index] = arr
-                    if on_result is not None:
-                        on_result(rec)
+                        results = [(failed_record(task, task_error_text(exc)), None) for task in unit]
+                    for task, (rec, arr) in zip(unit, results):
+                        records[task.index] = rec
+                        if arr is not None:
+                            arrays[task.index] = arr
+                        if on_result is not None:
+                            on_result(rec)
         finally:
             for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
                 with contextlib.suppress(Exception):

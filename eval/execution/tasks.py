@@ -7,6 +7,7 @@ each env (per id, dynamics, model error and noise) and each policy (per env) onc
 `policy.reset(..., seed=policy_seed(seed))`, so results do not depend on which process runs an episode or what it ran before
 (physics mode included: tested bit-identical). A worker that dies marks its unfinished episodes failed.
 `config.backend == "ray"` hands the tasks to `eval.execution.ray_backend` instead (`eval.execution.dispatch.execute` chooses).
+Kinematic episodes of built-in specs are batched by `eval.execution.batches`, which falls back on `Executor.run`.
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
 """eval.sweep: `mobman-eval sweep --config sweep.yaml`: a grid of episodes, one tidy results table, summary plots; resumable.
 
 The grid (`eval.sweep.config`): every (env, dynamics, model_error, obs_noise, policy, seed) is one episode, run
-by the same executors as `mobman-eval run` (`--workers N` local processes or `--backend ray`), so a sweep
-episode equals the `run` episode of the same settings.
+by the same executors as `mobman-eval run` (`--workers N` local processes or `--backend ray`, kinematic
+episodes batched up to `--batch-size` per condition and policy, any seeds), so a sweep episode equals the `run`
+episode of the same settings. A batch's records reach the journal together, when the batch ends; an interrupted
+batch runs again whole on resuming.
 
 Output directory (default `runs/sweep-<config file stem>`, so running the same command again resumes):
 

@@ -65,6 +65,7 @@ def run_sweep(
     backend: str = "local",
     address: str | None = None,
     workers: int = 1,
+    batch_size: int = EvalConfig.batch_size,
     max_episodes: int | None = None,
     retry_failed: bool = False,
     plots: bool = True,
@@ -80,7 +81,7 @@ def run_sweep(
     out = Path(out) if out is not None else default_out(source)
     if max_episodes is not None:
         integer("max_episodes", max_episodes, low=0, error=EvalError)
-    base = _episode_config(sweep, out, backend, address, workers)
+    base = _episode_config(sweep, out, backend, address, workers, batch_size)
     base.validate()
     if not sweep.policies and not user:
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
@@ -95,7 +96,14 @@ def run_sweep(
         "source": source,
         **sweep.to_dict(),
         "policy_objects": {name: type(obj).__name__ for name, obj in user.items()},
-        **{"out": str(out), "backend": backend, "address": address, "workers": workers, "n_episodes": len(tasks)},
+        **{
+            "out": str(out),
+            "backend": backend,
+            "address": address,
+            "workers": workers,
+            "batch_size": batch_size,
+            "n_episodes": len(tasks),
+        },
     }
     out.mkdir(parents=True, exist_ok=True)
     journal = Journal(out / JOURNAL)
@@ -133,7 +141,9 @@ def run_sweep(
     return SweepResult(out=out, results=results, n_run=collect.n_run, n_skipped=n_skipped, n_left=n_left)
 
 
-def _episode_config(sweep: SweepConfig, out: Path, backend: str, address: str | None, workers: int) -> EvalConfig:
+def _episode_config(
+    sweep: SweepConfig, out: Path, backend: str, address: str | None, workers: int, batch_size: int
+) -> EvalConfig:
     """The `EvalConfig` every episode of the sweep runs under (each task brings its own condition and seed)."""
     return EvalConfig(
         envs=sweep.envs,
@@ -143,6 +153,7 @@ def _episode_config(sweep: SweepConfig, out: Path, backend: str, address: str | 
         out=str(out),
         overwrite=True,
         workers=workers,
+        batch_size=batch_size,
         backend=backend,
         address=address,
         dynamics=sweep.dynamics,
