@@ -355,12 +355,17 @@ def build_report(config: ReportConfig) -> dict:
     """Read, evaluate, aggregate and write the report (see the module docstring); the results dict."""
     from eval.output.files import atomic_write_json, atomic_write_text
     from eval.output.provenance import git_rev, provenance
-    from train.report_archive import archived_runs, copy_cached_eval
+    from train.report_archive import Evaluation, archived_runs, copy_cached_eval
     from train.report_text import curves_figure, summary_markdown
 
     live = [{**read_run(p), "train_commit": config.train_commit} for p in config.runs]
     names = {r["name"] for r in live}
-    archived = [r for folder in config.include for r in archived_runs(folder, config) if r["name"] not in names]
+    archived = [
+        r
+        for folder in config.include
+        for r in archived_runs(folder, config, Evaluation(_eval_config, _inputs, _slim))
+        if r["name"] not in names
+    ]
     runs = sorted(live + archived, key=lambda r: (r["family"], r["seed"]))
     env_ids = sorted({r["config"]["env_id"] for r in runs})
     if len(env_ids) != 1:

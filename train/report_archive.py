@@ -18,8 +18,8 @@ on the command line wins over an archived run of the same name.
 Every carried run says where it came from (`archived_from`) and which code trained it (`train_commit`, from
 the old report's record).
 
-Imports: the standard library and `train.report` (lazily: `train.report` imports this module's functions only
-inside `build_report`).
+Imports: the standard library and `train.evaluation`; what it needs of `train.report` (which imports this
+module) is handed in as an `Evaluation`.
 """
 
 from __future__ import annotations
@@ -28,10 +28,20 @@ import csv
 import json
 import shutil
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 #: The schema of the report results this module reads (`train.report.build_report` writes it).
 REPORT_SCHEMA = "mobman-rl-report-1"
+
+
+class Evaluation(NamedTuple):
+    """How a report evaluates a run: `config(report_config, env_id, policies, dynamics, out)` the `EvalConfig`,
+    `inputs(eval_config, extra)` the cache key of `inputs.json`, `slim(record)` the episode fields it keeps."""
+
+    config: Any
+    inputs: Any
+    slim: Any
+
 
 #: Columns of curves.csv that name the run rather than hold its curve.
 RUN_COLUMNS = ("family", "run", "seed")
@@ -54,9 +64,13 @@ DEFINING_FIELDS = (
 
 
 def _read_json(path: Path) -> dict:
-    from train.report import _json
-
-    return _json(path)
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{path} holds {type(data).__name__}, expected a JSON object")
+    return data
 
 
 def archived_curves(folder: Path) -> dict[str, list[dict]]:
@@ -72,11 +86,13 @@ def archived_curves(folder: Path) -> dict[str, list[dict]]:
     return curves
 
 
-def archived_runs(folder: str | Path, config: Any) -> list[dict]:
+def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> list[dict]:
     """The finished runs of the report in `folder` as `train.report` run entries (see the module docstring);
-    ValueError naming the run and the difference when one cannot be carried over as measured."""
+    ValueError naming the run and the difference when one cannot be carried over as measured. `evaluation`:
+    how the report makes (and caches) a run's final evaluation (`train.report` passes its own functions)."""
     from train.evaluation import eval_command
-    from train.report import _eval_config, _inputs, _slim
+
+    _eval_config, _inputs, _slim = evaluation.config, evaluation.inputs, evaluation.slim
 
     folder = Path(folder)
     res_path = folder / "results.json"
