@@ -13,9 +13,11 @@ envs take a list), which is how `eval.execution` batches a sweep's arbitrary see
 dict per robot (the `episode` field differs between them).
 
 `rollout_batch` returns, for each robot i, the (record, arrays) that `eval.rollout.rollout` returns for the
-episode of seed S + i (or `seed[i]`) with the same policy spec: the vector env (`mobman_env.vector`) is bit-identical to the
-single env and a batched policy's rows run the single-env law (`policies.batched`), so every array and metric is
-equal, for chaotic controllers too (`tests/test_batch_rollout.py`). What differs is the timing: `predict_us` of
+episode of seed S + i (or `seed[i]`) with the same policy spec: the vector env (`mobman_env.vector`) is
+bit-identical to the single env, and a batched policy's row i acts bit for bit as the single-env policy (a
+vectorised law of `policies.kernels` whose single-env class is its N = 1 case, or the single law looped per row:
+`policies.batched`), so every array and metric is equal, for chaotic controllers too
+(`tests/test_batch_rollout.py`). What differs is the timing: `predict_us` of
 a row is the batched call's wall time divided by the robots it served, and `wall_s` is the batch's wall time
 divided by N. A robot whose episode ended stays out of the statistics (the vector env autoresets it; its later
 rows are ignored). An exception fails the whole batch: every record gets status "failed" and the traceback.
