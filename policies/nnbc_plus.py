@@ -78,6 +78,25 @@ right wheel. Nothing else about the robot is assumed.
 The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics, no
 sensor settings (noise and delay are estimated).
 
+What it does not do yet (measured on development seeds, v2.1)
+--------------------------------------------------------------
+* **The 5 s circle in physics mode** (peak 0.79 m/s). It is feasible: the known-model `qp-oracle` tracks it in
+  physics (seeds 0-2: 3/3, 2.5 mm median, 3.8 mm max) and under its commands y = J x holds within 1 mm/s all
+  along. `nnbc-plus` tracks it within 0.5 mm for 3 s, but the fast path excites few directions of J: at its
+  peak speed J_hat's columns are off by 0.1-0.36 m/rad while its residual |y - J_hat x| is 0.1 mm/s. Around
+  step 330 (seed 0) its wrist command grows to 3 rad/s, the platform is jolted, |y - J x| jumps from below 1 to
+  16-440 mm/s, the filter learns the jolt and the episode diverges (0.3-2.5 m). Tried on seeds 0-2 (successes
+  of 3): `posture_gain` 5: 1, 10: 3 (but 10 costs the 20 s Circle-v0 5.1 mm kinematic, 46 mm physics, seed 0),
+  `accel_time` 0.2 and 0.5: 0, `dither` 0.15 and 0.3: 0, `q_rate` 5e-4: 1, `task_dither` 0.01: 0, a capped
+  posture pull: 0-3 with no trend. Kinematic mode tracks it (1.3-1.5 mm).
+* **Physics episodes that reach a joint stop** (random starts, seed 2: Circle-v0 9.6 mm, Random-v0 21 mm). The
+  impact and the step change of the command when the stuck joint leaves the pseudo-inverse (joint 1 jumps to
+  1.4 rad/s) break y = J x for about 10 steps (|y - J x| up to 0.2 m/s); the filter learns it (relative error
+  of J_hat 1.2-1.6 afterwards). `accel_time=0.3` tracks both (3.5, 4.4 mm) but loses the physics noise
+  condition (seed 0: 2.9 and 3.4 mm -> 6.4 and 10.4 mm); a slower innovation clip (`innov_rate` 0.01, 0.005)
+  loses other episodes by 0.4-1.3 m; `wheel_weight=16` tracks both (1.1, 2.0 mm) but loses a physics noise
+  Circle-v0 (2.6 m).
+
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
 Every v2 mechanism was switched off on the condition it targets, on development seeds, both dynamics modes:
