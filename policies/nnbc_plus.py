@@ -140,7 +140,16 @@ MEASUREMENTS = ("velocity", "position")
 N_ACT = 8
 N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
 #: Observation keys the controllers read (only these are converted on the hot path).
-USES_KEYS = ("ee_pos", "ee_vel", "arm_base_pos", "arm_base_vel", "joint_pos", "joint_vel", "target_pos", "target_vel")
+USES_KEYS: tuple[str, ...] = (
+    "ee_pos",
+    "ee_vel",
+    "arm_base_pos",
+    "arm_base_vel",
+    "joint_pos",
+    "joint_vel",
+    "target_pos",
+    "target_vel",
+)
 _SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
 BLOCK_SPEED = 0.05  # rad/s: a command at least this fast that does not move the actuator marks it blocked
 BLOCK_CHECKS = 2  # consecutive checks
