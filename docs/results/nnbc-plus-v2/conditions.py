@@ -13,6 +13,7 @@ Every condition is built from existing env options (no env change):
 | `random-start` | all four | both | `arm_joint_pos` = the paper's theta(0) + U(-0.3, 0.3) rad per joint (rule below) |
 | `drift` | all four | kinematic (the env refuses wear drift in physics) | `wear_rate` 0.005 1/s |
 | `wear30` | all four | both | `model_error` 0.3 |
+| `ur5`, `panda`, `random-arm` | all four | kinematic (the robots bench's mode) | the env defaults on `WheeledUR5-*`, `WheeledPanda-*`, `WheeledRandomArm-*` (issue 13's robots) |
 
 Random-start rule (seeded, documented): for the episode seed S, theta(0) = PAPER_ARM_JOINT_POS +
 `np.random.default_rng([S, 0x5354]).uniform(-0.3, 0.3, 6)`, passed to the env constructor as `arm_joint_pos`;
@@ -28,6 +29,10 @@ Usage (from the repository root; seeds 0-999 for development, >= 10,000 for repo
         --out docs/results/nnbc-plus-v2/ablation.json
     PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py summary docs/results/nnbc-plus-v2/ablation.json \
         --title Ablation --out docs/results/nnbc-plus-v2/ablation.md
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py run --ablation21 --seeds 0 10 --workers 2 \
+        --out docs/results/nnbc-plus-v2/ablation21.json
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v2/conditions.py summary docs/results/nnbc-plus-v2/ablation21.json \
+        --title "Ablation v2.1" --out docs/results/nnbc-plus-v2/ablation21.md
 
 `run` writes one record per episode (condition, task, mode, seed, max error, success, predict time, joint-limit
 hits); `summary` writes summary.md next to it (the README's generated block copies its sections).
@@ -75,6 +80,9 @@ CONDITIONS: dict[str, tuple[tuple[str, ...], tuple[str, ...], dict[str, Any], st
     "random-start": (TASKS, BOTH, {"arm_joint_pos": "random"}, "theta(0) + U(-0.3, 0.3) rad"),
     "drift": (TASKS, ("kinematic",), {"wear_rate": 0.005}, "lengths drift 0.5%/s"),
     "wear30": (TASKS, BOTH, {"model_error": 0.3}, "30% wear"),
+    "ur5": (TASKS, ("kinematic",), {"robot": "UR5"}, "the UR5 arm (issue 13)"),
+    "panda": (TASKS, ("kinematic",), {"robot": "Panda"}, "the Panda arm (issue 13)"),
+    "random-arm": (TASKS, ("kinematic",), {"robot": "RandomArm"}, "a random arm per seed (issue 13)"),
 }
 
 
@@ -86,6 +94,14 @@ ABLATION: dict[str, tuple[str, ...]] = {
     "nnbc-plus:probe_tracking=false": ("circle-5s",),
     "nnbc-plus:sing_threshold=0": ("circle-0.5m",),
     "nnbc-plus:block_release=0": ("random-start",),
+}
+
+#: The ablation of v2.1 (development seeds; `run --ablation21`): joint stops checked every step, beside v2's
+#: every 4th step, on the robots whose stops Line-v0 reaches; and the `wheel_weight` option (not the default).
+ABLATION21: dict[str, tuple[str, ...]] = {
+    "nnbc-plus": ("ur5", "random-arm"),
+    "nnbc-plus:block_every=4": ("ur5", "random-arm"),
+    "nnbc-plus:wheel_weight=16": ("ur5", "random-arm"),
 }
 
 
@@ -100,6 +116,7 @@ def random_start(seed: int) -> list[float]:
 def env_kwargs(condition: str, seed: int) -> dict[str, Any]:
     """The env constructor arguments of one episode of `condition` (its seeded random start resolved)."""
     kw = dict(CONDITIONS[condition][2])
+    kw.pop("robot", None)
     if kw.get("arm_joint_pos") == "random":
         kw["arm_joint_pos"] = random_start(seed)
     if isinstance(kw.get("path"), str):
@@ -114,7 +131,8 @@ def episode(job: tuple[str, str, str, int, str]) -> dict[str, Any]:
     spec, condition, task, mode, seed = job[0], job[1], job[2], job[3], int(job[4])
     from eval.rollout import make_env, make_policy, rollout
 
-    env = make_env(f"WheeledPuma-{task}-v0", dynamics=mode, env_kwargs=env_kwargs(condition, seed))
+    robot = CONDITIONS[condition][2].get("robot", "Puma")
+    env = make_env(f"Wheeled{robot}-{task}-v0", dynamics=mode, env_kwargs=env_kwargs(condition, seed))
     try:
         policy = make_policy(spec, env, seed)
         rec, _ = rollout(env, policy, seed)
@@ -135,14 +153,18 @@ def episode(job: tuple[str, str, str, int, str]) -> dict[str, Any]:
 
 
 def jobs(
-    specs: list[str], conditions: list[str], seeds: list[int], tasks: list[str] | None = None, ablation: bool = False
+    specs: list[str],
+    conditions: list[str],
+    seeds: list[int],
+    tasks: list[str] | None = None,
+    ablation: dict[str, tuple[str, ...]] | None = None,
 ) -> list[tuple]:
     """The grid in seed-major order (every cell gets its first seed before any gets its second), so a run
     stopped early (SIGTERM) still covers every cell evenly."""
     out = []
     for s in seeds:
         for spec in specs:
-            for cond in ABLATION[spec] if ablation else conditions:
+            for cond in ablation[spec] if ablation else conditions:
                 ctasks, modes, _, _ = CONDITIONS[cond]
                 for task in ctasks:
                     if tasks and task not in tasks:
@@ -152,7 +174,14 @@ def jobs(
 
 
 def run(
-    specs, conditions, seeds, workers, tasks=None, modes=None, progress: Path | None = None, ablation: bool = False
+    specs,
+    conditions,
+    seeds,
+    workers,
+    tasks=None,
+    modes=None,
+    progress: Path | None = None,
+    ablation: dict[str, tuple[str, ...]] | None = None,
 ) -> list[dict]:
     """Every episode of the grid, in grid order; each record is also appended to `progress` (JSON lines) as it
     arrives, so an interrupted run keeps what it did."""
@@ -214,6 +243,7 @@ def main(argv: list[str] | None = None) -> None:
     r.add_argument("--workers", type=int, default=1)
     r.add_argument("--out", required=True)
     r.add_argument("--ablation", action="store_true", help="run the ABLATION table (its policies and conditions)")
+    r.add_argument("--ablation21", action="store_true", help="run the ABLATION21 table (v2.1's changes)")
     s = sub.add_parser("summary")
     s.add_argument("results")
     s.add_argument("--title", default="Conditions", help="section title of the Markdown file written")
@@ -229,9 +259,10 @@ def main(argv: list[str] | None = None) -> None:
         signal.signal(signal.SIGTERM, lambda *_: sys.exit(1))
         progress = Path(a.out + ".progress.jsonl")
         progress.unlink(missing_ok=True)
-        specs = list(ABLATION) if a.ablation else (a.policy or ["nnbc-plus"])
-        planned = sum(not a.modes or j[3] in a.modes for j in jobs(specs, a.conditions, seeds, a.tasks, a.ablation))
-        recs = run(specs, a.conditions, seeds, a.workers, a.tasks, a.modes, progress, a.ablation)
+        table_ = ABLATION if a.ablation else ABLATION21 if a.ablation21 else None
+        specs = list(table_) if table_ else (a.policy or ["nnbc-plus"])
+        planned = sum(not a.modes or j[3] in a.modes for j in jobs(specs, a.conditions, seeds, a.tasks, table_))
+        recs = run(specs, a.conditions, seeds, a.workers, a.tasks, a.modes, progress, table_)
         meta = {
             "command": " ".join(sys.argv),
             "git": git,
