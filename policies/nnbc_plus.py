@@ -134,11 +134,6 @@ FORMULATIONS = ("whole_body", "paper")
 MEASUREMENTS = ("velocity", "position")
 
 
-#: The PUMA's actuator count (6 arm joints, 2 wheels) and probe length; the controllers size everything from
-#: `len(facts.action_scale)` (n actuators: n - 2 arm joints, then the left and right wheel), so these two are
-#: only the PUMA's values, kept for callers that need them.
-N_ACT = 8
-N_PROBE = 2 * N_ACT  # probe steps: actuator i at +probe_speed on step 2i, at -probe_speed on step 2i + 1
 #: Observation keys the controllers read (only these are converted on the hot path).
 USES_KEYS: tuple[str, ...] = (
     "ee_pos",

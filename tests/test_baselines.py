@@ -21,7 +21,7 @@ from policies.broyden_rls import BroydenConfig, RLSConfig
 from policies.estimators import BroydenEstimator, RLSEstimator
 from policies.jmpi import CLIKConfig, JMPIConfig, OracleConfig
 from policies.nnbc import damped_pinv_apply
-from policies.nnbc_plus import N_PROBE, NNBCPlusConfig
+from policies.nnbc_plus import NNBCPlusConfig
 from policies.qp import QP, QPConfig
 
 DEV_SEEDS = range(0, 3)
@@ -224,6 +224,7 @@ def test_estimating_controllers_share_the_scaffolding():
     """broyden and rls run nnbc-plus's probe: the same 16 probe commands, then an estimate exposed as
     jacobian_estimate (None during the probe), of the kind their formulation says."""
     env = gym.make("WheeledPuma-Line-v0", dynamics="kinematic")
+    n_probe = 2 * EnvFacts.from_env(env).n_actuators  # one + and one - step per actuator
     try:
         actions = {}
         for spec in ("nnbc-plus", "broyden", "rls", "rls:formulation=paper"):
@@ -231,15 +232,15 @@ def test_estimating_controllers_share_the_scaffolding():
             obs, _ = env.reset(seed=0)
             pol.reset(obs, seed=1)
             acts = []
-            for k in range(N_PROBE + 3):
-                assert (pol.jacobian_estimate is None) == (k <= N_PROBE), (spec, k)
+            for k in range(n_probe + 3):
+                assert (pol.jacobian_estimate is None) == (k <= n_probe), (spec, k)
                 a, _ = pol.predict(obs)
                 acts.append(a)
                 obs, *_ = env.step(a)
             J = pol.jacobian_estimate
             assert J.shape == (3, 8) and J is not pol.J_hat
             assert pol.jacobian_kind == ("paper" if "paper" in spec else "whole_body")
-            actions[spec] = np.array(acts[:N_PROBE])
+            actions[spec] = np.array(acts[:n_probe])
     finally:
         env.close()
     for spec in ("broyden", "rls"):

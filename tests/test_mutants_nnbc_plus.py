@@ -17,7 +17,7 @@ import pytest
 
 import mobman_env
 from policies.base import EnvFacts
-from policies.nnbc_plus import N_PROBE, NNBCPlus, NNBCPlusConfig
+from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 #: a fast circle (0.1 m, 2 s: 0.31 m/s, 0.99 m/s^2), so half a step changes the target velocity by ~5 mm/s
 FAST_CIRCLE = {"type": "circle", "radius": 0.1, "duration": 2.0}
@@ -46,7 +46,7 @@ def test_command_is_computed_for_the_middle_of_the_step(env):
     facts = EnvFacts.from_env(env)
     policy = NNBCPlus(facts, FEEDFORWARD_ONLY)
     assert FEEDFORWARD_ONLY.lookahead is True and NNBCPlusConfig().lookahead is True
-    obs = _run_to(env, policy, N_PROBE + 20)
+    obs = _run_to(env, policy, 2 * facts.n_actuators + 20)  # past the probe (2 steps per actuator)
     without = copy.deepcopy(policy)  # the same state, the look-ahead off
     without.config = dataclasses.replace(FEEDFORWARD_ONLY, lookahead=False)
 
