@@ -47,6 +47,7 @@ from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer
 from train.curve import read_curve
 from train.evaluation import eval_command
+from train.report_archive import read_json as _json
 from train.report_stats import CURVE_METRIC, curve_rows, family_row, median_run
 
 #: Bench condition (`eval.bench.config.CONDITIONS`) whose env arguments the final evaluation uses, per mode.
@@ -131,16 +132,6 @@ class ReportConfig:
 
 
 # --- reading run folders ---------------------------------------------------------------------------------
-
-
-def _json(path: Path) -> dict:
-    try:
-        data = json.loads(path.read_text())
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"{path} holds {type(data).__name__}, expected a JSON object")
-    return data
 
 
 def sha256(path: Path) -> str:

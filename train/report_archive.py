@@ -63,7 +63,8 @@ DEFINING_FIELDS = (
 )
 
 
-def _read_json(path: Path) -> dict:
+def read_json(path: Path) -> dict:
+    """The JSON object in `path`; ValueError naming the file when it is unreadable or not an object."""
     try:
         data = json.loads(path.read_text())
     except (OSError, ValueError) as exc:
@@ -98,7 +99,7 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
     res_path = folder / "results.json"
     if not res_path.is_file():
         raise ValueError(f"--include {folder}: no results.json; give a folder written by mobman-train report")
-    old = _read_json(res_path)
+    old = read_json(res_path)
     if old.get("schema") != REPORT_SCHEMA:
         raise ValueError(
             f"--include {folder}: results.json has schema {old.get('schema')!r}, expected {REPORT_SCHEMA!r}"
@@ -115,7 +116,7 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
         policy = f"sb3:{entry['path']}/model.zip"
         cfg = _eval_config(config, entry["config"]["env_id"], (policy,), entry["config"]["dynamics"], cached)
         wanted = json.loads(json.dumps(_inputs(cfg, {"model_sha256": entry["model_sha256"]})))
-        have = _read_json(cached / "inputs.json")
+        have = read_json(cached / "inputs.json")
         had = have.get("eval_config", {})
         differ = [k for k in DEFINING_FIELDS if k not in had or wanted["eval_config"].get(k) != had[k]]
         if have.get("model_sha256") != entry["model_sha256"]:
@@ -126,7 +127,7 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
                 "this report's); its model is not here to evaluate again: report with the earlier settings, or give "
                 "the run folder instead"
             )
-        records = _read_json(cached / "results.json")["episodes"]
+        records = read_json(cached / "results.json")["episodes"]
         run = {k: v for k, v in entry.items() if k not in ("final", "command")}
         run.update(
             curve=curves.get(name, []),
