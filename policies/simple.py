@@ -72,37 +72,35 @@ class RandomLaw(BatchedController):
         return u * self._scale
 
 
-class Zero(LawView):
+class _PlainView(LawView):
+    """The single-env view of a law built from its options alone (no model): `law_cls(facts, config, n, seed)`."""
+
+    law_cls: type[ZeroLaw] | type[RandomLaw]
+    law: ZeroLaw | RandomLaw
+
+    def __init__(self, facts: EnvFacts, config: Any = None, seed: int | None = None, **extra: Any):
+        if extra:
+            raise TypeError(f"{type(self).__name__} got unexpected keyword argument(s) {sorted(extra)}")
+        self.law = self.law_cls(facts, config, 1, seed)
+        super().__init__(facts, seed)
+        self.config = self.law.config
+
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: Any, n: int, seed: int | None) -> BatchedController:
+        """The batched law for n robots (`policies.make(spec, vector_env)`): row i as a single policy seeded
+        alike."""
+        return cls.law_cls(facts, config, n, seed)
+
+
+class Zero(_PlainView):
     """Always commands zero speed."""
 
     name = "zero"
-
-    def __init__(self, facts: EnvFacts, config: ZeroConfig | None = None, seed: int | None = None, **extra: Any):
-        if extra:
-            raise TypeError(f"Zero got unexpected keyword argument(s) {sorted(extra)}")
-        self.law: ZeroLaw = ZeroLaw(facts, config, 1, seed)
-        super().__init__(facts, seed)
-        self.config = self.law.config
-
-    @classmethod
-    def batched(cls, facts: EnvFacts, config: ZeroConfig, n: int, seed: int | None) -> ZeroLaw:
-        """The batched law for n robots (`policies.make(spec, vector_env)`)."""
-        return ZeroLaw(facts, config, n, seed)
+    law_cls = ZeroLaw
 
 
-class Random(LawView):
+class Random(_PlainView):
     """Uniform random actions from the controller's own Generator (`reset(seed=...)` makes them repeatable)."""
 
     name = "random"
-
-    def __init__(self, facts: EnvFacts, config: RandomConfig | None = None, seed: int | None = None, **extra: Any):
-        if extra:
-            raise TypeError(f"Random got unexpected keyword argument(s) {sorted(extra)}")
-        self.law: RandomLaw = RandomLaw(facts, config, 1, seed)
-        super().__init__(facts, seed)
-        self.config = self.law.config
-
-    @classmethod
-    def batched(cls, facts: EnvFacts, config: RandomConfig, n: int, seed: int | None) -> RandomLaw:
-        """The batched law for n robots: row i's Generator as a single `Random`'s."""
-        return RandomLaw(facts, config, n, seed)
+    law_cls = RandomLaw
