@@ -9,9 +9,9 @@ seeds of one machine and the new SAC seeds of another in one table) without retr
 measured and without a model file that is no longer on disk.
 
 What is carried over is exactly what was measured: an archived run is never re-evaluated. Its cached final
-evaluation must have been made with the evaluation this report makes (the same `EvalConfig` without its
-output settings: episodes, seeds, condition, tolerance; and the same model SHA-256), else the run is refused
-with the difference named: a model that is not on disk cannot be evaluated again. Runs still training when the
+evaluation must have been made with the evaluation this report makes (the cache key the report itself uses:
+the `EvalConfig` without the settings of where and how it runs, `train.report.NOT_INPUTS`; and the same model
+SHA-256), else the run is refused with the difference named: a model that is not on disk cannot be evaluated again. Runs still training when the
 old report was written are not carried over (their curves stop where that report stopped). A run folder given
 on the command line wins over an archived run of the same name.
 
@@ -45,22 +45,6 @@ class Evaluation(NamedTuple):
 
 #: Columns of curves.csv that name the run rather than hold its curve.
 RUN_COLUMNS = ("family", "run", "seed")
-
-#: The `EvalConfig` fields that define what an evaluation measures; an archived evaluation must agree on all of
-#: them (settings of how it runs, e.g. workers or batching, do not change its records and are not compared).
-DEFINING_FIELDS = (
-    "command",
-    "envs",
-    "policies",
-    "dynamics",
-    "episodes",
-    "seed",
-    "model_error",
-    "obs_noise",
-    "env_kwargs",
-    "tolerance",
-    "settle_time",
-)
 
 
 def read_json(path: Path) -> dict:
@@ -118,7 +102,10 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
         wanted = json.loads(json.dumps(_inputs(cfg, {"model_sha256": entry["model_sha256"]})))
         have = read_json(cached / "inputs.json")
         had = have.get("eval_config", {})
-        differ = [k for k in DEFINING_FIELDS if k not in had or wanted["eval_config"].get(k) != had[k]]
+        # the report's own cache key (`train.report.NOT_INPUTS` says what it ignores): an archived evaluation is
+        # carried over exactly when the report would have reused it from its cache
+        want = wanted["eval_config"]
+        differ = sorted(k for k in set(want) | set(had) if k not in had or k not in want or want[k] != had[k])
         if have.get("model_sha256") != entry["model_sha256"]:
             differ.append("model_sha256")
         if differ:
