@@ -30,35 +30,86 @@ import numpy as np
 
 from mobman_env.params import RobotParams
 
+#: frame 0 of every arm: the identity (copied into each `dh_frames` result, never written)
+_EYE4 = np.eye(4)
+
+
+def _transform_values(params: RobotParams, q: np.ndarray) -> list[float]:
+    """The entries of the n link transforms A_i, row by row (16 n floats).
+
+    Every entry is one product (or none) of a cos/sin of theta with a DH constant, taken in Python floats: the
+    same IEEE operations, in the same order, as the elementwise numpy expressions they replace (so the same
+    bits), without ~20 numpy calls on arrays of 6. cos and sin are numpy's, on the same array as before (numpy's
+    and `math`'s may differ in the last bit).
+    """
+    n = params.n_joints
+    th = q[:n] if params.theta_offset is None else q[:n] + params.theta_offset
+    ct, st = np.cos(th).tolist(), np.sin(th).tolist()
+    a, d, ca, sa = params.dh_floats
+    vals: list[float] = []
+    if params.arm.modified:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
+        for c, s, ai, di, cai, sai in zip(ct, st, a, d, ca, sa):
+            vals += (
+                c,
+                -s,
+                0.0,
+                ai,
+                s * cai,
+                c * cai,
+                -sai,
+                -sai * di,
+                s * sai,
+                c * sai,
+                cai,
+                cai * di,
+                0.0,
+                0.0,
+                0.0,
+                1.0,
+            )
+    else:  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
+        for c, s, ai, di, cai, sai in zip(ct, st, a, d, ca, sa):
+            vals += (c, -s * cai, s * sai, ai * c, s, c * cai, -c * sai, ai * s, 0.0, sai, cai, di, 0.0, 0.0, 0.0, 1.0)
+    return vals
+
 
 def dh_transforms(params: RobotParams, q: np.ndarray) -> np.ndarray:
     """The n link transforms A_i of the arm's convention at joint angles q (the first n entries), (n, 4, 4)."""
-    n = params.n_joints
-    th = q[:n] if params.theta_offset is None else q[:n] + params.theta_offset
-    ct, st = np.cos(th), np.sin(th)
-    a, d, ca, sa = params.dh_constants
-    A = np.zeros((n, 4, 4))
-    if params.arm.modified:  # Rx(alpha) Tx(a) Rz(theta) Tz(d)
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 3] = ct, -st, a
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st * ca, ct * ca, -sa, -sa * d
-        A[:, 2, 0], A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = st * sa, ct * sa, ca, ca * d
-    else:  # Rz(theta) Tz(d) Tx(a) Rx(alpha)
-        A[:, 0, 0], A[:, 0, 1], A[:, 0, 2], A[:, 0, 3] = ct, -st * ca, st * sa, a * ct
-        A[:, 1, 0], A[:, 1, 1], A[:, 1, 2], A[:, 1, 3] = st, ct * ca, -ct * sa, a * st
-        A[:, 2, 1], A[:, 2, 2], A[:, 2, 3] = sa, ca, d
-    A[:, 3, 3] = 1.0
-    return A
+    return np.array(_transform_values(params, q)).reshape(params.n_joints, 4, 4)
 
 
 def dh_frames(params: RobotParams, q: np.ndarray) -> np.ndarray:
-    """The n + 1 homogeneous frames T_0^0 .. T_0^n of the arm in its base frame 0, shape (n + 1, 4, 4)."""
+    """The n + 1 homogeneous frames T_0^0 .. T_0^n of the arm in its base frame 0, shape (n + 1, 4, 4).
+
+    The products are numpy's 4 x 4 `matmul` (BLAS): a hand-written float product would round differently
+    from the BLAS kernel's fused multiply-adds, and the envs' results are defined by these products.
+    """
     A = dh_transforms(params, q)
     n = len(A)
     frames = np.empty((n + 1, 4, 4))
-    frames[0] = np.eye(4)
+    frames[0] = _EYE4
     for i in range(n):
         np.matmul(frames[i], A[i], out=frames[i + 1])
     return frames
+
+
+def _point_and_jacobian_floats(params: RobotParams, q: np.ndarray) -> tuple[list[float], list[list[float]]]:
+    """f(theta) (3 floats) and the 3 rows of d f / d theta (n floats each) in frame 0, from one pass over the DH
+    frames. Column i is z x (p - o) of joint i's axis: frame i-1's (standard DH) or frame i's (modified DH)."""
+    frames = dh_frames(params, q).tolist()
+    n = len(frames) - 1
+    (x0, _, z0, o0), (x1, _, z1, o1), (x2, _, z2, o2), _ = frames[n]
+    t = params.tool
+    p0, p1, p2 = o0 + t * z0, o1 + t * z1, o2 + t * z2
+    j0, j1, j2 = [], [], []
+    for F in frames[1:] if params.arm.modified else frames[:-1]:
+        (_, _, za, oa), (_, _, zb, ob), (_, _, zc, oc), _ = F
+        va, vb, vc = p0 - oa, p1 - ob, p2 - oc
+        # the cross product z x v written out (np.cross costs ~10x more for these tiny arrays)
+        j0.append(zb * vc - zc * vb)
+        j1.append(zc * va - za * vc)
+        j2.append(za * vb - zb * va)
+    return [p0, p1, p2], [j0, j1, j2]
 
 
 def arm_point(params: RobotParams, q: np.ndarray) -> np.ndarray:
@@ -73,20 +124,8 @@ def arm_point_and_jacobian(params: RobotParams, q: np.ndarray) -> tuple[np.ndarr
     Column i is z x (p - o) of joint i's axis: frame i-1's (standard DH) or frame i's (modified DH). A last
     joint that turns about the tool axis has a zero column (the PUMA's joint 6).
     """
-    frames = dh_frames(params, q)
-    p = frames[-1, :3, 3] + params.tool * frames[-1, :3, 2]
-    axes = frames[1:] if params.arm.modified else frames[:-1]
-    z = axes[:, :3, 2]
-    v = p - axes[:, :3, 3]
-    # the cross product written out: np.cross costs ~10x more for these tiny arrays
-    J = np.array(
-        [
-            z[:, 1] * v[:, 2] - z[:, 2] * v[:, 1],
-            z[:, 2] * v[:, 0] - z[:, 0] * v[:, 2],
-            z[:, 0] * v[:, 1] - z[:, 1] * v[:, 0],
-        ]
-    )
-    return p, J
+    p, J = _point_and_jacobian_floats(params, q)
+    return np.array(p), np.array(J)
 
 
 def arm_jacobian(params: RobotParams, q: np.ndarray) -> np.ndarray:
@@ -119,29 +158,46 @@ def platform_rates(params: RobotParams, wheel_speeds: np.ndarray) -> tuple[float
     return 0.5 * r * (wl + wr), 0.5 * r / b * (wr - wl)
 
 
-def _wheel_maps(params: RobotParams, yaw: float) -> tuple[np.ndarray, np.ndarray]:
-    """d(phi_dot)/d(w_l, w_r) (2,) and d(p_c_dot)/d(w_l, w_r) (2, 2)."""
+def _wheel_maps(params: RobotParams, c: float, s: float) -> tuple[list[float], list[list[float]]]:
+    """d(phi_dot)/d(w_l, w_r) (2 floats) and d(p_c_dot)/d(w_l, w_r) (2 x 2 floats) at heading (cos, sin) = (c, s).
+
+    dpc = outer([c, s], dv) + d outer([-s, c], dphi), entry by entry in floats."""
     r, b, d = params.wheel_radius, params.half_track, params.mount_offset
+    dphi = [-0.5 * r / b, 0.5 * r / b]
+    dv = 0.5 * r
+    return dphi, [
+        [c * dv + d * (-s * dphi[0]), c * dv + d * (-s * dphi[1])],
+        [s * dv + d * (c * dphi[0]), s * dv + d * (c * dphi[1])],
+    ]
+
+
+def _paper_parts_floats(
+    params: RobotParams, q_arm: np.ndarray, yaw: float
+) -> tuple[np.ndarray, list[list[float]], list[list[float]]]:
+    """g = R(phi) f(theta) (3,), the rows of the paper's J (3 x (n + 2) floats) and of d p_c_dot / d u (2 x (n + 2)
+    floats), from one FK pass. The rotations are numpy products (BLAS, as the frames); the rest is floats."""
     c, s = math.cos(yaw), math.sin(yaw)
-    dphi = np.array([-0.5 * r / b, 0.5 * r / b])
-    dv = np.array([0.5 * r, 0.5 * r])
-    dpc = np.outer([c, s], dv) + d * np.outer([-s, c], dphi)
-    return dphi, dpc
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    f, J_arm = _point_and_jacobian_floats(params, q_arm)
+    g = R @ np.array(f)
+    RJ = (R @ np.array(J_arm)).tolist()
+    dphi, dpc = _wheel_maps(params, c, s)
+    g0, g1 = float(g[0]), float(g[1])
+    n = len(J_arm[0])
+    # wheel columns: d g / d phi * d phi_dot / d w (the 0.0 * keeps numpy's signed zeros of np.outer)
+    J = [
+        RJ[0] + [-g1 * dphi[0], -g1 * dphi[1]],
+        RJ[1] + [g0 * dphi[0], g0 * dphi[1]],
+        RJ[2] + [0.0 * dphi[0], 0.0 * dphi[1]],
+    ]
+    zeros = [0.0] * n
+    return g, J, [zeros + dpc[0], zeros + dpc[1]]
 
 
 def _paper_parts(params: RobotParams, q_arm: np.ndarray, yaw: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """g = R(phi) f(theta) (3,), the paper's J (3, n + 2) and d p_c_dot / d u (2, n + 2), from one FK pass."""
-    R = _rot_z(yaw)
-    f, J_arm = arm_point_and_jacobian(params, q_arm)
-    g = R @ f
-    dphi, dpc = _wheel_maps(params, yaw)
-    n = params.n_joints
-    J = np.empty((3, n + 2))
-    J[:, :n] = R @ J_arm
-    J[:, n:] = np.outer([-g[1], g[0], 0.0], dphi)  # d g / d phi * d phi_dot / d w
-    J_pc = np.zeros((2, n + 2))
-    J_pc[:, n:] = dpc
-    return g, J, J_pc
+    g, J, J_pc = _paper_parts_floats(params, q_arm, yaw)
+    return g, np.array(J), np.array(J_pc)
 
 
 def paper_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> np.ndarray:
@@ -156,7 +212,7 @@ def arm_base_jacobian(params: RobotParams, yaw: float) -> np.ndarray:
     """d p_c_dot / d u, shape (2, n + 2): only the wheel columns are non-zero."""
     n = params.n_joints
     J = np.zeros((2, n + 2))
-    J[:, n:] = _wheel_maps(params, yaw)[1]
+    J[:, n:] = _wheel_maps(params, math.cos(yaw), math.sin(yaw))[1]
     return J
 
 
@@ -180,12 +236,25 @@ def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds:
     return np.array([x + rho * (math.sin(yaw1) - math.sin(yaw)), y - rho * (math.cos(yaw1) - math.cos(yaw)), yaw1])
 
 
+def ee_jacobian_and_arm_base(
+    params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """r_a (3,), the whole-body Jacobian (3, n + 2), d p_c_dot / d u (2, n + 2) and p_c (2,) from one FK pass (the
+    hot path of the kinematic simulation)."""
+    x, y, yaw = base_pose.tolist()
+    g, J, J_pc = _paper_parts_floats(params, q_arm, yaw)
+    # J[:2] += J_pc entry by entry (x + 0.0 as numpy adds it: -0.0 becomes 0.0)
+    J[0] = [u + v for u, v in zip(J[0], J_pc[0])]
+    J[1] = [u + v for u, v in zip(J[1], J_pc[1])]
+    d = params.mount_offset
+    g0, g1, g2 = g.tolist()
+    pc0, pc1 = x + d * math.cos(yaw), y + d * math.sin(yaw)
+    ee = [pc0 + g0, pc1 + g1, params.shoulder_height + g2]
+    return np.array(ee), np.array(J), np.array(J_pc), np.array([pc0, pc1])
+
+
 def ee_and_jacobian(
     params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """r_a (3,), the whole-body Jacobian (3, n + 2) and d p_c_dot / d u (2, n + 2) from one FK pass (the hot path of
-    the kinematic simulation)."""
-    g, J, J_pc = _paper_parts(params, q_arm, float(base_pose[2]))
-    J[:2] += J_pc
-    pc = arm_base_xy(params, base_pose)
-    return np.array([pc[0] + g[0], pc[1] + g[1], params.shoulder_height + g[2]]), J, J_pc
+    """r_a (3,), the whole-body Jacobian (3, n + 2) and d p_c_dot / d u (2, n + 2) from one FK pass."""
+    return ee_jacobian_and_arm_base(params, q_arm, base_pose)[:3]

@@ -201,6 +201,12 @@ class RobotParams:
         return self.dh_a, self.dh_d, np.cos(alpha), np.sin(alpha)
 
     @functools.cached_property
+    def dh_floats(self) -> tuple[list[float], list[float], list[float], list[float]]:
+        """`dh_constants` as lists of Python floats (the same numbers), for the kinematics' float arithmetic."""
+        a, d, ca, sa = self.dh_constants
+        return a.tolist(), d.tolist(), ca.tolist(), sa.tolist()
+
+    @functools.cached_property
     def theta_offset(self) -> np.ndarray | None:
         """The DH theta offsets (rad) as an array, or None when all are zero (then q is theta, untouched)."""
         off = self.arm.theta_offset

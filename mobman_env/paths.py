@@ -27,6 +27,7 @@ Every field has an accepted range (`FIELD_RANGES`, listed in `validate_spec`): s
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
@@ -56,12 +57,16 @@ def _timing(t: float, T: float) -> tuple[float, float, float]:
     return 0.5 * (1.0 - math.cos(w * t)), 0.5 * w * math.sin(w * t), 0.5 * w * w * math.cos(w * t)
 
 
+@functools.lru_cache(maxsize=256)
 def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
     """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, tilted up by `tilt` from the horizontal
-    e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane)."""
+    e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane).
+
+    Cached (a path asks at every step for the same two axes); the arrays are read-only."""
     e1 = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     h = np.array([e1[1], -e1[0], 0.0])  # e1 x z
     e2 = math.cos(tilt) * h + math.sin(tilt) * np.array([0.0, 0.0, 1.0])
+    e1.flags.writeable = e2.flags.writeable = False
     return e1, e2
 
 
@@ -165,21 +170,25 @@ class LinePath:
     duration: float = 20.0
     type: ClassVar[str] = "line"
 
+    @functools.cached_property
     def _unit(self) -> np.ndarray:
+        """The direction normalised (computed once per path: the env asks at every step; read-only)."""
         d = np.asarray(self.direction, dtype=float)
-        return d / np.linalg.norm(d)
+        unit = d / np.linalg.norm(d)
+        unit.flags.writeable = False
+        return unit
 
     def position(self, t):
-        return self.start + self.length * _timing(t, self.duration)[0] * self._unit()
+        return self.start + self.length * _timing(t, self.duration)[0] * self._unit
 
     def velocity(self, t):
-        return self.length * _timing(t, self.duration)[1] * self._unit()
+        return self.length * _timing(t, self.duration)[1] * self._unit
 
     def position_velocity(self, t):
         return self.position(t), self.velocity(t)
 
     def acceleration(self, t):
-        return self.length * _timing(t, self.duration)[2] * self._unit()
+        return self.length * _timing(t, self.duration)[2] * self._unit
 
     def to_spec(self) -> dict:
         return {

@@ -7,6 +7,11 @@ dynamics modes, with and without sensor noise, a random path whose seed comes fr
 consecutive episodes in one physics env (the second reuses the client, so body replacement is covered); actions
 are random and partly outside [-1, 1] (clipping).
 
+`tests/data/env_kinematic_0.2.npz` (`ROBOT_EPISODES`) pins the kinematic mode of every robot and of the
+release-0.2 options (joint-speed noise, delay, wear) before the tight kinematic step (recorded from commit
+24bc55f with `... --write robots`): UR5, Panda and the random arm on the Circle and the Line, and the PUMA's
+Lemniscate with wear, delay and joint-speed noise.
+
 Comparison is bit for bit when numpy runs on the same BLAS kernel as at recording time (the kinematic mode's
 4x4 products go through BLAS, and another kernel may round the last bit differently); on another kernel the
 values must agree to 1e-9 (m, m/s, rad) and the discrete fields exactly.
@@ -19,6 +24,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from mobman_env import TASKS, WheeledPumaEnv
 
@@ -38,6 +44,29 @@ EPISODES = (
         [(10_004, 80)],
     ),
 )
+ROBOT_DATA = Path(__file__).parent / "data" / "env_kinematic_0.2.npz"
+ROBOT_EPISODES = (
+    *(
+        (
+            f"{robot}_{task.lower()}",
+            {"dynamics": "kinematic", "robot": robot, "path": TASKS[f"WheeledPuma-{task}-v0"]},
+            [(10_010 + i, 120)],
+        )
+        for i, (robot, task) in enumerate((r, t) for r in ("ur5", "panda", "random") for t in ("Circle", "Line"))
+    ),
+    (
+        "puma_lemniscate_wear_delay",
+        {
+            "dynamics": "kinematic",
+            "path": TASKS["WheeledPuma-Lemniscate-v0"],
+            "wear_rate": 0.01,
+            "obs_delay": 2,
+            "obs_noise_joint_vel": 0.01,
+        },
+        [(10_020, 200)],
+    ),
+)
+DATASETS = {"defaults": (DATA, EPISODES), "robots": (ROBOT_DATA, ROBOT_EPISODES)}
 DISCRETE = ("terminated", "truncated", "n_clipped", "joint_limit_hits", "action_clipped", "tipped_over")
 
 
@@ -50,10 +79,10 @@ def _blas_kernel() -> str:
         return "unknown"
 
 
-def record() -> dict[str, np.ndarray]:
-    """Run the episodes of `EPISODES` and return their arrays, keyed `<name>/<seed>/<field>`."""
+def record(episodes=EPISODES) -> dict[str, np.ndarray]:
+    """Run `episodes` and return their arrays, keyed `<name>/<seed>/<field>`."""
     out: dict[str, np.ndarray] = {}
-    for name, kwargs, runs in EPISODES:
+    for name, kwargs, runs in episodes:
         env = WheeledPumaEnv(**kwargs)
         try:
             for seed, steps in runs:
@@ -67,7 +96,7 @@ def record() -> dict[str, np.ndarray]:
                 for field in ("reward", "tracking", "effort", *DISCRETE):
                     rows[field] = []
                 for _ in range(steps):
-                    obs, reward, term, trunc, info = env.step(rng.uniform(-1.2, 1.2, 8))
+                    obs, reward, term, trunc, info = env.step(rng.uniform(-1.2, 1.2, env.n_actuators))
                     for k, v in obs.items():
                         rows[k].append(v.copy())
                     rows["ee_pos_true"].append(info["ee_pos_true"])
@@ -89,9 +118,11 @@ def record() -> dict[str, np.ndarray]:
     return out
 
 
-def test_default_options_reproduce_release_0_1():
-    ref = np.load(DATA)
-    new = record()
+@pytest.mark.parametrize("dataset", sorted(DATASETS))
+def test_recorded_episodes_reproduce(dataset):
+    path, episodes = DATASETS[dataset]
+    ref = np.load(path)
+    new = record(episodes)
     assert set(new) == set(ref.files) - {"_blas_kernel"}
     exact = str(ref["_blas_kernel"]) == _blas_kernel()
     for key in sorted(new):
@@ -104,8 +135,9 @@ def test_default_options_reproduce_release_0_1():
 
 
 if __name__ == "__main__":
-    if sys.argv[1:] != ["--write"]:
-        sys.exit("usage: PYTHONPATH=$PWD python tests/test_env_defaults_unchanged.py --write")
-    DATA.parent.mkdir(exist_ok=True)
-    np.savez_compressed(DATA, _blas_kernel=np.array(_blas_kernel()), **record())
-    print(f"wrote {DATA}")
+    if len(sys.argv) != 3 or sys.argv[1] != "--write" or sys.argv[2] not in DATASETS:
+        sys.exit(f"usage: PYTHONPATH=$PWD python tests/test_env_defaults_unchanged.py --write {{{','.join(DATASETS)}}}")
+    path, episodes = DATASETS[sys.argv[2]]
+    path.parent.mkdir(exist_ok=True)
+    np.savez_compressed(path, _blas_kernel=np.array(_blas_kernel()), **record(episodes))
+    print(f"wrote {path}")
