@@ -70,6 +70,13 @@ def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
+@functools.lru_cache(maxsize=256)
+def _plane_axes_floats(yaw: float, tilt: float) -> tuple[list[float], list[float]]:
+    """`_plane_axes` as lists of floats (cached)."""
+    e1, e2 = _plane_axes(yaw, tilt)
+    return e1.tolist(), e2.tolist()
+
+
 class _PhasePath:
     """A path p(t) = start + sum_k c_k(phase) v_k with phase = 2 pi s(t); subclasses give the phase
     functions and their derivatives. The chain rule lives here once."""
@@ -77,8 +84,9 @@ class _PhasePath:
     start: np.ndarray
     duration: float
 
-    def _shape(self, ph: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each (3,)."""
+    def _shape(self, ph: float) -> tuple[Any, Any, Any]:
+        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each (3,): arrays or lists of floats (the
+        fixed-plane shapes compute their 3 components in floats: numpy's per-call overhead dominated them)."""
         raise NotImplementedError
 
     def _phase(self, t: float) -> tuple[float, float, float]:
@@ -93,16 +101,16 @@ class _PhasePath:
         """position(t) and velocity(t) from one evaluation (the env's hot path)."""
         ph, phd, _ = self._phase(t)
         p, d1, _ = self._shape(ph)
-        return self.start + p, d1 * phd
+        return self.start + p, np.multiply(d1, phd)
 
     def velocity(self, t: float) -> np.ndarray:
         ph, phd, _ = self._phase(t)
-        return self._shape(ph)[1] * phd
+        return np.multiply(self._shape(ph)[1], phd)
 
     def acceleration(self, t: float) -> np.ndarray:
         ph, phd, phdd = self._phase(t)
         _, d1, d2 = self._shape(ph)
-        return d2 * phd * phd + d1 * phdd
+        return np.multiply(d2, phd) * phd + np.multiply(d1, phdd)
 
 
 def _vec3(value: Any, name: str) -> np.ndarray:
@@ -121,11 +129,16 @@ class CirclePath(_PhasePath):
     type: ClassVar[str] = "circle"
 
     def _shape(self, ph):
-        e1, e2 = _plane_axes(self.yaw, self.tilt)
-        u = -e1  # from the centre to the start
+        e1, e2 = _plane_axes_floats(self.yaw, self.tilt)
+        u = [-v for v in e1]  # from the centre to the start
         c, s = math.cos(ph), math.sin(ph)
         l = self.radius
-        return l * (c - 1.0) * u + l * s * e2, l * (-s * u + c * e2), l * (-c * u - s * e2)
+        lc, ls = l * (c - 1.0), l * s
+        return (
+            [lc * a + ls * b for a, b in zip(u, e2)],
+            [l * (-s * a + c * b) for a, b in zip(u, e2)],
+            [l * (-c * a - s * b) for a, b in zip(u, e2)],
+        )
 
     def to_spec(self) -> dict:
         return {"type": "circle", "radius": self.radius, "tilt": self.tilt, "yaw": self.yaw, "duration": self.duration}
@@ -144,10 +157,15 @@ class LemniscatePath(_PhasePath):
     type: ClassVar[str] = "lemniscate"
 
     def _shape(self, ph):
-        e1, e2 = _plane_axes(self.yaw, self.tilt)
+        e1, e2 = _plane_axes_floats(self.yaw, self.tilt)
         A, B = 0.5 * self.width, 0.5 * self.height
         s1, c1, s2, c2 = math.sin(ph), math.cos(ph), math.sin(2 * ph), math.cos(2 * ph)
-        return A * s1 * e1 + B * s2 * e2, A * c1 * e1 + 2 * B * c2 * e2, -A * s1 * e1 - 4 * B * s2 * e2
+        k0, k1, k2, k3, k4, k5 = A * s1, B * s2, A * c1, 2 * B * c2, -A * s1, 4 * B * s2
+        return (
+            [k0 * a + k1 * b for a, b in zip(e1, e2)],
+            [k2 * a + k3 * b for a, b in zip(e1, e2)],
+            [k4 * a - k5 * b for a, b in zip(e1, e2)],
+        )
 
     def to_spec(self) -> dict:
         return {
