@@ -19,11 +19,12 @@ of the same maps (equal to 1e-12, tested).
 
 Speed without changing a bit. The kinematic env's results are defined by these products, and numpy's 4 x 4
 `matmul` goes through BLAS, whose kernels fuse multiply-adds in their own order (a plain float product differs
-in the last bit on 38% of the entries of random 4 x 4 products, measured on OpenBLAS's SkylakeX kernel): so the chain of
-products, R f, R J and the env's J u stay numpy calls. Everything around them (the DH transforms' entries, the
-cross products, the wheel columns, p_c, r_a) is Python floats doing the same IEEE operations in the same order
-as the elementwise numpy they replaced, hence the same bits, without ~40 numpy calls on arrays of 2-8 entries
-per step. The recorded-episode tests (`tests/test_env_defaults_unchanged.py`) pin the result.
+in the last bit on 38% of the entries of random 4 x 4 products, measured on OpenBLAS's SkylakeX kernel): so the
+chain of products, R f, R J and the env's J u stay numpy calls. Everything around them (the DH transforms'
+entries, the cross products, the wheel columns, p_c, r_a) is Python floats doing the same IEEE operations in the
+same order as the elementwise numpy they replaced, hence the same bits, without ~40 numpy calls on arrays of 2-8
+entries per step. The recorded-episode tests (`tests/test_env_defaults_unchanged.py`) pin the result.
+
 Platform: v = r/2 (w_l + w_r), phi_dot = r/(2b) (w_r - w_l) (eq. (5)).
 
 `paper_jacobian` is the paper's J of eq. (6): r_a_dot = [p_c_dot; 0] + J u, so its wheel columns act only
