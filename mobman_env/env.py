@@ -432,7 +432,7 @@ class WheeledPumaEnv(gym.Env):
             self._path_points = np.array([path.position(t) for t in ts])
             self._sim.draw_path(self._path_points)
         r_d, v_d = path.position_velocity(0.0)
-        obs = self._observation(state, 0.0, r_d, v_d, start=True)
+        obs = self._observation(state.values(), 0.0, r_d, v_d, start=True)
         info = {
             "task": self._task,
             "true_params_hash": self._params_hash,
@@ -460,16 +460,18 @@ class WheeledPumaEnv(gym.Env):
                 f"action must have shape ({self.n_actuators},) ({self.n_actuators - 2} arm joints, left wheel, "
                 f"right wheel), got shape {a.shape}"
             )
-        # one reduction for the common case (finite, inside [-1, 1]); NaN and inf also fail `<= 1`
-        clipped = not float(np.abs(a).max()) <= 1.0
-        if clipped:
+        clipped = False
+        al = a.tolist()
+        # the common case in floats: all in [-1, 1] (a NaN skipped by min and max makes the sum NaN)
+        if not (min(al) >= -1.0 and max(al) <= 1.0 and math.isfinite(sum(al))):
             if not np.all(np.isfinite(a)):
                 raise ValueError(
-                    f"action must be finite, got {a.tolist()} (NaN or inf at "
-                    f"{np.flatnonzero(~np.isfinite(a)).tolist()})"
+                    f"action must be finite, got {al} (NaN or inf at {np.flatnonzero(~np.isfinite(a)).tolist()})"
                 )
-            a = np.clip(a, -1.0, 1.0)
-            self._n_clipped += 1
+            clipped = bool(np.any(np.abs(a) > 1.0))
+            if clipped:
+                a = np.clip(a, -1.0, 1.0)
+                self._n_clipped += 1
         self._limit_hits += self._sim.step(a * self.action_scale)
         self._step_count += 1
         t = self._step_count * self.dt
@@ -477,21 +479,22 @@ class WheeledPumaEnv(gym.Env):
             # the robot of time t: its lengths drift linearly from the episode's robot at t = 0
             self._true_params = self._params0.scaled(1.0 + self._wear * t)
             self._sim.set_params(self._true_params)
-        state = self._sim.state()
+        values, (roll, pitch) = self._sim.readings()
         r_d, v_d = path.position_velocity(t)
-        diff = r_d - state.ee_pos
-        err = math.sqrt(diff.dot(diff))  # what np.linalg.norm computes for a vector, without its overhead
+        ee_pos = values[0:3]
+        d = r_d - ee_pos
+        err = math.sqrt(d @ d)  # np.linalg.norm's own formula, without its checks
         terms = {
             "tracking": -self.reward_weights["tracking"] * err,
             "effort": -self.reward_weights["effort"] * float(a @ a),
         }
         reward = float(sum(terms.values()))
-        tipped = max(abs(state.roll_pitch[0]), abs(state.roll_pitch[1])) > TIP_ANGLE
+        tipped = max(abs(roll), abs(pitch)) > TIP_ANGLE
         terminated = tipped or (self.error_bound is not None and err > self.error_bound)
         truncated = self._step_count >= self._n_steps
-        obs = self._observation(state, t, r_d, v_d)
+        obs = self._observation(values, t, r_d, v_d)
         info = {
-            "ee_pos_true": state.ee_pos.copy(),
+            "ee_pos_true": np.array(ee_pos),
             "tracking_error": err,
             "reward_terms": terms,
             "action_clipped": clipped,
@@ -502,10 +505,14 @@ class WheeledPumaEnv(gym.Env):
         }
         return obs, reward, terminated, truncated, info
 
-    def _observation(self, state, t: float, r_d: np.ndarray, v_d: np.ndarray, start: bool = False) -> dict:
-        readings = self._sensors.read(state, self.np_random)
-        flat = np.concatenate([*readings, r_d, v_d, (t,)]).astype(np.float32)
-        # np.clip without its Python wrapper (the same elementwise max then min)
+    def _observation(
+        self, values: list[float], t: float, r_d: np.ndarray, v_d: np.ndarray, start: bool = False
+    ) -> dict:
+        """The observation dict from the sensor `values` (`Sim.readings()` order): noise, float32, clipped into
+        the bounds (maximum then minimum: `np.clip`'s law, without its wrapper), delayed; views of one array."""
+        flat = np.array(
+            [*self._sensors.read(values, self.np_random), *r_d.tolist(), *v_d.tolist(), t], dtype=np.float32
+        )
         np.minimum(np.maximum(flat, self._obs_low, out=flat), self._obs_high, out=flat)
         if start:
             self._sensors.start(flat)

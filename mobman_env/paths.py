@@ -27,7 +27,6 @@ Every field has an accepted range (`FIELD_RANGES`, listed in `validate_spec`): s
 
 from __future__ import annotations
 
-import functools
 import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar, Protocol
@@ -37,6 +36,7 @@ import numpy as np
 from mobman_env.validation import integer, number, vector
 
 PATH_TYPES = ("circle", "line", "lemniscate", "random")
+Vec3 = tuple[float, float, float]
 
 
 class Path(Protocol):
@@ -57,36 +57,31 @@ def _timing(t: float, T: float) -> tuple[float, float, float]:
     return 0.5 * (1.0 - math.cos(w * t)), 0.5 * w * math.sin(w * t), 0.5 * w * w * math.cos(w * t)
 
 
-@functools.lru_cache(maxsize=256)
 def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
     """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, tilted up by `tilt` from the horizontal
-    e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane).
-
-    Cached (a path asks at every step for the same two axes); the arrays are read-only."""
+    e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane)."""
     e1 = np.array([math.cos(yaw), math.sin(yaw), 0.0])
     h = np.array([e1[1], -e1[0], 0.0])  # e1 x z
     e2 = math.cos(tilt) * h + math.sin(tilt) * np.array([0.0, 0.0, 1.0])
-    e1.flags.writeable = e2.flags.writeable = False
     return e1, e2
 
 
-@functools.lru_cache(maxsize=256)
-def _plane_axes_floats(yaw: float, tilt: float) -> tuple[list[float], list[float]]:
-    """`_plane_axes` as lists of floats (cached)."""
-    e1, e2 = _plane_axes(yaw, tilt)
-    return e1.tolist(), e2.tolist()
+def _floats(v: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = v.tolist()
+    return x, y, z
 
 
 class _PhasePath:
     """A path p(t) = start + sum_k c_k(phase) v_k with phase = 2 pi s(t); subclasses give the phase
-    functions and their derivatives. The chain rule lives here once."""
+    functions and their derivatives. The chain rule lives here once. The 3-vector arithmetic is written out in
+    floats (numpy's per-call overhead would dominate), in the order of the array expressions in the comments,
+    so the values are those of the arrays."""
 
     start: np.ndarray
     duration: float
 
-    def _shape(self, ph: float) -> tuple[Any, Any, Any]:
-        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each (3,): arrays or lists of floats (the
-        fixed-plane shapes compute their 3 components in floats: numpy's per-call overhead dominated them)."""
+    def _shape(self, ph: float) -> tuple[Vec3, Vec3, Vec3]:
+        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each 3 floats."""
         raise NotImplementedError
 
     def _phase(self, t: float) -> tuple[float, float, float]:
@@ -101,16 +96,16 @@ class _PhasePath:
         """position(t) and velocity(t) from one evaluation (the env's hot path)."""
         ph, phd, _ = self._phase(t)
         p, d1, _ = self._shape(ph)
-        return self.start + p, np.multiply(d1, phd)
+        return self.start + p, np.array([d1[0] * phd, d1[1] * phd, d1[2] * phd])  # d1 * phd
 
     def velocity(self, t: float) -> np.ndarray:
         ph, phd, _ = self._phase(t)
-        return np.multiply(self._shape(ph)[1], phd)
+        return np.array(self._shape(ph)[1]) * phd
 
     def acceleration(self, t: float) -> np.ndarray:
         ph, phd, phdd = self._phase(t)
         _, d1, d2 = self._shape(ph)
-        return np.multiply(d2, phd) * phd + np.multiply(d1, phdd)
+        return np.array(d2) * phd * phd + np.array(d1) * phdd
 
 
 def _vec3(value: Any, name: str) -> np.ndarray:
@@ -127,17 +122,21 @@ class CirclePath(_PhasePath):
     yaw: float = math.pi
     duration: float = 20.0
     type: ClassVar[str] = "circle"
+    _axes: tuple[Vec3, Vec3] = field(init=False, repr=False)
+
+    def __post_init__(self):
+        e1, e2 = _plane_axes(self.yaw, self.tilt)
+        object.__setattr__(self, "_axes", (_floats(-e1), _floats(e2)))  # u = -e1: from the centre to the start
 
     def _shape(self, ph):
-        e1, e2 = _plane_axes_floats(self.yaw, self.tilt)
-        u = [-v for v in e1]  # from the centre to the start
+        (u0, u1, u2), (f0, f1, f2) = self._axes
         c, s = math.cos(ph), math.sin(ph)
         l = self.radius
-        lc, ls = l * (c - 1.0), l * s
+        a, b, ms, mc = l * (c - 1.0), l * s, -s, -c
         return (
-            [lc * a + ls * b for a, b in zip(u, e2)],
-            [l * (-s * a + c * b) for a, b in zip(u, e2)],
-            [l * (-c * a - s * b) for a, b in zip(u, e2)],
+            (a * u0 + b * f0, a * u1 + b * f1, a * u2 + b * f2),  # l (c - 1) u + l s e2
+            (l * (ms * u0 + c * f0), l * (ms * u1 + c * f1), l * (ms * u2 + c * f2)),  # l (-s u + c e2)
+            (l * (mc * u0 - s * f0), l * (mc * u1 - s * f1), l * (mc * u2 - s * f2)),  # l (-c u - s e2)
         )
 
     def to_spec(self) -> dict:
@@ -155,16 +154,22 @@ class LemniscatePath(_PhasePath):
     yaw: float = math.pi
     duration: float = 20.0
     type: ClassVar[str] = "lemniscate"
+    _axes: tuple[Vec3, Vec3] = field(init=False, repr=False)
+
+    def __post_init__(self):
+        e1, e2 = _plane_axes(self.yaw, self.tilt)
+        object.__setattr__(self, "_axes", (_floats(e1), _floats(e2)))
 
     def _shape(self, ph):
-        e1, e2 = _plane_axes_floats(self.yaw, self.tilt)
+        e1, e2 = self._axes
         A, B = 0.5 * self.width, 0.5 * self.height
         s1, c1, s2, c2 = math.sin(ph), math.cos(ph), math.sin(2 * ph), math.cos(2 * ph)
-        k0, k1, k2, k3, k4, k5 = A * s1, B * s2, A * c1, 2 * B * c2, -A * s1, 4 * B * s2
+        # A s1 e1 + B s2 e2, A c1 e1 + 2 B c2 e2, -A s1 e1 - 4 B s2 e2 (left to right: (A * s1) * e1, ...)
+        p1, p2, v1, v2, a1, a2 = A * s1, B * s2, A * c1, 2 * B * c2, -A * s1, 4 * B * s2
         return (
-            [k0 * a + k1 * b for a, b in zip(e1, e2)],
-            [k2 * a + k3 * b for a, b in zip(e1, e2)],
-            [k4 * a - k5 * b for a, b in zip(e1, e2)],
+            tuple(p1 * x + p2 * y for x, y in zip(e1, e2)),
+            tuple(v1 * x + v2 * y for x, y in zip(e1, e2)),
+            tuple(a1 * x - a2 * y for x, y in zip(e1, e2)),
         )
 
     def to_spec(self) -> dict:
@@ -188,13 +193,11 @@ class LinePath:
     duration: float = 20.0
     type: ClassVar[str] = "line"
 
-    @functools.cached_property
-    def _unit(self) -> np.ndarray:
-        """The direction normalised (computed once per path: the env asks at every step; read-only)."""
+    _unit: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
         d = np.asarray(self.direction, dtype=float)
-        unit = d / np.linalg.norm(d)
-        unit.flags.writeable = False
-        return unit
+        object.__setattr__(self, "_unit", d / np.linalg.norm(d))
 
     def position(self, t):
         return self.start + self.length * _timing(t, self.duration)[0] * self._unit
@@ -203,7 +206,8 @@ class LinePath:
         return self.length * _timing(t, self.duration)[1] * self._unit
 
     def position_velocity(self, t):
-        return self.position(t), self.velocity(t)
+        s, sd, _ = _timing(t, self.duration)
+        return self.start + self.length * s * self._unit, self.length * sd * self._unit
 
     def acceleration(self, t):
         return self.length * _timing(t, self.duration)[2] * self._unit
@@ -245,7 +249,8 @@ class RandomPath(_PhasePath):
         amp, phase, k = self._coef
         arg = k * ph + phase
         sin, cos = np.sin(arg), np.cos(arg)
-        return ((amp * (sin - np.sin(phase))).sum(1), (amp * k * cos).sum(1), (-amp * k * k * sin).sum(1))
+        p, d1, d2 = (amp * (sin - np.sin(phase))).sum(1), (amp * k * cos).sum(1), (-amp * k * k * sin).sum(1)
+        return _floats(p), _floats(d1), _floats(d2)
 
     def to_spec(self) -> dict:
         return {

@@ -3,15 +3,15 @@
 What a controller observes of the robot is `SENSOR_KEYS`, in this order; the env appends the task's reference
 (target position and velocity, time), which is neither noisy nor delayed. Noise is drawn from the generator the
 env passes (its `np_random`) in a fixed order - ee_pos (3), arm_base_pos (2), ee_vel (3), arm_base_vel (2),
-joint_vel (8) - and only for a std > 0, so that with every std at 0 nothing is drawn. A delay of k steps hands
-out the reading taken k control steps earlier (the reset reading until then): noise belongs to the moment of the
-reading, so a delayed reading keeps its own noise. Imports numpy only.
+joint_vel (n + 2) - and only for a std > 0, so that with every std at 0 nothing is drawn. The readings come as
+one list of floats in `SENSOR_KEYS` order (`sim.Sim.readings()`); each noise vector is drawn as an array and added
+entry by entry. A delay of k steps hands out the reading taken k control steps earlier (the reset reading until
+then): noise belongs to the moment of the reading, so a delayed reading keeps its own noise. Imports numpy only.
 """
 
 from __future__ import annotations
 
 from collections import deque
-from typing import Any
 
 import numpy as np
 
@@ -53,20 +53,29 @@ class Sensors:
         self.n_sensor = n_sensor
         self._buffer: deque[np.ndarray] = deque(maxlen=max(obs_delay, 1))
 
-    def read(self, state: Any, rng: np.random.Generator) -> list[np.ndarray]:
-        """The noisy readings of a `sim.RobotState`, as arrays in `SENSOR_KEYS` order (float64)."""
-        ee_pos, pc = state.ee_pos, state.arm_base_pos
-        ee_vel, pc_vel = state.ee_vel, state.arm_base_vel
-        joint_vel = state.joint_vel
+    def read(self, values: list[float], rng: np.random.Generator) -> list[float]:
+        """The noisy readings of `values`, a `sim.Sim.readings()` list (floats in `SENSOR_KEYS` order); `values`
+        itself when every std is 0, else a new list. Each noise vector is drawn and scaled in numpy, then added
+        entry by entry (the same floats as adding the arrays)."""
+        if not (self.obs_noise > 0.0 or self.obs_noise_vel > 0.0 or self.obs_noise_joint_vel > 0.0):
+            return values
+        v = list(values)
+
+        def add(start: int, std: float, k: int) -> None:
+            noise = (std * rng.standard_normal(k)).tolist()
+            v[start : start + k] = [x + e for x, e in zip(v[start : start + k], noise)]
+
+        # entries: ee_pos 0-2, ee_vel 3-5, arm_base_pos 6-7, arm_base_vel 8-9, base_yaw 10, joint_pos, joint_vel
         if self.obs_noise > 0.0:
-            ee_pos = ee_pos + self.obs_noise * rng.standard_normal(3)
-            pc = pc + self.obs_noise * rng.standard_normal(2)
+            add(0, self.obs_noise, 3)
+            add(6, self.obs_noise, 2)
         if self.obs_noise_vel > 0.0:
-            ee_vel = ee_vel + self.obs_noise_vel * rng.standard_normal(3)
-            pc_vel = pc_vel + self.obs_noise_vel * rng.standard_normal(2)
+            add(3, self.obs_noise_vel, 3)
+            add(8, self.obs_noise_vel, 2)
         if self.obs_noise_joint_vel > 0.0:
-            joint_vel = joint_vel + self.obs_noise_joint_vel * rng.standard_normal(joint_vel.shape[0])
-        return [ee_pos, ee_vel, pc, pc_vel, state.base_pose[2:], state.joint_pos, joint_vel]
+            m = (len(v) - 11) // 2
+            add(11 + m, self.obs_noise_joint_vel, m)
+        return v
 
     def start(self, flat: np.ndarray) -> None:
         """At reset: fill the delay buffer with the reset reading (the first `n_sensor` entries of `flat`)."""

@@ -9,7 +9,14 @@
 Joint limits are enforced in both modes: a command that would push a joint past its limit is replaced by 0 for
 that joint (kinematic mode also clamps the angle to the limit), and each such event is counted.
 
-Every PyBullet call goes through `self.client`; `close()` is safe to call twice.
+Every PyBullet call goes to this sim's own client (`self.client`, or pybullet's functions with its
+`client_id`); `close()` is safe to call twice. The body moves only through `Sim`'s methods.
+
+Per physics step (the env's hot path): one motor command, `n_substeps` x `stepSimulation`, and one read of the
+body (`readings()`: joint states, end-effector link state with velocity, base pose and velocity) into plain
+floats; the arm angles the limit check needs are the last read's (the env reads after every step; a reset or a
+step without a read in between reads them afresh). Small fixed-size math (limits, p_c, yaw) is written out in
+floats; `state()` builds the `RobotState` arrays from the same read.
 
 Bodies and files. The robot body changes only when the robot does (a new true robot per seed): the world is
 then rebuilt with `resetSimulation()` (removing a body alone leaves about 8 KiB of PyBullet memory behind per
@@ -135,6 +142,11 @@ class RobotState:
     joint_vel: np.ndarray  # (n + 2,) rad/s
     roll_pitch: tuple[float, float]  # rad, of the platform
 
+    def values(self) -> list[float]:
+        """The sensor quantities as floats, in `Sim.readings()` order."""
+        parts = (self.ee_pos, self.ee_vel, self.arm_base_pos, self.arm_base_vel, self.base_pose[2:])
+        return np.concatenate([*parts, self.joint_pos, self.joint_vel]).tolist()
+
 
 def display_available() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
@@ -160,14 +172,11 @@ class Sim:
         with _quiet_stdout():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self.client_id = self.client._client
-        # the per-step calls of physics mode, bound once: each `self.client.<name>` goes through
-        # BulletClient.__getattr__, which builds a new partial per call (0.7 us each, measured); these are the
-        # same partials, bound to this client
-        c = self.client
-        self._get_joint_states, self._motor_array = c.getJointStates, c.setJointMotorControlArray
-        self._step_sim, self._get_link_state = c.stepSimulation, c.getLinkState
-        self._base_pos_orn, self._base_vel = c.getBasePositionAndOrientation, c.getBaseVelocity
-        self._euler = c.getEulerFromQuaternion
+        # the per-step calls of physics mode skip BulletClient.__getattr__, which builds a new partial per call
+        # (0.7 us each, measured): the motor command is the client's partial, bound once; the reads and
+        # stepSimulation are pybullet's functions called with this client's id as a positional argument
+        # (0.3-0.5 us less per call than a partial with keywords, measured)
+        self._motor_array = self.client.setJointMotorControlArray
         self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
         self.body: int | None = None
         self._body_hash: str | None = None
@@ -185,6 +194,8 @@ class Sim:
         self._pose = np.zeros(3)
         self._u = np.zeros(self._n + 2)
         self._yaw = 0.0  # continuous yaw tracked in physics mode
+        #: physics mode: the arm angles of the last read, None once anything may have moved the body since
+        self._q_arm: list[float] | None = None
         self._synced = False
 
     @property
@@ -228,6 +239,7 @@ class Sim:
         h = params.hash()
         if self.body is not None and self._body_hash == h:
             return
+        self._q_arm = None
         if self.body is not None:
             # a fresh world instead of removeBody(): nothing of the old body stays in PyBullet's memory
             self.client.resetSimulation()
@@ -276,6 +288,7 @@ class Sim:
     def set_state(self, q: np.ndarray, base_pose: np.ndarray) -> None:
         """Put the body at joint angles `q` (n + 2) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
         p = self._params
+        self._q_arm = None
         quat = self.client.getQuaternionFromEuler([0.0, 0.0, float(base_pose[2])])
         self.client.resetBasePositionAndOrientation(
             self.body, [float(base_pose[0]), float(base_pose[1]), p.wheel_radius], quat
@@ -292,7 +305,7 @@ class Sim:
         self.torque_limits = [*params.arm_torque_limit, params.wheel_torque_limit, params.wheel_torque_limit]
         self._lower = np.array(params.joint_lower)
         self._upper = np.array(params.joint_upper)
-        self._limits = list(zip(self._lower.tolist(), self._upper.tolist()))  # kinematic mode's float loop
+        self._lower_f, self._upper_f = [float(v) for v in params.joint_lower], [float(v) for v in params.joint_upper]
         self._q = np.asarray(q0, dtype=float).copy()
         self._pose = np.asarray(base_pose, dtype=float).copy()
         self._u = np.zeros(self._n + 2)
@@ -312,15 +325,16 @@ class Sim:
         self._synced = False
 
     # --- stepping --------------------------------------------------------------------------------------
-    def _limit(self, q_arm: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, int]:
-        """Zero the arm speeds that would push a joint past its limit; returns (u, number zeroed)."""
-        n = self._n
-        push = ((q_arm >= self._upper) & (u[:n] > 0)) | ((q_arm <= self._lower) & (u[:n] < 0))
-        if not push.any():
-            return u, 0
-        u = u.copy()
-        u[:n][push] = 0.0
-        return u, int(push.sum())
+    def _limit(self, q_arm: list[float], u: list[float]) -> int:
+        """Zero (in place) the arm speeds of `u` that would push a joint past its limit; returns how many.
+        Written out in floats: n comparisons, where numpy's per-call overhead would dominate."""
+        hits = 0
+        for i, (q, lo, hi) in enumerate(zip(q_arm, self._lower_f, self._upper_f)):
+            v = u[i]
+            if (v > 0.0 and q >= hi) or (v < 0.0 and q <= lo):
+                u[i] = 0.0
+                hits += 1
+        return hits
 
     def step(self, u: np.ndarray) -> int:
         """Apply the joint/wheel speeds `u` (n + 2, rad/s) for one control step; returns joint-limit hits."""
@@ -330,17 +344,13 @@ class Sim:
 
     def _step_kinematic(self, u: np.ndarray) -> int:
         """`_limit`, the exact integration and the clamp at the limits, in Python floats over the n + 2 entries
-        (the same IEEE operations as the array code they replace, without its ~15 numpy calls on arrays of 8)."""
+        (the same IEEE operations as the array code they replaced, without its ~15 numpy calls on arrays of 8)."""
         n, dt = self._n, self.dt
         uu = u.tolist()
         q = self._q.tolist()
-        hits = 0
-        for i, (lo, hi) in enumerate(self._limits):
-            qi, ui = q[i], uu[i]
-            if (qi >= hi and ui > 0) or (qi <= lo and ui < 0):
-                uu[i] = ui = 0.0  # it would push the joint past its limit
-                hits += 1
-            qi = qi + ui * dt
+        hits = self._limit(q, uu)
+        for i, (lo, hi) in enumerate(zip(self._lower_f, self._upper_f)):
+            qi = q[i] + uu[i] * dt
             if qi > hi or qi < lo:
                 qi = min(max(qi, lo), hi)  # the joint reached its limit inside the step: it stops there
                 uu[i] = 0.0
@@ -355,21 +365,48 @@ class Sim:
         return hits
 
     def _step_physics(self, u: np.ndarray) -> int:
-        q_arm = np.array([s[0] for s in self._get_joint_states(self.body, self.arm_ids)])
-        u, hits = self._limit(q_arm, u)
+        targets = u.tolist()
+        q_arm = self._q_arm  # the last read's, if nothing has moved the body since
+        if q_arm is None:
+            q_arm = [s[0] for s in pybullet.getJointStates(self.body, self.arm_ids, self.client_id)]
+        self._q_arm = None
+        hits = self._limit(q_arm, targets)
         self._motor_array(
-            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=u.tolist(), forces=self.torque_limits
+            self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=targets, forces=self.torque_limits
         )
-        step = self._step_sim
+        step, cid = pybullet.stepSimulation, self.client_id
         for _ in range(self.n_substeps):
-            step()
+            step(cid)
         return hits
 
     # --- state -----------------------------------------------------------------------------------------
     def state(self) -> RobotState:
         if self.dynamics == "kinematic":
             return self._state_kinematic()
-        return self._state_physics()
+        values, xy, roll_pitch = self._read_physics()
+        m = self._n + 2
+        return RobotState(
+            ee_pos=np.array(values[0:3]),
+            ee_vel=np.array(values[3:6]),
+            arm_base_pos=np.array(values[6:8]),
+            arm_base_vel=np.array(values[8:10]),
+            base_pose=np.array([xy[0], xy[1], values[10]]),
+            joint_pos=np.array(values[11 : 11 + m]),
+            joint_vel=np.array(values[11 + m :]),
+            roll_pitch=roll_pitch,
+        )
+
+    def readings(self) -> tuple[list[float], tuple[float, float]]:
+        """What `state()` holds for the sensors, as floats in `sensors.SENSOR_KEYS` order (ee_pos, ee_vel,
+        arm_base_pos, arm_base_vel, base yaw, joint_pos, joint_vel: 11 + 2 (n + 2) values), and the platform's
+        (roll, pitch): the env's per-step read (no arrays are built in physics mode)."""
+        if self.dynamics == "kinematic":
+            p, q, pose, u = self._params, self._q, self._pose, self._u
+            ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
+            values = [*ee_pos.tolist(), *(J @ u).tolist(), *pc.tolist(), *(J_pc @ u).tolist(), float(pose[2])]
+            return values + q.tolist() + u.tolist(), (0.0, 0.0)
+        values, _, roll_pitch = self._read_physics()
+        return values, roll_pitch
 
     def _state_kinematic(self) -> RobotState:
         p, q, pose, u = self._params, self._q, self._pose, self._u
@@ -385,30 +422,26 @@ class Sim:
             roll_pitch=(0.0, 0.0),
         )
 
-    def _state_physics(self) -> RobotState:
-        p = self._params
-        js = self._get_joint_states(self.body, self.act_ids)
-        q = np.array([s[0] for s in js])
-        qd = np.array([s[1] for s in js])
-        ls = self._get_link_state(self.body, self.ee_id, computeLinkVelocity=1, computeForwardKinematics=1)
-        pos, orn = self._base_pos_orn(self.body)
-        lin, ang = self._base_vel(self.body)
-        roll, pitch, yaw_wrapped = self._euler(orn)
+    def _read_physics(self) -> tuple[list[float], tuple[float, float], tuple[float, float]]:
+        """One read of the PyBullet body, in floats: (the `readings` values, x and y of P_0, (roll, pitch))."""
+        body, cid, pb = self.body, self.client_id, pybullet
+        js = pb.getJointStates(body, self.act_ids, cid)
+        ls = pb.getLinkState(body, self.ee_id, 1, 1, cid)  # with the link velocity, forward kinematics updated
+        pos, orn = pb.getBasePositionAndOrientation(body, cid)
+        lin, ang = pb.getBaseVelocity(body, cid)
+        roll, pitch, yaw_wrapped = pb.getEulerFromQuaternion(orn, cid)
         # continuous yaw: the wrapped angle's nearest representative to the last one
         self._yaw += (yaw_wrapped - self._yaw + math.pi) % (2 * math.pi) - math.pi
         yaw = self._yaw
-        d = p.mount_offset
+        d, w = self._params.mount_offset, ang[2]
         cy, sy = math.cos(yaw), math.sin(yaw)
-        return RobotState(
-            ee_pos=np.array(ls[0]),
-            ee_vel=np.array(ls[6]),
-            arm_base_pos=np.array([pos[0] + d * cy, pos[1] + d * sy]),
-            arm_base_vel=np.array([lin[0] - d * ang[2] * sy, lin[1] + d * ang[2] * cy]),
-            base_pose=np.array([pos[0], pos[1], yaw]),
-            joint_pos=q,
-            joint_vel=qd,
-            roll_pitch=(roll, pitch),
-        )
+        x, y = pos[0], pos[1]
+        values = [*ls[0], *ls[6], x + d * cy, y + d * sy, lin[0] - d * w * sy, lin[1] + d * w * cy, yaw]
+        q = [s[0] for s in js]
+        self._q_arm = q[: self._n]
+        values += q
+        values += [s[1] for s in js]
+        return values, (x, y), (roll, pitch)
 
     # --- rendering -------------------------------------------------------------------------------------
     def sync_bodies(self) -> None:

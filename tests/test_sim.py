@@ -221,3 +221,22 @@ def test_joint_limits_are_enforced_and_counted(make_env, dynamics):
     for _ in range(10):
         obs, _, _, _, info = env.step(np.r_[0, 0, 0, 0, -1.0, 0, 0, 0])
     assert obs["joint_pos"][4] < upper - 0.2
+
+
+def test_physics_limit_check_reads_the_angles_again_after_the_body_was_moved(make_env):
+    """The physics limit check reuses the arm angles of the last read; `set_state` moves the body without a read,
+    so the next step must read them afresh: a joint put at its limit is stopped (1 hit), one put away from it is
+    not (0 hits), whatever the previous read said."""
+    env = make_env(dynamics="physics", path={"type": "circle", "radius": 0.1, "duration": 1.0})
+    env.reset(seed=0)
+    sim, p = env.sim, env.true_params
+    push = np.r_[0, 0, 0, 0, 5.0, 0, 0, 0]  # joint 5 up, rad/s
+    away = np.r_[env.unwrapped.arm_joint_pos[:6], 0.0, 0.0]
+    at_limit = away.copy()
+    at_limit[4] = p.joint_upper[4]
+    pose = np.array([0.0, 0.0, np.pi])
+    for start, moved_to, hits in ((away, at_limit, 1), (at_limit, away, 0)):
+        sim.set_state(start, pose)
+        sim.state()  # a read at `start`
+        sim.set_state(moved_to, pose)
+        assert sim.step(push) == hits
