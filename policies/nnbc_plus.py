@@ -307,13 +307,21 @@ class NNBCPlusConfig(ModelFreeConfig):
         super().__post_init__()
 
 
-def _solve3(A: np.ndarray, rhs: np.ndarray, eps2: float = 0.0, extra: float = 0.0) -> np.ndarray:
-    """Solve (A + d I) x = rhs for the symmetric positive definite 3x3 A by cofactors in plain floats (several
-    times faster than np.linalg.solve at this size). d = 0, unless eps2 > 0 and A's smallest eigenvalue
-    (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that is tight when one
-    eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate / eps2), the
-    singularity-robust damping of `ModelFreeConfig.sing_damping`."""
-    (a, b, c), (d, e, f), (g, h, i) = A.tolist()
+def _solve3(
+    A: list[list[float]], rhs: tuple[float, float, float], damping: float = 0.0, eps2: float = 0.0, extra: float = 0.0
+) -> np.ndarray:
+    """Solve (A + damping I + d I) x = rhs for the symmetric positive definite 3x3 A (its rows as floats, e.g.
+    `M.tolist()`) by cofactors in plain floats (several times faster than np.linalg.solve at this size).
+    damping I is added entry by entry as the array sum A + damping * np.eye(3) adds it (off the diagonal + 0.0),
+    so the result equals that of the array expression bit for bit. d = 0, unless eps2 > 0 and the damped A's
+    smallest eigenvalue (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that
+    is tight when one eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate /
+    eps2), the singularity-robust damping of `ModelFreeConfig.sing_damping`."""
+    (a, b, c), (d, e, f), (g, h, i) = A
+    off = damping * 0.0
+    a, b, c = a + damping, b + off, c + off
+    d, e, f = d + off, e + damping, f + off
+    g, h, i = g + off, h + off, i + damping
     if eps2 > 0.0:
         e2 = (e * i - f * h) + (a * i - c * g) + (a * e - b * d)
         det = a * (e * i - f * h) + b * (f * g - d * i) + c * (d * h - e * g)
@@ -323,7 +331,7 @@ def _solve3(A: np.ndarray, rhs: np.ndarray, eps2: float = 0.0, extra: float = 0.
             a += add
             e += add
             i += add
-    p, q, r = rhs.tolist()
+    p, q, r = rhs
     c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
     c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
     c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
@@ -379,7 +387,7 @@ class EstimatingController(ControllerPolicy):
             self._w0 = self._w0.copy()
             self._w0[-2:] *= c.wheel_weight
         self._w = self._w0
-        self._damp = c.damping * np.eye(3)
+        self._half_dt = 0.5 * self._dt
         self._eps2 = c.sing_threshold**2
         self._du = self._scale * (self._dt / c.accel_time) if c.accel_time > 0 else None
         self._whole = c.formulation == "whole_body"
@@ -421,10 +429,15 @@ class EstimatingController(ControllerPolicy):
         self._J_probe = np.zeros((3, n))
         self._prev_q = q.copy()
         self._prev_s = self._task_pos(obs).copy()
-        self._s_f = self._prev_s.copy()
-        self._prev_vd = obs["target_vel"].copy()
-        self._td: np.ndarray = np.zeros(3)
-        self._signs: np.ndarray = np.empty((0, n + 3))
+        # 3-vectors as floats (numpy's per-call overhead dominates at this size; + - * round alike)
+        self._s_f: list[float] = self._prev_s.tolist()
+        self._prev_vd: list[float] = obs["target_vel"].tolist()
+        self._td: list[float] = [0.0, 0.0, 0.0]
+        # random signs, drawn _SIGN_BLOCK steps at a time and scaled once: row i of _dz is the dither of the
+        # block's i-th step, _dtd[i] its task dither; _sign_i the next row
+        self._dz: np.ndarray = np.empty((0, n))
+        self._dtd: list[list[float]] = []
+        self._sign_i = 0
         # the last max_delay + 1 commands in a ring (row k % m holds the command issued at step k - 1) and the
         # running mismatch of each lag with x
         m = self.config.max_delay + 1
@@ -448,28 +461,33 @@ class EstimatingController(ControllerPolicy):
         pc = obs["arm_base_pos"]
         return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
 
-    def _measure(self, obs: dict, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _measure(self, obs: dict, probing: bool) -> tuple[np.ndarray, np.ndarray]:
         """(x, y): actuator speeds (n) and task velocity (3) with y = J x (see `measurement`); advances the
         position filter by the measured motion."""
-        q = obs["joint_pos"]
-        s = self._task_pos(obs)
         if self._use_vel:
             x = obs["joint_vel"]
             y = obs["ee_vel"]
             if not self._whole:
                 v = obs["arm_base_vel"]
                 y = np.array([y[0] - v[0], y[1] - v[1], y[2]])
-            ds = self._dt * y
+            dt = self._dt
+            y0, y1, y2 = y.tolist()
+            ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
+            s0, s1, s2 = self._task_pos(obs).tolist()
         else:
+            q = obs["joint_pos"]
+            s = self._task_pos(obs)
             dq = q - self._prev_q
             x = dq / self._dt
             y = (s - self._prev_s) / self._dt
-            ds = J @ dq
+            ds0, ds1, ds2 = ((self._J_probe if probing else self.estimator.J) @ dq).tolist()
             self._prev_q = q.copy()
             self._prev_s = s.copy()
+            s0, s1, s2 = s.tolist()
         a = self.config.pos_filter
-        self._s_f += ds
-        self._s_f += a * (s - self._s_f)
+        f0, f1, f2 = self._s_f
+        f0, f1, f2 = f0 + ds0, f1 + ds1, f2 + ds2
+        self._s_f = [f0 + a * (s0 - f0), f1 + a * (s1 - f1), f2 + a * (s2 - f2)]
         return x, y
 
     def _track_delay(self, x: np.ndarray, newest_first: np.ndarray) -> None:
@@ -486,9 +504,14 @@ class EstimatingController(ControllerPolicy):
     def _check_blocked(self, x: np.ndarray, commanded: np.ndarray, q: np.ndarray) -> None:
         """Mark the actuators that were commanded but did not move, release those that moved away (see
         `block_release`)."""
+        if not self._counting and not self._any_blocked:
+            # the usual step (nothing stuck, counting or blocked), decided on floats: no lag < 0 (nor nan)
+            for ci, xi in zip(commanded.tolist(), x.tolist()):
+                if not ci * (xi - 0.1 * ci) >= 0.0:
+                    break
+            else:
+                return
         lag = commanded * (x - 0.1 * commanded)  # < 0: moved less than a tenth of the command (or backwards)
-        if not self._counting and not self._any_blocked and lag.min() >= 0.0:
-            return  # nothing stuck, nothing counting, nothing blocked: the usual step, decided in 3 operations
         stuck = (lag < 0.0) & (commanded * commanded > BLOCK_SPEED**2)
         self._block_count = np.where(stuck, self._block_count + 1, 0.0)
         self._counting = bool(stuck.any())
@@ -529,11 +552,12 @@ class EstimatingController(ControllerPolicy):
         self._k = k + 1
         c = self.config
         n_probe = self.n_probe
+        est = self.estimator
         hist = self._hist
         ring = k % len(hist)
         hist[ring] = self.last_u  # the command issued at step k - 1
         probing = k < n_probe
-        x, y = self._measure(obs, self.J_hat)
+        x, y = self._measure(obs, probing)
         if c.max_delay > 0:
             self._track_delay(x, self._lags[ring])
         if c.block_release > 0 and k > 1 and k % c.block_every == 0:
@@ -545,51 +569,67 @@ class EstimatingController(ControllerPolicy):
             if k == n_probe:
                 self._finish_probe()
         else:
-            self.estimator.update(x, y)
-        # --- control: u = z + J_c^+ (v - J_c z)
-        J = self.J_hat
-        vd = obs["target_vel"]
-        Jc, v = J, vd.copy()
+            est.update(x, y)
+        # --- control: u = z + J_c^+ (v - J_c z); the 3-vectors v, r_d, r_hat_a as floats
+        J = self._J_probe if probing else est.J
+        vd = obs["target_vel"].tolist()
+        Jc = J
+        v0, v1, v2 = vd
         if c.lookahead and not probing:  # (the probe's fit has no rate; r_d_dot has no history at the reset)
-            Jc = J + (0.5 * self._dt) * self.estimator.Jdot
-            v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
-        self._prev_vd = vd.copy()
-        s_d = obs["target_pos"]
+            Jc = J + self._half_dt * est.Jdot
+            p0, p1, p2 = self._prev_vd
+            v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2  # r_d_dot half a step ahead
+        self._prev_vd = vd
+        d0, d1, d2 = obs["target_pos"].tolist()
         if not self._whole:
-            pc, pv = obs["arm_base_pos"], obs["arm_base_vel"]
-            s_d = np.array([s_d[0] - pc[0], s_d[1] - pc[1], s_d[2]])
-            v[0] -= pv[0]
-            v[1] -= pv[1]
-        s_fb = self._s_f
+            pc, pv = obs["arm_base_pos"].tolist(), obs["arm_base_vel"].tolist()
+            d0, d1 = d0 - pc[0], d1 - pc[1]
+            v0, v1 = v0 - pv[0], v1 - pv[1]
+        f0, f1, f2 = self._s_f
         q_arm = obs["joint_pos"][: self.n_arm]
         d = self.delay_estimate
         if d > 0:  # the observation is d steps old: predict it forward by the commands issued since
             moved = hist[self._lags[ring][:d]].sum(axis=0) * self._dt
-            s_fb = s_fb + J @ moved
+            m0, m1, m2 = (J @ moved).tolist()
+            f0, f1, f2 = f0 + m0, f1 + m1, f2 + m2
             q_arm = q_arm + moved[: self.n_arm]
-        v += c.gamma * (s_d - s_fb)
-        z = np.zeros(self.n_act)
-        if c.posture_gain > 0:
-            z[: self.n_arm] = c.posture_gain * (self._q0 - q_arm)  # (bit-identical to 0 - g (q - q0))
+        g = c.gamma
+        v0, v1, v2 = v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
+        dithered = False
         if not probing:
-            if not len(self._signs):  # random signs, one row per step: n for the dither, 3 for the task dither
-                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
-            signs = self._signs[0]
-            self._signs = self._signs[1:]
+            i = self._sign_i
+            if i >= len(self._dtd):  # random signs, one row per step: n for the dither, 3 for the task dither
+                signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
+                self._dz = c.dither * signs[:, : self.n_act]
+                self._dtd = (c.task_dither * signs[:, self.n_act :]).tolist()
+                i = 0
+            self._sign_i = i + 1
             if c.task_dither > 0:
                 if k % 2 == 0:
-                    self._td = c.task_dither * signs[self.n_act :]
-                    v += self._td
+                    self._td = td = self._dtd[i]
+                    v0, v1, v2 = v0 + td[0], v1 + td[1], v2 + td[2]
                 else:
-                    v -= self._td
+                    td = self._td
+                    v0, v1, v2 = v0 - td[0], v1 - td[1], v2 - td[2]
             if c.dither > 0:
-                z += c.dither * signs[: self.n_act]
+                z = self._dz[i].copy()
+                dithered = True
+        if not dithered:
+            z = np.zeros(self.n_act)
+        if c.posture_gain > 0:  # the pull of the arm joints (added to the dither: + commutes exactly)
+            pull = c.posture_gain * (self._q0 - q_arm)  # (bit-identical to 0 - g (q - q0))
+            if dithered:
+                z[: self.n_arm] += pull
+            else:
+                z[: self.n_arm] = pull
         if probing and not c.probe_tracking:
-            v = np.zeros(3)
+            v0 = v1 = v2 = 0.0
             z = np.zeros(self.n_act)
         JW = Jc if self._unit_w and not self._any_blocked else Jc * self._w
-        lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z, self._eps2, c.sing_damping)
-        u = z + JW.T @ lam
+        # (.dot: the same BLAS calls as @, at about half numpy's per-call overhead; equal bit for bit)
+        r0, r1, r2 = Jc.dot(z).tolist()
+        lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)
+        u = z + JW.T.dot(lam)
         if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
             u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
         if self._any_blocked:  # never further into a stop
