@@ -139,7 +139,7 @@ def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dic
     first = observation.get("ee_pos")
     if first is None:
         first = next(iter(observation.values()))
-    batched = np.ndim(first) == 2
+    batched = (first.ndim if isinstance(first, np.ndarray) else np.ndim(first)) == 2
     if batched and first.shape[0] != 1:
         raise ValueError(
             f"controllers are single-env: got a batch of {first.shape[0]} observations; use one env (DummyVecEnv "
@@ -204,7 +204,7 @@ class ControllerPolicy:
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         single, batched = unbatch(observation, self.uses_keys)
-        if first_flag(episode_start) or not self._initialised:
+        if not self._initialised or (episode_start is not None and first_flag(episode_start)):
             self._start(single)
         # np.minimum(np.maximum(...)) is np.clip at a third of its cost for an 8-vector
         u = np.minimum(np.maximum(self._act(single), self._neg_scale), self._scale)

@@ -438,6 +438,7 @@ class EstimatingController(ControllerPolicy):
         self._dz: np.ndarray = np.empty((0, n))
         self._dtd: list[list[float]] = []
         self._sign_i = 0
+        self._pull = np.zeros(n)  # the posture pull, rad/s (arm entries rewritten each step, wheels 0)
         # the last max_delay + 1 commands in a ring (row k % m holds the command issued at step k - 1) and the
         # running mismatch of each lag with x
         m = self.config.max_delay + 1
@@ -492,11 +493,8 @@ class EstimatingController(ControllerPolicy):
 
     def _track_delay(self, x: np.ndarray, newest_first: np.ndarray) -> None:
         """Which of the last commands the measured actuator speeds x match best: the observation delay. A
-        sensor's delay does not change within an episode: refreshed every step for the first `DELAY_SETTLE`
-        steps, then every `DELAY_EVERY`-th step."""
-        k = self._k
-        if k < 2 or (k > DELAY_SETTLE and k % DELAY_EVERY):
-            return
+        sensor's delay does not change within an episode: `_act` calls this every step while the step count (this
+        step included) is from 2 to `DELAY_SETTLE`, then every `DELAY_EVERY`-th step."""
         diff = self._hist[newest_first] - x
         self._lag_ms += self.config.delay_rate * (np.einsum("ij,ij->i", diff, diff) - self._lag_ms)
         self.delay_estimate = int(self._lag_ms.argmin())
@@ -558,7 +556,8 @@ class EstimatingController(ControllerPolicy):
         hist[ring] = self.last_u  # the command issued at step k - 1
         probing = k < n_probe
         x, y = self._measure(obs, probing)
-        if c.max_delay > 0:
+        n_seen = k + 1  # steps counted, this one included (the count the delay refresh is scheduled on)
+        if c.max_delay > 0 and n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
             self._track_delay(x, self._lags[ring])
         if c.block_release > 0 and k > 1 and k % c.block_every == 0:
             lag = self._lags[ring][min(self.delay_estimate, len(hist) - 1)]
@@ -595,6 +594,12 @@ class EstimatingController(ControllerPolicy):
             q_arm = q_arm + moved[: self.n_arm]
         g = c.gamma
         v0, v1, v2 = v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
+        g = c.posture_gain
+        if g > 0:  # the null-space pull of the arm joints back to their start: the arm entries of _pull
+            pull = self._pull
+            pa = pull[: self.n_arm]
+            np.subtract(self._q0, q_arm, out=pa)
+            pa *= g  # (bit-identical to g (q0 - q) and to 0 - g (q - q0)); the wheel entries stay 0
         dithered = False
         if not probing:
             i = self._sign_i
@@ -611,17 +616,11 @@ class EstimatingController(ControllerPolicy):
                 else:
                     td = self._td
                     v0, v1, v2 = v0 - td[0], v1 - td[1], v2 - td[2]
-            if c.dither > 0:
-                z = self._dz[i].copy()
+            if c.dither > 0:  # z = dither + pull (the wheels' d + 0.0 is d: the dither is never 0)
+                z = self._dz[i] + pull if g > 0 else self._dz[i].copy()
                 dithered = True
         if not dithered:
-            z = np.zeros(self.n_act)
-        if c.posture_gain > 0:  # the pull of the arm joints (added to the dither: + commutes exactly)
-            pull = c.posture_gain * (self._q0 - q_arm)  # (bit-identical to 0 - g (q - q0))
-            if dithered:
-                z[: self.n_arm] += pull
-            else:
-                z[: self.n_arm] = pull
+            z = pull.copy() if g > 0 else np.zeros(self.n_act)
         if probing and not c.probe_tracking:
             v0 = v1 = v2 = 0.0
             z = np.zeros(self.n_act)
