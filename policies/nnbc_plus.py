@@ -7,8 +7,8 @@ u = J_hat^+ v lies in the row space of J_hat, and eq. (15) adds only multiples o
 space fixed by J_hat(0) never changes: only the direction of the current u is ever re-learnt, the others go
 stale as the arm moves, and J_hat's smallest singular value collapses while the true one does not.
 
-What this controller does (per control step, numpy on 3 x n and 2n x 2n matrices; n actuators)
--------------------------------------------------------------------------------------------------
+What this controller does (per control step: numpy on the 3 x n and 2n x 2n matrices, floats for 3-vectors)
+--------------------------------------------------------------------------------------------------------
 n = len(facts.action_scale) (8 on the PUMA and the UR5, 9 on the Panda): n - 2 arm joints, then the left and
 right wheel. Nothing else about the robot is assumed.
 
@@ -113,6 +113,22 @@ estimator object behind the interface of `policies.estimators` (`reset`, `init(J
 (`policies.broyden_rls`) are the same scaffolding with Broyden's secant update and recursive least squares, so
 comparisons between them isolate the estimator. The shared options are the fields of `ModelFreeConfig`;
 `NNBCPlusConfig` adds the Kalman filter's.
+
+Cost of one `predict`
+---------------------
+PUMA, kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with two other agents
+running (so absolute figures are high; ratios are measured against the previous version in the same process).
+Replaying the episode's 2,000 observations to both versions back to back: median 61.5 -> 41.1 us (load average
+3.3; 5 rounds). Inside eval's rollout loop (`eval.rollout.rollout` on `eval.speed`'s env, 6 alternating
+episodes): 67.6 -> 49.2 us (load 3.4). The previous version's 48 us on a quiet machine (README, `mobman-eval
+speed`) scales by these ratios to 32-35 us. Where it goes (replay, load 3.5, each part timed separately): the
+Kalman update 39% (about 16 numpy operations on the 19 x 16 array [X; P], each one needed in that order for
+the same rounding), the conversion of the six observation keys to float64 10%, the 3 x 3 solve 5%, the rest of
+the law (J_c, three products, the pull, the clip) about 40%. The delay refresh (first 200 steps, then every
+10th) adds about 9 us to those steps. The 3-vectors (v, r_d, the filtered r_hat_a, the task dither) are Python
+floats, every operation the one the array code did: the actions equal the previous version's bit for bit (46
+development-seed episodes, 92,000 steps: four tasks, both dynamics, noise, delays 1-2, the UR5 and the Panda,
+option variants, `broyden` and `rls`).
 
 The estimate is exposed as `jacobian_estimate` (3 x n, m/rad: joint_vel in rad/s to task velocity in m/s):
 the whole-body Jacobian d r_a / d u (formulation "whole_body") or the paper's J of eq. (6), the map to
