@@ -136,17 +136,20 @@ def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dic
     """
     if not isinstance(observation, dict):
         raise ValueError(f"observation must be a dict (the env's Dict observation), got {type(observation).__name__}")
-    first = np.asarray(observation.get("ee_pos", next(iter(observation.values()))))
-    batched = first.ndim == 2
+    first = observation.get("ee_pos")
+    if first is None:
+        first = next(iter(observation.values()))
+    batched = (first.ndim if isinstance(first, np.ndarray) else np.ndim(first)) == 2
     if batched and first.shape[0] != 1:
         raise ValueError(
             f"controllers are single-env: got a batch of {first.shape[0]} observations; use one env (DummyVecEnv "
             f"with n_envs=1) or one controller per env"
         )
-    items = observation.items() if keys is None else ((k, observation[k]) for k in keys)
+    if keys is None:
+        keys = tuple(observation)
     if batched:
-        return {k: np.asarray(v, dtype=float)[0] for k, v in items}, True
-    return {k: np.asarray(v, dtype=float) for k, v in items}, False
+        return {k: np.asarray(observation[k], dtype=float)[0] for k in keys}, True
+    return {k: np.asarray(observation[k], dtype=float) for k in keys}, False
 
 
 def first_flag(episode_start: Any) -> bool:
@@ -187,6 +190,7 @@ class ControllerPolicy:
     def __init__(self, facts: EnvFacts, seed: int | None = None):
         self.facts = facts
         self._scale = facts.scale
+        self._neg_scale = -self._scale
         self._seed = seed
         self.rng = np.random.default_rng(seed)
         self._initialised = False
@@ -200,10 +204,10 @@ class ControllerPolicy:
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         single, batched = unbatch(observation, self.uses_keys)
-        if first_flag(episode_start) or not self._initialised:
+        if not self._initialised or (episode_start is not None and first_flag(episode_start)):
             self._start(single)
         # np.minimum(np.maximum(...)) is np.clip at a third of its cost for an 8-vector
-        u = np.minimum(np.maximum(self._act(single), -self._scale), self._scale)
+        u = np.minimum(np.maximum(self._act(single), self._neg_scale), self._scale)
         self.last_u = u
         action = (u / self._scale).astype(np.float32)
         return (action[None] if batched else action), state

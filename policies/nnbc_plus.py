@@ -7,8 +7,8 @@ u = J_hat^+ v lies in the row space of J_hat, and eq. (15) adds only multiples o
 space fixed by J_hat(0) never changes: only the direction of the current u is ever re-learnt, the others go
 stale as the arm moves, and J_hat's smallest singular value collapses while the true one does not.
 
-What this controller does (per control step, numpy on 3 x n and 2n x 2n matrices; n actuators)
--------------------------------------------------------------------------------------------------
+What this controller does (per control step: numpy on the 3 x n and 2n x 2n matrices, floats for 3-vectors)
+--------------------------------------------------------------------------------------------------------
 n = len(facts.action_scale) (8 on the PUMA and the UR5, 9 on the Panda): n - 2 arm joints, then the left and
 right wheel. Nothing else about the robot is assumed.
 
@@ -113,6 +113,22 @@ estimator object behind the interface of `policies.estimators` (`reset`, `init(J
 (`policies.broyden_rls`) are the same scaffolding with Broyden's secant update and recursive least squares, so
 comparisons between them isolate the estimator. The shared options are the fields of `ModelFreeConfig`;
 `NNBCPlusConfig` adds the Kalman filter's.
+
+Cost of one `predict`
+---------------------
+PUMA, kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with two other agents
+running (so absolute figures are high; ratios are measured against the previous version in the same process).
+Replaying the episode's 2,000 observations to both versions back to back: median 61.5 -> 41.1 us (load average
+3.3; 5 rounds). Inside eval's rollout loop (`eval.rollout.rollout` on `eval.speed`'s env, 6 alternating
+episodes): 67.6 -> 49.2 us (load 3.4). The previous version's 48 us on a quiet machine (README, `mobman-eval
+speed`) scales by these ratios to 32-35 us. Where it goes (replay, load 3.5, each part timed separately): the
+Kalman update 39% (about 16 numpy operations on the 19 x 16 array [X; P], each one needed in that order for
+the same rounding), the conversion of the six observation keys to float64 10%, the 3 x 3 solve 5%, the rest of
+the law (J_c, three products, the pull, the clip) about 40%. The delay refresh (first 200 steps, then every
+10th) adds about 9 us to those steps. The 3-vectors (v, r_d, the filtered r_hat_a, the task dither) are Python
+floats, every operation the one the array code did: the actions equal the previous version's bit for bit (46
+development-seed episodes, 92,000 steps: four tasks, both dynamics, noise, delays 1-2, the UR5 and the Panda,
+option variants, `broyden` and `rls`).
 
 The estimate is exposed as `jacobian_estimate` (3 x n, m/rad: joint_vel in rad/s to task velocity in m/s):
 the whole-body Jacobian d r_a / d u (formulation "whole_body") or the paper's J of eq. (6), the map to
@@ -307,13 +323,21 @@ class NNBCPlusConfig(ModelFreeConfig):
         super().__post_init__()
 
 
-def _solve3(A: np.ndarray, rhs: np.ndarray, eps2: float = 0.0, extra: float = 0.0) -> np.ndarray:
-    """Solve (A + d I) x = rhs for the symmetric positive definite 3x3 A by cofactors in plain floats (several
-    times faster than np.linalg.solve at this size). d = 0, unless eps2 > 0 and A's smallest eigenvalue
-    (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that is tight when one
-    eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate / eps2), the
-    singularity-robust damping of `ModelFreeConfig.sing_damping`."""
-    (a, b, c), (d, e, f), (g, h, i) = A.tolist()
+def _solve3(
+    A: list[list[float]], rhs: tuple[float, float, float], damping: float = 0.0, eps2: float = 0.0, extra: float = 0.0
+) -> np.ndarray:
+    """Solve (A + damping I + d I) x = rhs for the symmetric positive definite 3x3 A (its rows as floats, e.g.
+    `M.tolist()`) by cofactors in plain floats (several times faster than np.linalg.solve at this size).
+    damping I is added entry by entry as the array sum A + damping * np.eye(3) adds it (off the diagonal + 0.0),
+    so the result equals that of the array expression bit for bit. d = 0, unless eps2 > 0 and the damped A's
+    smallest eigenvalue (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that
+    is tight when one eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate /
+    eps2), the singularity-robust damping of `ModelFreeConfig.sing_damping`."""
+    (a, b, c), (d, e, f), (g, h, i) = A
+    off = damping * 0.0
+    a, b, c = a + damping, b + off, c + off
+    d, e, f = d + off, e + damping, f + off
+    g, h, i = g + off, h + off, i + damping
     if eps2 > 0.0:
         e2 = (e * i - f * h) + (a * i - c * g) + (a * e - b * d)
         det = a * (e * i - f * h) + b * (f * g - d * i) + c * (d * h - e * g)
@@ -323,7 +347,7 @@ def _solve3(A: np.ndarray, rhs: np.ndarray, eps2: float = 0.0, extra: float = 0.
             a += add
             e += add
             i += add
-    p, q, r = rhs.tolist()
+    p, q, r = rhs
     c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
     c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
     c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
@@ -379,7 +403,7 @@ class EstimatingController(ControllerPolicy):
             self._w0 = self._w0.copy()
             self._w0[-2:] *= c.wheel_weight
         self._w = self._w0
-        self._damp = c.damping * np.eye(3)
+        self._half_dt = 0.5 * self._dt
         self._eps2 = c.sing_threshold**2
         self._du = self._scale * (self._dt / c.accel_time) if c.accel_time > 0 else None
         self._whole = c.formulation == "whole_body"
@@ -421,10 +445,16 @@ class EstimatingController(ControllerPolicy):
         self._J_probe = np.zeros((3, n))
         self._prev_q = q.copy()
         self._prev_s = self._task_pos(obs).copy()
-        self._s_f = self._prev_s.copy()
-        self._prev_vd = obs["target_vel"].copy()
-        self._td: np.ndarray = np.zeros(3)
-        self._signs: np.ndarray = np.empty((0, n + 3))
+        # 3-vectors as floats (numpy's per-call overhead dominates at this size; + - * round alike)
+        self._s_f: list[float] = self._prev_s.tolist()
+        self._prev_vd: list[float] = obs["target_vel"].tolist()
+        self._td: list[float] = [0.0, 0.0, 0.0]
+        # random signs, drawn _SIGN_BLOCK steps at a time and scaled once: row i of _dz is the dither of the
+        # block's i-th step, _dtd[i] its task dither; _sign_i the next row
+        self._dz: np.ndarray = np.empty((0, n))
+        self._dtd: list[list[float]] = []
+        self._sign_i = 0
+        self._pull = np.zeros(n)  # the posture pull, rad/s (arm entries rewritten each step, wheels 0)
         # the last max_delay + 1 commands in a ring (row k % m holds the command issued at step k - 1) and the
         # running mismatch of each lag with x
         m = self.config.max_delay + 1
@@ -448,37 +478,39 @@ class EstimatingController(ControllerPolicy):
         pc = obs["arm_base_pos"]
         return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
 
-    def _measure(self, obs: dict, J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _measure(self, obs: dict, probing: bool) -> tuple[np.ndarray, np.ndarray]:
         """(x, y): actuator speeds (n) and task velocity (3) with y = J x (see `measurement`); advances the
         position filter by the measured motion."""
-        q = obs["joint_pos"]
-        s = self._task_pos(obs)
         if self._use_vel:
             x = obs["joint_vel"]
             y = obs["ee_vel"]
             if not self._whole:
                 v = obs["arm_base_vel"]
                 y = np.array([y[0] - v[0], y[1] - v[1], y[2]])
-            ds = self._dt * y
+            dt = self._dt
+            y0, y1, y2 = y.tolist()
+            ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
+            s0, s1, s2 = self._task_pos(obs).tolist()
         else:
+            q = obs["joint_pos"]
+            s = self._task_pos(obs)
             dq = q - self._prev_q
             x = dq / self._dt
             y = (s - self._prev_s) / self._dt
-            ds = J @ dq
+            ds0, ds1, ds2 = ((self._J_probe if probing else self.estimator.J) @ dq).tolist()
             self._prev_q = q.copy()
             self._prev_s = s.copy()
+            s0, s1, s2 = s.tolist()
         a = self.config.pos_filter
-        self._s_f += ds
-        self._s_f += a * (s - self._s_f)
+        f0, f1, f2 = self._s_f
+        f0, f1, f2 = f0 + ds0, f1 + ds1, f2 + ds2
+        self._s_f = [f0 + a * (s0 - f0), f1 + a * (s1 - f1), f2 + a * (s2 - f2)]
         return x, y
 
     def _track_delay(self, x: np.ndarray, newest_first: np.ndarray) -> None:
         """Which of the last commands the measured actuator speeds x match best: the observation delay. A
-        sensor's delay does not change within an episode: refreshed every step for the first `DELAY_SETTLE`
-        steps, then every `DELAY_EVERY`-th step."""
-        k = self._k
-        if k < 2 or (k > DELAY_SETTLE and k % DELAY_EVERY):
-            return
+        sensor's delay does not change within an episode: `_act` calls this every step while the step count (this
+        step included) is from 2 to `DELAY_SETTLE`, then every `DELAY_EVERY`-th step."""
         diff = self._hist[newest_first] - x
         self._lag_ms += self.config.delay_rate * (np.einsum("ij,ij->i", diff, diff) - self._lag_ms)
         self.delay_estimate = int(self._lag_ms.argmin())
@@ -486,9 +518,14 @@ class EstimatingController(ControllerPolicy):
     def _check_blocked(self, x: np.ndarray, commanded: np.ndarray, q: np.ndarray) -> None:
         """Mark the actuators that were commanded but did not move, release those that moved away (see
         `block_release`)."""
+        if not self._counting and not self._any_blocked:
+            # the usual step (nothing stuck, counting or blocked), decided on floats: no lag < 0 (nor nan)
+            for ci, xi in zip(commanded.tolist(), x.tolist()):
+                if not ci * (xi - 0.1 * ci) >= 0.0:
+                    break
+            else:
+                return
         lag = commanded * (x - 0.1 * commanded)  # < 0: moved less than a tenth of the command (or backwards)
-        if not self._counting and not self._any_blocked and lag.min() >= 0.0:
-            return  # nothing stuck, nothing counting, nothing blocked: the usual step, decided in 3 operations
         stuck = (lag < 0.0) & (commanded * commanded > BLOCK_SPEED**2)
         self._block_count = np.where(stuck, self._block_count + 1, 0.0)
         self._counting = bool(stuck.any())
@@ -529,12 +566,14 @@ class EstimatingController(ControllerPolicy):
         self._k = k + 1
         c = self.config
         n_probe = self.n_probe
+        est = self.estimator
         hist = self._hist
         ring = k % len(hist)
         hist[ring] = self.last_u  # the command issued at step k - 1
         probing = k < n_probe
-        x, y = self._measure(obs, self.J_hat)
-        if c.max_delay > 0:
+        x, y = self._measure(obs, probing)
+        n_seen = k + 1  # steps counted, this one included (the count the delay refresh is scheduled on)
+        if c.max_delay > 0 and n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
             self._track_delay(x, self._lags[ring])
         if c.block_release > 0 and k > 1 and k % c.block_every == 0:
             lag = self._lags[ring][min(self.delay_estimate, len(hist) - 1)]
@@ -545,51 +584,67 @@ class EstimatingController(ControllerPolicy):
             if k == n_probe:
                 self._finish_probe()
         else:
-            self.estimator.update(x, y)
-        # --- control: u = z + J_c^+ (v - J_c z)
-        J = self.J_hat
-        vd = obs["target_vel"]
-        Jc, v = J, vd.copy()
+            est.update(x, y)
+        # --- control: u = z + J_c^+ (v - J_c z); the 3-vectors v, r_d, r_hat_a as floats
+        J = self._J_probe if probing else est.J
+        vd = obs["target_vel"].tolist()
+        Jc = J
+        v0, v1, v2 = vd
         if c.lookahead and not probing:  # (the probe's fit has no rate; r_d_dot has no history at the reset)
-            Jc = J + (0.5 * self._dt) * self.estimator.Jdot
-            v = 1.5 * vd - 0.5 * self._prev_vd  # r_d_dot half a step ahead
-        self._prev_vd = vd.copy()
-        s_d = obs["target_pos"]
+            Jc = J + self._half_dt * est.Jdot
+            p0, p1, p2 = self._prev_vd
+            v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2  # r_d_dot half a step ahead
+        self._prev_vd = vd
+        d0, d1, d2 = obs["target_pos"].tolist()
         if not self._whole:
-            pc, pv = obs["arm_base_pos"], obs["arm_base_vel"]
-            s_d = np.array([s_d[0] - pc[0], s_d[1] - pc[1], s_d[2]])
-            v[0] -= pv[0]
-            v[1] -= pv[1]
-        s_fb = self._s_f
+            pc, pv = obs["arm_base_pos"].tolist(), obs["arm_base_vel"].tolist()
+            d0, d1 = d0 - pc[0], d1 - pc[1]
+            v0, v1 = v0 - pv[0], v1 - pv[1]
+        f0, f1, f2 = self._s_f
         q_arm = obs["joint_pos"][: self.n_arm]
         d = self.delay_estimate
         if d > 0:  # the observation is d steps old: predict it forward by the commands issued since
             moved = hist[self._lags[ring][:d]].sum(axis=0) * self._dt
-            s_fb = s_fb + J @ moved
+            m0, m1, m2 = (J @ moved).tolist()
+            f0, f1, f2 = f0 + m0, f1 + m1, f2 + m2
             q_arm = q_arm + moved[: self.n_arm]
-        v += c.gamma * (s_d - s_fb)
-        z = np.zeros(self.n_act)
-        if c.posture_gain > 0:
-            z[: self.n_arm] = c.posture_gain * (self._q0 - q_arm)  # (bit-identical to 0 - g (q - q0))
+        g = c.gamma
+        v0, v1, v2 = v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
+        g = c.posture_gain
+        if g > 0:  # the null-space pull of the arm joints back to their start: the arm entries of _pull
+            pull = self._pull
+            pa = pull[: self.n_arm]
+            np.subtract(self._q0, q_arm, out=pa)
+            pa *= g  # (bit-identical to g (q0 - q) and to 0 - g (q - q0)); the wheel entries stay 0
+        dithered = False
         if not probing:
-            if not len(self._signs):  # random signs, one row per step: n for the dither, 3 for the task dither
-                self._signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
-            signs = self._signs[0]
-            self._signs = self._signs[1:]
+            i = self._sign_i
+            if i >= len(self._dtd):  # random signs, one row per step: n for the dither, 3 for the task dither
+                signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
+                self._dz = c.dither * signs[:, : self.n_act]
+                self._dtd = (c.task_dither * signs[:, self.n_act :]).tolist()
+                i = 0
+            self._sign_i = i + 1
             if c.task_dither > 0:
                 if k % 2 == 0:
-                    self._td = c.task_dither * signs[self.n_act :]
-                    v += self._td
+                    self._td = td = self._dtd[i]
+                    v0, v1, v2 = v0 + td[0], v1 + td[1], v2 + td[2]
                 else:
-                    v -= self._td
-            if c.dither > 0:
-                z += c.dither * signs[: self.n_act]
+                    td = self._td
+                    v0, v1, v2 = v0 - td[0], v1 - td[1], v2 - td[2]
+            if c.dither > 0:  # z = dither + pull (the wheels' d + 0.0 is d: the dither is never 0)
+                z = self._dz[i] + pull if g > 0 else self._dz[i].copy()
+                dithered = True
+        if not dithered:
+            z = pull.copy() if g > 0 else np.zeros(self.n_act)
         if probing and not c.probe_tracking:
-            v = np.zeros(3)
+            v0 = v1 = v2 = 0.0
             z = np.zeros(self.n_act)
         JW = Jc if self._unit_w and not self._any_blocked else Jc * self._w
-        lam = _solve3(JW @ Jc.T + self._damp, v - Jc @ z, self._eps2, c.sing_damping)
-        u = z + JW.T @ lam
+        # (.dot: the same BLAS calls as @, at about half numpy's per-call overhead; equal bit for bit)
+        r0, r1, r2 = Jc.dot(z).tolist()
+        lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)
+        u = z + JW.T.dot(lam)
         if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
             u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
         if self._any_blocked:  # never further into a stop
