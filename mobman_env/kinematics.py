@@ -234,7 +234,7 @@ def whole_body_jacobian(params: RobotParams, q_arm: np.ndarray, yaw: float) -> n
 
 def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds: np.ndarray, dt: float) -> np.ndarray:
     """Exact no-slip unicycle motion of P_0 over `dt` with constant wheel speeds; returns (x, y, yaw)."""
-    x, y, yaw = (float(v) for v in base_pose)
+    x, y, yaw = base_pose.tolist() if isinstance(base_pose, np.ndarray) else (float(v) for v in base_pose)
     v, w = platform_rates(params, wheel_speeds)
     if abs(w * dt) < 1e-9:
         # second-order series of the arc (exact to float precision for such small turns)
@@ -247,9 +247,10 @@ def integrate_unicycle(params: RobotParams, base_pose: np.ndarray, wheel_speeds:
 
 def ee_jacobian_and_arm_base(
     params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """r_a (3,), the whole-body Jacobian (3, n + 2), d p_c_dot / d u (2, n + 2) and p_c (2,) from one FK pass (the
-    hot path of the kinematic simulation)."""
+) -> tuple[list[float], np.ndarray, np.ndarray, list[float]]:
+    """r_a (3 floats), the whole-body Jacobian (3, n + 2), d p_c_dot / d u (2, n + 2) and p_c (2 floats) from one
+    FK pass (the hot path of the kinematic simulation: the points stay floats, the Jacobians are arrays for the
+    BLAS products J u)."""
     x, y, yaw = base_pose.tolist()
     g, J, J_pc = _paper_parts_floats(params, q_arm, yaw)
     # J[:2] += J_pc entry by entry (x + 0.0 as numpy adds it: -0.0 becomes 0.0)
@@ -258,12 +259,12 @@ def ee_jacobian_and_arm_base(
     d = params.mount_offset
     g0, g1, g2 = g.tolist()
     pc0, pc1 = x + d * math.cos(yaw), y + d * math.sin(yaw)
-    ee = [pc0 + g0, pc1 + g1, params.shoulder_height + g2]
-    return np.array(ee), np.array(J), np.array(J_pc), np.array([pc0, pc1])
+    return [pc0 + g0, pc1 + g1, params.shoulder_height + g2], np.array(J), np.array(J_pc), [pc0, pc1]
 
 
 def ee_and_jacobian(
     params: RobotParams, q_arm: np.ndarray, base_pose: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """r_a (3,), the whole-body Jacobian (3, n + 2) and d p_c_dot / d u (2, n + 2) from one FK pass."""
-    return ee_jacobian_and_arm_base(params, q_arm, base_pose)[:3]
+    ee, J, J_pc, _ = ee_jacobian_and_arm_base(params, q_arm, base_pose)
+    return np.array(ee), J, J_pc

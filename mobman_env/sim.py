@@ -403,7 +403,7 @@ class Sim:
         if self.dynamics == "kinematic":
             p, q, pose, u = self._params, self._q, self._pose, self._u
             ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
-            values = [*ee_pos.tolist(), *(J @ u).tolist(), *pc.tolist(), *(J_pc @ u).tolist(), float(pose[2])]
+            values = [*ee_pos, *(J @ u).tolist(), *pc, *(J_pc @ u).tolist(), float(pose[2])]
             return values + q.tolist() + u.tolist(), (0.0, 0.0)
         values, _, roll_pitch = self._read_physics()
         return values, roll_pitch
@@ -412,9 +412,9 @@ class Sim:
         p, q, pose, u = self._params, self._q, self._pose, self._u
         ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
         return RobotState(
-            ee_pos=ee_pos,
+            ee_pos=np.array(ee_pos),
             ee_vel=J @ u,
-            arm_base_pos=pc,
+            arm_base_pos=np.array(pc),
             arm_base_vel=J_pc @ u,
             base_pose=pose.copy(),
             joint_pos=q.copy(),
