@@ -96,6 +96,19 @@ What it does not do yet (measured on development seeds, v2.1)
   condition (seed 0: 2.9 and 3.4 mm -> 6.4 and 10.4 mm); a slower innovation clip (`innov_rate` 0.01, 0.005)
   loses other episodes by 0.4-1.3 m; `wheel_weight=16` tracks both (1.1, 2.0 mm) but loses a physics noise
   Circle-v0 (2.6 m).
+* **The Line with velocity noise in physics mode** (reported seeds: 13/20; development seeds 0-19: 14/20, the five
+  failures by 1.3-10 m with 14-85 stop hits). On development seed 7 the arm carries much of the 3 m drive (the
+  minimum-norm solution favours its long columns over the wheels' 0.1 m/rad): by step 1,000 joint 3 has drifted from
+  0 to -1.4 rad and the wrist (joint 5) from -0.79 rad to 0, where joints 4 and 6 line up; the estimate, fed noisy
+  velocities, no longer keeps up, the commands saturate (0.38 m of error at step 1,100) and the episode diverges.
+  `wheel_weight=4` drives with the platform instead and tracks the Line (development seeds 0-19: 19/20, max 6.4 mm),
+  but over every condition on development seeds 0-3 (physics) it loses more than it wins: velocity noise 10/16
+  (Circle-v0 0/4) against 16/16 at the default, joint-speed noise 12/16 against 15/16, the 0.5 m circle 0/4 against
+  4/4, 30% wear 11/16 against 12/16; it gains the 5 s circle 2/4 against 0/4 and random starts 16/16 against 14/16,
+  the random arm (kinematic) 15/16 against 12/16 (the other kinematic conditions: no difference). On the Line,
+  `wheel_weight=16` gives 18/20 and `posture_gain=5` 18/20. No setting found yet holds on every condition (records,
+  with their commands: `docs/results/nnbc-plus-v2/dev-line-noise.json`, `dev-wheel-weight.json`, the latter stopped
+  after 717 of 1,560 episodes, seeds 0-3 complete).
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
@@ -116,8 +129,8 @@ comparisons between them isolate the estimator. The shared options are the field
 
 Cost of one `predict`
 ---------------------
-PUMA, kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with two other agents
-running (so absolute figures are high; ratios are measured against the previous version in the same process).
+PUMA, kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with other jobs running
+(so absolute figures are high; ratios are measured against the previous version in the same process).
 Replaying the episode's 2,000 observations to both versions back to back: median 61.5 -> 41.1 us (load average
 3.3; 5 rounds). Inside eval's rollout loop (`eval.rollout.rollout` on `eval.speed`'s env, 6 alternating
 episodes): 67.6 -> 49.2 us (load 3.4). The previous version's 48 us on a quiet machine (README, `mobman-eval
