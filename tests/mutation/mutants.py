@@ -44,23 +44,23 @@ class Mutant:
 MUTANTS = (
     Mutant(
         "noise-arm-base-pos",
-        "mobman_env/env.py",
-        "pc = pc + self.obs_noise * self.np_random.standard_normal(2)",
-        "pc = pc",
+        "mobman_env/sensors.py",
+        "            add(6, self.obs_noise, 2)\n",
+        "",
         ("tests/test_mutants_env.py::test_sensor_noise_has_the_documented_std_on_each_noisy_key",),
     ),
     Mutant(
         "noise-arm-base-vel",
-        "mobman_env/env.py",
-        "pc_vel = pc_vel + self.obs_noise_vel * self.np_random.standard_normal(2)",
-        "pc_vel = pc_vel",
+        "mobman_env/sensors.py",
+        "            add(8, self.obs_noise_vel, 2)\n",
+        "",
         ("tests/test_mutants_env.py::test_sensor_noise_has_the_documented_std_on_each_noisy_key",),
     ),
     Mutant(
         "kinematic-limit-hits-crossing",
         "mobman_env/sim.py",
-        "            hits += int(over.sum())\n",
-        "",
+        "                uu[i] = 0.0\n                hits += 1\n",
+        "                uu[i] = 0.0\n",
         ("tests/test_mutants_env.py::test_kinematic_joint_limit_hits_are_counted_exactly",),
     ),
     Mutant(
