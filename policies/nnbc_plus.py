@@ -106,9 +106,11 @@ What it does not do yet (measured on development seeds, v2.1)
   (Circle-v0 0/4) against 16/16 at the default, joint-speed noise 12/16 against 15/16, the 0.5 m circle 0/4 against
   4/4, 30% wear 11/16 against 12/16; it gains the 5 s circle 2/4 against 0/4 and random starts 16/16 against 14/16,
   the random arm (kinematic) 15/16 against 12/16 (the other kinematic conditions: no difference). On the Line,
-  `wheel_weight=16` gives 18/20 and `posture_gain=5` 18/20. No setting found yet holds on every condition (records,
-  with their commands: `docs/results/nnbc-plus-v2/dev-line-noise.json`, `dev-wheel-weight.json`, the latter stopped
-  after 717 of 1,560 episodes, seeds 0-3 complete).
+  `wheel_weight=16` gives 18/20 and `posture_gain=5` 18/20. A milder `wheel_weight=2` (18/20 on the Line; with
+  `posture_gain=3` 19/20) still loses the physics circles (development seeds 0-3, physics: velocity noise 12/16 and
+  14/16, the 0.5 m circle 1/4 and 0/4, 30% wear 12/16 and 12/16). No setting found yet holds on every condition
+  (records, with their commands: `docs/results/nnbc-plus-v2/dev-line-noise.json`, `dev-wheel-weight2.json`,
+  `dev-wheel-weight.json`, the last stopped after 717 of 1,560 episodes, seeds 0-3 complete).
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
