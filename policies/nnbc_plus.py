@@ -111,6 +111,11 @@ What it does not do yet (measured on development seeds, v2.1)
   14/16, the 0.5 m circle 1/4 and 0/4, 30% wear 12/16 and 12/16). No setting found yet holds on every condition
   (records, with their commands: `docs/results/nnbc-plus-v2/dev-line-noise.json`, `dev-wheel-weight2.json`,
   `dev-wheel-weight.json`, the last stopped after 717 of 1,560 episodes, seeds 0-3 complete).
+* **The 0.5 m circle** (reported seeds: 18/20 kinematic, 12/20 physics). The singularity damping that keeps the
+  physics episodes from diverging costs accuracy in the weak direction near the stretched arm: the median max error
+  is 4.5 mm in both modes (development seeds 0-19: 19/20 and 19/20), close to the 6 mm tolerance. On those seeds no
+  other damping did better: `sing_threshold` 0.07: 19/20 and 16/20, 0.15: 17/20 and 16/20; `sing_damping` 0.00025:
+  19/20 and 17/20, 0.001: 6/20 and 6/20 (kinematic and physics; `docs/results/nnbc-plus-v2/dev-sing.json`).
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
