@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_eval_helpers import ENV, SHORT, short_config
+from test_eval_helpers import ENV, SHORT, short_config, terminal_sigint
 
 from eval import run
 from eval.cli import main
@@ -186,6 +186,7 @@ def _interrupt(cmd: list[str], marks: Path, n_marks: int, cwd: Path) -> tuple[su
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=terminal_sigint,
     )
     try:
         deadline = time.time() + 120

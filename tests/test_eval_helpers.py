@@ -32,6 +32,15 @@ def stable(rec: dict) -> dict:
     return {k: v for k, v in rec.items() if k not in VOLATILE}
 
 
+def terminal_sigint() -> None:
+    """`preexec_fn` of a child that a test interrupts with SIGINT: the default SIGINT disposition, as a program
+    started from a terminal has. A shell starts background jobs (`cmd &`, `nohup`) with SIGINT ignored and children
+    inherit that, so without this a suite launched in the background would test an uninterruptible program."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def short_config(tmp_path, name="out", **kw):
     """An EvalConfig of 2 short kinematic episodes into tmp_path/name; keyword arguments override."""
     from eval import EvalConfig

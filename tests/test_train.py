@@ -16,6 +16,8 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
+from test_eval_helpers import terminal_sigint
+
 from train.algos import ALGOS
 from train.cli import main
 from train.config import LEARNING_ENV_KWARGS, TrainConfig
@@ -473,7 +475,14 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
         "--env-kwargs",
         json.dumps({"path": SHORT_PATH}),
     ]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    proc = subprocess.Popen(
+        cmd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+        preexec_fn=terminal_sigint,
+    )
     try:
         deadline = time.time() + 120
         while time.time() < deadline:  # wait until training runs (the monitor has episodes)
