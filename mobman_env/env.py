@@ -412,15 +412,16 @@ class WheeledPumaEnv(gym.Env):
         assert q0 is not None  # a fixed robot has its start (constructor); a drawn one got it just above
         self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
         self._sim.reset(self._true_params, q0, pose)
-        state = self._sim.state()
-        self._path = path = path_from_spec(spec, state.ee_pos, self.np_random)
+        values, _ = self._sim.readings()
+        ee_pos = np.array(values[0:3])
+        self._path = path = path_from_spec(spec, ee_pos, self.np_random)
         self._n_steps = max(1, int(round(path.duration * self.control_freq)))
         self._step_count = 0
         self._n_clipped = 0
         self._limit_hits = 0
         self._task = {
             "path": path.to_spec(),
-            "start": [float(v) for v in state.ee_pos],
+            "start": values[0:3],
             "arm_joint_pos": [float(v) for v in q0],
             "base_pose": [float(v) for v in pose],
             "duration": float(path.duration),
@@ -432,11 +433,11 @@ class WheeledPumaEnv(gym.Env):
             self._path_points = np.array([path.position(t) for t in ts])
             self._sim.draw_path(self._path_points)
         r_d, v_d = path.position_velocity(0.0)
-        obs = self._observation(state.values(), 0.0, r_d, v_d, start=True)
+        obs = self._observation(values, 0.0, r_d, v_d, start=True)
         info = {
             "task": self._task,
             "true_params_hash": self._params_hash,
-            "ee_pos_true": state.ee_pos.copy(),
+            "ee_pos_true": ee_pos.copy(),
             "tracking_error": 0.0,
             "n_clipped": 0,
             "joint_limit_hits": 0,

@@ -142,11 +142,6 @@ class RobotState:
     joint_vel: np.ndarray  # (n + 2,) rad/s
     roll_pitch: tuple[float, float]  # rad, of the platform
 
-    def values(self) -> list[float]:
-        """The sensor quantities as floats, in `Sim.readings()` order."""
-        parts = (self.ee_pos, self.ee_vel, self.arm_base_pos, self.arm_base_vel, self.base_pose[2:])
-        return np.concatenate([*parts, self.joint_pos, self.joint_vel]).tolist()
-
 
 def display_available() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
@@ -381,9 +376,8 @@ class Sim:
 
     # --- state -----------------------------------------------------------------------------------------
     def state(self) -> RobotState:
-        if self.dynamics == "kinematic":
-            return self._state_kinematic()
-        values, xy, roll_pitch = self._read_physics()
+        """The noise-free state as arrays (from the same read as `readings`)."""
+        values, xy, roll_pitch = self._read()
         m = self._n + 2
         return RobotState(
             ee_pos=np.array(values[0:3]),
@@ -399,28 +393,20 @@ class Sim:
     def readings(self) -> tuple[list[float], tuple[float, float]]:
         """What `state()` holds for the sensors, as floats in `sensors.SENSOR_KEYS` order (ee_pos, ee_vel,
         arm_base_pos, arm_base_vel, base yaw, joint_pos, joint_vel: 11 + 2 (n + 2) values), and the platform's
-        (roll, pitch): the env's per-step read (no arrays are built in physics mode)."""
-        if self.dynamics == "kinematic":
-            p, q, pose, u = self._params, self._q, self._pose, self._u
-            ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
-            values = [*ee_pos, *(J @ u).tolist(), *pc, *(J_pc @ u).tolist(), float(pose[2])]
-            return values + q.tolist() + u.tolist(), (0.0, 0.0)
-        values, _, roll_pitch = self._read_physics()
+        (roll, pitch): the env's per-step read (no arrays are built for it)."""
+        values, _, roll_pitch = self._read()
         return values, roll_pitch
 
-    def _state_kinematic(self) -> RobotState:
+    def _read(self) -> tuple[list[float], tuple[float, float], tuple[float, float]]:
+        """One read of the robot, in floats: (the `readings` values, x and y of P_0, (roll, pitch))."""
+        if self.dynamics == "physics":
+            return self._read_physics()
+        # kinematic: the FK of the integrated state; the velocities are the BLAS products J u
         p, q, pose, u = self._params, self._q, self._pose, self._u
         ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
-        return RobotState(
-            ee_pos=np.array(ee_pos),
-            ee_vel=J @ u,
-            arm_base_pos=np.array(pc),
-            arm_base_vel=J_pc @ u,
-            base_pose=pose.copy(),
-            joint_pos=q.copy(),
-            joint_vel=u.copy(),
-            roll_pitch=(0.0, 0.0),
-        )
+        x, y, yaw = pose.tolist()
+        values = [*ee_pos, *(J @ u).tolist(), *pc, *(J_pc @ u).tolist(), yaw]
+        return values + q.tolist() + u.tolist(), (x, y), (0.0, 0.0)
 
     def _read_physics(self) -> tuple[list[float], tuple[float, float], tuple[float, float]]:
         """One read of the PyBullet body, in floats: (the `readings` values, x and y of P_0, (roll, pitch))."""

@@ -71,7 +71,7 @@ conventions, so the PUMA's operations are release 0.1's; `mobman-eval paper` was
   tool, `link6` in the `ee` joint, robot name "wheeled_puma560"), `NOMINAL_URDF` (one shipped file).
 * `mobman_env/sim.py`: `RobotState` ((8,) joint_pos/joint_vel), `Sim.__init__` (`np.zeros(8)` twice),
   `Sim._load_body` (`[0.0] * 8` motor targets), `Sim.reset` (`np.zeros(8)`), `Sim._limit` (`u[:6]`),
-  `Sim._step_kinematic` (`q[:6]`, `u[:6]`, `u[6:]` wheels), `Sim._state_kinematic` (`q[:6]`).
+  `Sim._step_kinematic` (`q[:6]`, `u[:6]`, `u[6:]` wheels), `Sim._state_kinematic` (`q[:6]`; since merged into `Sim._read`).
 * `mobman_env/env.py`: `PAPER_ARM_JOINT_POS` (6 angles, PUMA), `WheeledPumaEnv.__init__` (`Box(.., (8,))`,
   `RobotParams.nominal()`), `_joint_vector` (shapes (6,)/(8,), `arr[:6]`, PUMA limits from
   `RobotParams.nominal()`), `_make_observation_space` (`box(8, ..)` for joint_pos/joint_vel), `step` (shape
