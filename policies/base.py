@@ -152,6 +152,14 @@ def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dic
     return {k: np.asarray(observation[k], dtype=float) for k in keys}, False
 
 
+def reject_extra(owner: object, extra: dict, accepted: str = "") -> None:
+    """The constructors' check of their keyword arguments: TypeError naming the unexpected ones of `owner`'s class
+    and, when there are any, the `accepted` ones."""
+    if extra:
+        tail = f"; accepted: {accepted}" if accepted else ""
+        raise TypeError(f"{type(owner).__name__} got unexpected keyword argument(s) {sorted(extra)}{tail}")
+
+
 def first_flag(episode_start: Any) -> bool:
     if episode_start is None:
         return False

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from mobman_env.validation import number
-from policies.base import EnvFacts, current_model
+from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
 from policies.kernels import ModelJacobians, damped_pinv_apply_rows
 
@@ -157,8 +157,7 @@ class JMPI(_ModelPolicy):
         **extra: Any,
     ):
         cls = type(self).__name__
-        if extra:
-            raise TypeError(f"{cls} got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params")
+        reject_extra(self, extra, "nominal_params")
         if nominal_params is None:
             raise ValueError(
                 f"{cls} needs nominal_params (a RobotParams: the catalogue model it inverts, or a callable returning "
@@ -201,8 +200,7 @@ class Oracle(_ModelPolicy):
         params_provider: Callable[[], Any] | None = None,
         **extra: Any,
     ):
-        if extra:
-            raise TypeError(f"Oracle got unexpected keyword argument(s) {sorted(extra)}; accepted: params_provider")
+        reject_extra(self, extra, "params_provider")
         if params_provider is None or not callable(params_provider):
             raise ValueError("Oracle needs params_provider: a callable returning the env's current true RobotParams")
         self._provider = params_provider  # read through self at each episode start (a test spies on it)

@@ -102,7 +102,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import EnvFacts, current_model
+from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
 from policies.kernels import ModelJacobians, damped_pinv_apply_rows
 from policies.kernels import damped_pinv as damped_pinv  # re-exported: the pseudo-inverse of the module docstring
@@ -357,8 +357,7 @@ class NNBC(LawView):
         nominal_params: Any = None,
         **extra: Any,
     ):
-        if extra:
-            raise TypeError(f"NNBC got unexpected keyword argument(s) {sorted(extra)}; accepted: J0, nominal_params")
+        reject_extra(self, extra, "J0, nominal_params")
         nominal = None if nominal_params is None else (lambda i: current_model(nominal_params))
         self.law: NNBCLaw = NNBCLaw(facts, config, 1, seed, J0=J0, nominal_params=nominal)
         super().__init__(facts, seed)

@@ -53,7 +53,7 @@ import numpy as np
 
 from mobman_env import kinematics as K
 from mobman_env.validation import number
-from policies.base import ControllerPolicy, EnvFacts
+from policies.base import ControllerPolicy, EnvFacts, reject_extra
 from policies.jmpi import DEFAULT_GAMMA
 
 #: QP backends accepted by `QPConfig.solver` (dense ones that `qpsolvers` drives; daqp is the default).
@@ -127,10 +127,7 @@ class QP(ControllerPolicy):
         params_provider: Callable[[], Any] | None = None,
         **extra: Any,
     ):
-        if extra:
-            raise TypeError(
-                f"QP got unexpected keyword argument(s) {sorted(extra)}; accepted: nominal_params, params_provider"
-            )
+        reject_extra(self, extra, "nominal_params, params_provider")
         if (nominal_params is None) == (params_provider is None):
             raise ValueError(
                 "QP needs exactly one model source: nominal_params (a RobotParams, for `qp`) or params_provider "

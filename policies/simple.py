@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.base import EnvFacts
+from policies.base import EnvFacts, reject_extra
 from policies.batched import BatchedController, LawView
 
 
@@ -79,8 +79,7 @@ class _PlainView(LawView):
     law: ZeroLaw | RandomLaw
 
     def __init__(self, facts: EnvFacts, config: Any = None, seed: int | None = None, **extra: Any):
-        if extra:
-            raise TypeError(f"{type(self).__name__} got unexpected keyword argument(s) {sorted(extra)}")
+        reject_extra(self, extra)
         self.law = self.law_cls(facts, config, 1, seed)
         super().__init__(facts, seed)
         self.config = self.law.config
