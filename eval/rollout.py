@@ -356,16 +356,15 @@ def make_policy(spec: str, env, seed: int | None):
 class _JacobianRecorder:
     """Per-step Jacobian-estimate quality of a policy exposing `jacobian_estimate` (see the module docstring).
 
-    Per step it stores the policy's estimate and the true robot's Jacobian of the same kind at the state of the
-    observation the policy acted on (one FK pass, about 20 us); the metrics are computed once, batched, at the
-    end (`eval.metrics.jacobian_relative_error`, `eval.metrics.row_space_angle`)."""
+    Per step it stores the policy's estimate and the state (arm angles, heading) of the observation the policy
+    acted on; at the end the true robot's Jacobian of the same kind is computed at all those states in one
+    numpy pass (`mobman_env.vector_kinematics.robot_jacobians`, bit for bit the per-step
+    `mobman_env.kinematics` function) and the metrics batched (`eval.metrics.jacobian_relative_error`,
+    `eval.metrics.row_space_angle`)."""
 
     def __init__(self, policy: Any, base: Any, n: int):
-        from mobman_env import kinematics as K
-
         kind = getattr(policy, "jacobian_kind", None)
-        functions = {"paper": K.paper_jacobian, "whole_body": K.whole_body_jacobian}
-        if kind not in functions:
+        if kind not in ("paper", "whole_body"):
             raise ValueError(
                 f"{type(policy).__name__} exposes jacobian_estimate but its jacobian_kind is {kind!r}; set it to "
                 f"'paper' or 'whole_body' (see policies.base.ControllerPolicy.jacobian_estimate)"
@@ -373,10 +372,11 @@ class _JacobianRecorder:
         self.kind = kind
         self._policy = policy
         self._base = base
-        self._jacobian = functions[kind]
         n_act = len(np.asarray(base.action_scale))
         self._J_hat = np.full((n, 3, n_act), np.nan)
-        self._J = np.full((n, 3, n_act), np.nan)
+        self._q = np.zeros((n, n_act - 2))
+        self._yaw = np.zeros(n)
+        self._params: list[Any] = [None] * n  # the true robot at each step (it changes under wear drift)
 
     def record(self, k: int, obs: dict) -> None:
         J_hat = self._policy.jacobian_estimate
@@ -389,17 +389,30 @@ class _JacobianRecorder:
                 f"{self._J_hat.shape[1:]} (3 x actuators)"
             )
         self._J_hat[k] = J_hat
-        q = np.asarray(obs["joint_pos"], float)[:-2]  # the n arm angles (the last two are the wheels)
-        self._J[k] = self._jacobian(self._base.true_params, q, float(obs["base_yaw"][0]))
+        self._q[k] = np.asarray(obs["joint_pos"], float)[:-2]  # the n arm angles (the last two are the wheels)
+        self._yaw[k] = obs["base_yaw"][0]
+        self._params[k] = self._base.true_params
 
     def finish(self, k: int) -> dict[str, Any]:
-        J_hat, J = self._J_hat[:k], self._J[:k]
+        from mobman_env.vector_kinematics import robot_jacobians
+
+        J_hat = self._J_hat[:k]
         have = np.isfinite(J_hat).all(axis=(1, 2))
         rel = np.full(k, np.nan)
         angle = np.full(k, np.nan)
         if have.any():
-            rel[have] = M.jacobian_relative_error(J_hat[have], J[have])
-            angle[have] = M.row_space_angle(J_hat[have], J[have])
+            steps = np.flatnonzero(have)
+            J = np.empty((len(steps),) + J_hat.shape[1:])
+            start = 0  # runs of steps with the same true robot, one numpy pass each
+            for end in range(1, len(steps) + 1):
+                if end == len(steps) or self._params[steps[end]] is not self._params[steps[start]]:
+                    run = steps[start:end]
+                    J[start:end] = robot_jacobians(
+                        self._params[run[0]], self._q[run], self._yaw[run], self.kind == "whole_body"
+                    )
+                    start = end
+            rel[have] = M.jacobian_relative_error(J_hat[have], J)
+            angle[have] = M.row_space_angle(J_hat[have], J)
         return {
             "jacobian_kind": self.kind,
             **M.jacobian_quality(rel, angle),

@@ -24,6 +24,7 @@ arrays; joint angles (N, n + 2). Imports numpy only.
 from __future__ import annotations
 
 import functools
+from typing import Any
 
 import numpy as np
 
@@ -203,6 +204,23 @@ def jacobian(
     if full:
         J[:, :2] += J_pc
     return J
+
+
+def robot_jacobians(params: Any, q_arm: np.ndarray, yaw: np.ndarray, full: bool) -> np.ndarray:
+    """`kinematics.paper_jacobian` (full=False) or `kinematics.whole_body_jacobian` (full=True) of ONE robot
+    (`RobotParams`) at k states, (k, 3, n + 2), bit for bit: q_arm (k, n) the arm angles (offsets are added here,
+    as the single env adds them), yaw (k,) the headings. One numpy pass instead of k FK passes (eval's Jacobian
+    metrics use it for a whole episode)."""
+    q_arm = np.asarray(q_arm, dtype=float)
+    k, nj = q_arm.shape
+    a, d, ca, sa = params.dh_constants
+    lengths = {"a": np.broadcast_to(a, (k, nj)), "d": np.broadcast_to(d, (k, nj))}
+    for key in ("tool", "wheel_radius", "half_track", "mount_offset"):
+        lengths[key] = np.full(k, getattr(params, key))
+    offset = params.theta_offset
+    th = q_arm if offset is None else q_arm + offset
+    yaw = np.asarray(yaw, dtype=float)
+    return jacobian(lengths, ca, sa, th, params.arm.modified, np.cos(yaw), np.sin(yaw), full)
 
 
 def ee_and_jacobian(

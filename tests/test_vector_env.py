@@ -11,8 +11,9 @@ from gymnasium.vector import AutoresetMode
 
 import mobman_env
 from mobman_env import TASKS, WheeledPumaEnv
+from mobman_env import kinematics as K
 from mobman_env.vector import SYNC_ROBOTS, WheeledPumaVectorEnv
-from mobman_env.vector_kinematics import _block_chain_exact, _block_products, _chain_products
+from mobman_env.vector_kinematics import _block_chain_exact, _block_products, _chain_products, robot_jacobians
 
 METRIC_KEYS = ("tracking_error", "n_clipped", "joint_limit_hits", "true_params_hash")
 STEP_KEYS = ("action_clipped", "tipped_over")
@@ -163,6 +164,25 @@ def test_block_products_equal_per_robot_products():
     if _block_chain_exact():  # the block path is taken: it must then be exact on these matrices too
         head = 36  # whole groups only: what _chain_products hands to the block product
         assert np.array_equal(_block_products(F[:head], A[:head]), np.matmul(F[:head], A[:head]))
+
+
+@pytest.mark.parametrize(
+    "env_id", ["WheeledPuma-Circle-v0", "WheeledUR5-Line-v0", "WheeledPanda-Circle-v0", "WheeledRandomArm-Line-v0"]
+)
+def test_robot_jacobians_equal_the_per_state_functions(env_id):
+    """One robot's Jacobians at many states in one pass (eval's Jacobian metrics) equal, bit for bit, the single
+    env's functions state by state: standard and modified DH, theta offsets, worn lengths."""
+    env = gym.make(env_id, dynamics="kinematic")
+    env.reset(seed=10_401)
+    p = env.unwrapped.true_params
+    env.close()
+    rng = np.random.default_rng(10_402)
+    q, yaw = rng.uniform(-3.0, 3.0, (23, p.n_joints)), rng.uniform(-7.0, 7.0, 23)
+    for full, single in ((False, K.paper_jacobian), (True, K.whole_body_jacobian)):
+        expected = np.array([single(p, q[i], float(yaw[i])) for i in range(len(q))])
+        got = robot_jacobians(p, q, yaw, full)
+        assert got.shape == expected.shape and np.array_equal(got, expected)
+        assert np.array_equal(robot_jacobians(p, q[:1], yaw[:1], full), expected[:1])
 
 
 def test_spaces_and_physics_fallback():
