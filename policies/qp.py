@@ -36,25 +36,34 @@ called at every episode start (`policies.registry.true_params_provider`): `qp-or
 ceiling of the benchmark; unlike `oracle` it respects the joint limits (joint 1's stop ends many Circle-v0
 episodes of the minimum-norm laws).
 
-Solver: `qpsolvers` with the dense dual active-set solver DAQP (`solver`, default "daqp"): measured on this
-problem (11 variables, 3 equalities, box bounds), median solve times 11 us (daqp), 58 us (proxqp), 410 us
-(osqp), 530 us (clarabel), all through `qpsolvers.solve_qp`. If the solver returns no solution (none seen on
-the development seeds), the step falls back to the damped pseudo-inverse clipped to the bounds and
-`qp_failures` counts it.
+Solver: the dense dual active-set solver DAQP (`solver`, default "daqp"): measured on this problem (11
+variables, 3 equalities, box bounds), median solve times 11 us (daqp), 58 us (proxqp), 410 us (osqp), 530 us
+(clarabel), all through `qpsolvers.solve_qp`. The default calls `daqp.solve` with the arrays
+`qpsolvers.solve_qp(..., solver="daqp")` builds for it (`daqp_solve_qp`; same solution bit for bit, checked by
+`tests/test_baselines.py`), which saves qpsolvers' problem checks, about 14 of the 21 us per step; the other
+backends go through `qpsolvers.solve_qp`. If the solver returns no solution (none seen on the development
+seeds), the step falls back to the damped pseudo-inverse clipped to the bounds and `qp_failures` counts it.
+
+One law for N robots (`QPLaw`, `policies.make(spec, vector_env)`): the Jacobians of all rows in one batched
+pass (`policies.kernels.ModelJacobians`), the bounds, the posture term and v as whole-array operations, then one
+QP per row. The single-env `QP` is its N = 1 case (STYLE 14), so row i of a batch equals the single policy bit
+for bit (`tests/test_batched_policies.py`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from ctypes import c_int
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from mobman_env import kinematics as K
 from mobman_env.validation import number
-from policies.base import ControllerPolicy, EnvFacts, reject_extra
+from policies.base import EnvFacts, reject_extra
+from policies.batched import BatchedController, LawView
 from policies.jmpi import DEFAULT_GAMMA
+from policies.kernels import ModelJacobians
 
 #: QP backends accepted by `QPConfig.solver` (dense ones that `qpsolvers` drives; daqp is the default).
 SOLVERS = ("daqp", "proxqp", "osqp", "clarabel")
@@ -102,8 +111,134 @@ class QPConfig:
             raise ValueError(f"QPConfig.solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
 
 
-class QP(ControllerPolicy):
-    """Whole-body differential IK as a QP with joint-limit dampers; see the module docstring.
+def daqp_solve_qp(
+    P: np.ndarray, q: np.ndarray, *, A: np.ndarray, b: np.ndarray, lb: np.ndarray, ub: np.ndarray, solver: str = "daqp"
+) -> np.ndarray | None:
+    """`qpsolvers.solve_qp(P, q, A=A, b=b, lb=lb, ub=ub, solver="daqp")` for this module's problem (equalities
+    and box bounds, no inequalities): the constraint arrays qpsolvers' DAQP interface builds (box rows first,
+    then the equalities, sense 5), handed to `daqp.solve` directly. The solution, or None when DAQP finds none."""
+    import daqp
+
+    ms, meq = len(lb), len(b)
+    upper = np.empty(ms + meq)
+    lower = np.full(ms + meq, -1e30)
+    upper[:ms], lower[:ms], upper[ms:] = ub, lb, b
+    sense = np.zeros(ms + meq, dtype=c_int)
+    sense[ms:] = 5
+    x, _, exitflag, _ = daqp.solve(P, q, A, upper, lower, sense)
+    return x if exitflag > 0 else None
+
+
+class QPLaw(BatchedController):
+    """The whole-body QP of this module for N robots (see the module docstring); `params(i)` returns row i's
+    `RobotParams` (nominal or true), read at each of the row's episode starts. `QP` is its N = 1 case.
+
+    Diagnostics per row: `last_slack` (N, 3), s of the last step (m/s); `qp_failures` (N,), steps this episode on
+    which the solver gave no solution and the fallback acted."""
+
+    uses_keys = ("joint_pos", "base_yaw", "ee_pos", "target_pos", "target_vel")
+
+    def __init__(
+        self, facts: EnvFacts, config: QPConfig, n: int, seed: int | None, params: Callable[[int], Any], name: str
+    ):
+        super().__init__(facts, n, seed)
+        self.name = self.spec = name
+        self.config = c = config
+        if c.solver == "daqp":
+            self._solve_qp: Callable[..., Any] = daqp_solve_qp
+        else:
+            import qpsolvers  # a core dependency; imported here so that importing `policies` stays light
+
+            self._solve_qp = qpsolvers.solve_qp
+        self._model = ModelJacobians(n, params)
+        self._n_arm = m = facts.n_arm
+        na = m + 2
+        self._P = np.diag(np.r_[np.ones(m), np.full(2, c.wheel_weight), np.full(3, c.slack_weight)])
+        self._w = np.diag(self._P)[:na].copy()
+        self._A = np.zeros((3, na + 3))
+        self._A[:, na:] = np.eye(3)
+        self._lb = np.r_[-self._scale, np.full(3, -np.inf)]
+        self._ub = np.r_[self._scale, np.full(3, np.inf)]
+        self._ramp = c.damper_gain / (c.influence - c.stop)  # (rad/s) per rad of distance beyond `stop`
+        self._lower = np.zeros((n, m))
+        self._upper = np.zeros((n, m))
+        self._q0 = np.zeros((n, m))
+        self.last_slack = np.zeros((n, 3))
+        self.qp_failures = np.zeros(n, dtype=int)
+
+    @property
+    def params(self) -> list[Any]:
+        """The `RobotParams` each row solves with this episode (None before its first episode start)."""
+        return self._model.params
+
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
+        self._model.load(rows.tolist())
+        m = self._n_arm
+        for i in rows.tolist():
+            p = self._model.params[i]
+            if p.n_actuators != m + 2:
+                raise ValueError(
+                    f"QP was built for {m + 2} actuators (EnvFacts) but its model {p.arm.name} has "
+                    f"{p.n_actuators}; build the policy from the env it drives (policies.make(spec, env))"
+                )
+            self._lower[i], self._upper[i] = p.joint_lower, p.joint_upper
+        self._q0[rows] = obs["joint_pos"][rows, :m]
+        self.last_slack[rows] = 0.0
+        self.qp_failures[rows] = 0
+
+    def bounds(self, q_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(lb, ub) of u, (N, n + 2) each, at the arm angles `q_arm` (N, n) (rad): the speed limits tightened by
+        the joint-limit dampers."""
+        c = self.config
+        m = self._n_arm
+        scale = self._scale
+        lb = np.broadcast_to(-scale, (len(q_arm), m + 2)).copy()
+        ub = np.broadcast_to(scale, (len(q_arm), m + 2)).copy()
+        d_up = self._upper - q_arm
+        d_lo = q_arm - self._lower
+        near_up = d_up < c.influence
+        near_lo = d_lo < c.influence
+        if near_up.any():
+            ub[:, :m] = np.where(near_up, np.minimum(ub[:, :m], self._ramp * (d_up - c.stop)), ub[:, :m])
+        if near_lo.any():
+            lb[:, :m] = np.where(near_lo, np.maximum(lb[:, :m], -self._ramp * (d_lo - c.stop)), lb[:, :m])
+        # inside the stop distance a damper pushes away; keep every box non-empty and within the speed limits
+        return np.minimum(lb, scale), np.maximum(ub, -scale)
+
+    def _act(self, obs: dict) -> np.ndarray:
+        c = self.config
+        m = self._n_arm
+        na = m + 2
+        q = obs["joint_pos"][:, :m]
+        J = self._model(obs["joint_pos"], obs["base_yaw"], True)
+        v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
+        z = np.zeros((len(q), na))
+        if c.posture_gain > 0:
+            z[:, :m] = c.posture_gain * (self._q0 - q)
+        lb, ub = self.bounds(q)
+        f = np.zeros((len(q), na + 3))
+        f[:, :na] = -self._w * z
+        u = np.empty((len(q), na))
+        A, lbx, ubx = self._A, self._lb, self._ub
+        for i in range(len(q)):
+            A[:, :na] = J[i]
+            lbx[:na], ubx[:na] = lb[i], ub[i]
+            x = self._solve_qp(self._P, f[i], A=A, b=v[i], lb=lbx, ub=ubx, solver=c.solver)
+            if x is None or not np.all(np.isfinite(x)):
+                self.qp_failures[i] += 1
+                Ji, vi, zi = J[i], v[i], z[i]
+                ui = np.clip(zi + np.linalg.lstsq(Ji, vi - Ji @ zi, rcond=None)[0], lb[i], ub[i])
+                self.last_slack[i] = vi - Ji @ ui
+                u[i] = ui
+                continue
+            self.last_slack[i] = x[na:]
+            u[i] = x[:na]
+        return u
+
+
+class QP(LawView):
+    """Whole-body differential IK as a QP with joint-limit dampers; see the module docstring. The N = 1 case of
+    `QPLaw`.
 
     `QP(facts, config=None, seed=None, *, nominal_params=None, params_provider=None)`: exactly one of the
     two model sources: `nominal_params` (a `RobotParams`, or a callable returning the episode's nominal one: the
@@ -115,7 +250,6 @@ class QP(ControllerPolicy):
     """
 
     name = "qp"
-    uses_keys = ("joint_pos", "base_yaw", "ee_pos", "target_pos", "target_vel")
 
     def __init__(
         self,
@@ -135,83 +269,58 @@ class QP(ControllerPolicy):
             )
         if params_provider is not None and not callable(params_provider):
             raise ValueError("QP's params_provider must be a callable returning the env's current true RobotParams")
-        super().__init__(facts, seed)
-        import qpsolvers  # a core dependency; imported here so that importing `policies` stays light
-
-        self._solve_qp = qpsolvers.solve_qp
-        self.config = c = config or QPConfig()
         if params_provider is not None:
-            self.name = "qp-oracle"
-            self._provider: Callable[[], Any] = params_provider
+            name, provider = "qp-oracle", params_provider
         elif callable(nominal_params):  # the nominal robot of each episode (a random arm per reset)
-            self._provider = nominal_params
+            name, provider = "qp", nominal_params
         else:
-            self._provider = lambda: nominal_params
-        self._n_arm = facts.n_arm
-        n = self._n_arm + 2
-        self._P = np.diag(np.r_[np.ones(self._n_arm), np.full(2, c.wheel_weight), np.full(3, c.slack_weight)])
-        self._w = np.diag(self._P)[:n].copy()
-        self._A = np.zeros((3, n + 3))
-        self._A[:, n:] = np.eye(3)
-        self._lb = np.r_[-self._scale, np.full(3, -np.inf)]
-        self._ub = np.r_[self._scale, np.full(3, np.inf)]
-        self._ramp = c.damper_gain / (c.influence - c.stop)  # (rad/s) per rad of distance beyond `stop`
-        self.params: Any = None
-        self.last_slack = np.zeros(3)
-        self.qp_failures = 0
+            name, provider = "qp", lambda: nominal_params
+        self.config = config or QPConfig()
+        self._provider = provider  # read through self at each episode start (a test spies on it)
+        self.law: QPLaw = QPLaw(facts, self.config, 1, seed, lambda i: self._provider(), name)
+        super().__init__(facts, seed)
 
-    def _reset(self, obs: dict) -> None:
-        self.params = self._provider()
-        self._lower = np.asarray(self.params.joint_lower, float)
-        self._upper = np.asarray(self.params.joint_upper, float)
-        if self.params.n_actuators != self._n_arm + 2:
-            raise ValueError(
-                f"QP was built for {self._n_arm + 2} actuators (EnvFacts) but its model {self.params.arm.name} has "
-                f"{self.params.n_actuators}; build the policy from the env it drives (policies.make(spec, env))"
-            )
-        self._q0 = obs["joint_pos"][: self._n_arm].copy()
-        self.last_slack = np.zeros(3)
-        self.qp_failures = 0
+    @classmethod
+    def batched(
+        cls,
+        facts: EnvFacts,
+        config: Any,
+        n: int,
+        seed: int | None,
+        *,
+        nominal_params: Callable[[int], Any] | None = None,
+        params_provider: Callable[[int], Any] | None = None,
+    ) -> QPLaw:
+        """The batched law for n robots (`policies.make(spec, vector_env)`): `nominal_params(i)` (`qp`) or
+        `params_provider(i)` (`qp-oracle`) returns row i's model."""
+        if (nominal_params is None) == (params_provider is None):
+            raise ValueError("QP.batched needs exactly one model source: nominal_params or params_provider")
+        if params_provider is not None:
+            return QPLaw(facts, config, n, seed, params_provider, "qp-oracle")
+        return QPLaw(facts, config, n, seed, nominal_params, "qp")  # type: ignore[arg-type]
+
+    @property
+    def params(self) -> Any:
+        """The `RobotParams` solved with this episode."""
+        return self.law.params[0]
+
+    @property
+    def last_slack(self) -> np.ndarray:
+        return self.law.last_slack[0]
+
+    @property
+    def qp_failures(self) -> int:
+        return int(self.law.qp_failures[0])
+
+    @property
+    def _solve_qp(self) -> Callable[..., Any]:
+        return self.law._solve_qp
+
+    @_solve_qp.setter
+    def _solve_qp(self, solve: Callable[..., Any]) -> None:
+        self.law._solve_qp = solve
 
     def bounds(self, q_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of u at the arm angles `q_arm` (rad): the speed limits tightened by the joint-limit dampers."""
-        c = self.config
-        m = self._n_arm
-        n = m + 2
-        lb, ub = -self._scale.copy(), self._scale.copy()
-        d_up = self._upper - q_arm
-        d_lo = q_arm - self._lower
-        near_up = d_up < c.influence
-        near_lo = d_lo < c.influence
-        if near_up.any():
-            ub[:m][near_up] = np.minimum(ub[:m][near_up], self._ramp * (d_up[near_up] - c.stop))
-        if near_lo.any():
-            lb[:m][near_lo] = np.maximum(lb[:m][near_lo], -self._ramp * (d_lo[near_lo] - c.stop))
-        # inside the stop distance a damper pushes away; keep every box non-empty and within the speed limits
-        ub = np.maximum(ub, -self._scale[:n])
-        lb = np.minimum(lb, self._scale[:n])
-        return lb, ub
-
-    def _act(self, obs: dict) -> np.ndarray:
-        c = self.config
-        m = self._n_arm
-        n = m + 2
-        q = obs["joint_pos"][:m]
-        J = K.whole_body_jacobian(self.params, q, float(obs["base_yaw"][0]))
-        v = obs["target_vel"] + c.gamma * (obs["target_pos"] - obs["ee_pos"])
-        z = np.zeros(n)
-        if c.posture_gain > 0:
-            z[:m] = c.posture_gain * (self._q0 - q)
-        lb, ub = self.bounds(q)
-        self._A[:, :n] = J
-        self._lb[:n], self._ub[:n] = lb, ub
-        f = np.zeros(n + 3)
-        f[:n] = -self._w * z
-        x = self._solve_qp(self._P, f, A=self._A, b=v, lb=self._lb, ub=self._ub, solver=c.solver)
-        if x is None or not np.all(np.isfinite(x)):
-            self.qp_failures += 1
-            u = z + np.linalg.lstsq(J, v - J @ z, rcond=None)[0]
-            self.last_slack = v - J @ np.clip(u, lb, ub)
-            return np.clip(u, lb, ub)
-        self.last_slack = x[n:]
-        return x[:n]
+        lb, ub = self.law.bounds(np.asarray(q_arm, float)[None])
+        return lb[0], ub[0]

@@ -236,7 +236,8 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
     """Build the policy named by `spec` for `env` (a gym.Env, any wrappers, or an SB3 VecEnv with one env).
     For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
     robots: the spec's vectorised law where its class has one (a `batched` constructor: `zero`, `random`,
-    `jmpi`, `clik`, `oracle`, `nnbc` and their `-full` forms), else a loop of this spec built for each robot.
+    `jmpi`, `clik`, `oracle`, `nnbc`, their `-full` forms, `qp`, `qp-oracle`), else a loop of this spec built
+    for each robot.
 
     `seed` seeds the policy's own Generator (controllers re-seed on `reset(seed=...)`). Returns an object with
     `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).

@@ -22,7 +22,7 @@ from policies.estimators import BroydenEstimator, RLSEstimator
 from policies.jmpi import CLIKConfig, JMPIConfig, OracleConfig
 from policies.nnbc import damped_pinv_apply
 from policies.nnbc_plus import NNBCPlusConfig
-from policies.qp import QP, QPConfig
+from policies.qp import QP, QPConfig, daqp_solve_qp
 
 DEV_SEEDS = range(0, 3)
 DEV_SEEDS_20 = range(0, 20)
@@ -276,6 +276,27 @@ def test_bad_specs_name_the_value_and_the_accepted_range(spec, fragment):
             policies.make(spec, env)
     finally:
         env.close()
+
+
+def test_direct_daqp_call_equals_qpsolvers():
+    """`daqp_solve_qp` hands DAQP the arrays `qpsolvers.solve_qp(..., solver="daqp")` builds: the same solution
+    bit for bit on random problems of the QP's shape (8 speeds + 3 slacks, 3 equalities, boxes, some active)."""
+    import qpsolvers
+
+    rng = np.random.default_rng(10_500)
+    P = np.diag(np.r_[np.ones(8), np.full(3, 1e6)])
+    A = np.zeros((3, 11))
+    A[:, 8:] = np.eye(3)
+    for _ in range(200):
+        A[:, :8] = rng.normal(size=(3, 8))
+        q, b = rng.normal(size=11), rng.normal(size=3)
+        lb = np.r_[-rng.uniform(0.1, 3.0, 8), np.full(3, -np.inf)]
+        ub = np.r_[rng.uniform(0.1, 3.0, 8), np.full(3, np.inf)]
+        expected = qpsolvers.solve_qp(P, q, A=A, b=b, lb=lb, ub=ub, solver="daqp")
+        got = daqp_solve_qp(P, q, A=A, b=b, lb=lb, ub=ub)
+        assert expected is not None and np.array_equal(got, expected)
+    infeasible = daqp_solve_qp(P, np.zeros(11), A=A, b=b, lb=np.ones(11), ub=-np.ones(11))
+    assert infeasible is None
 
 
 def test_qp_needs_exactly_one_model_source():
