@@ -143,14 +143,10 @@ def arm_point_and_jacobian(
         z[:, 0], o[:, 0] = (0.0, 0.0, 1.0), 0.0  # frame 0 = I
         z[:, 1:], o[:, 1:] = frames[:, :-1, :, 2], frames[:, :-1, :, 3]
     v = p[:, None, :] - o
-    J = np.stack(
-        [
-            z[:, :, 1] * v[:, :, 2] - z[:, :, 2] * v[:, :, 1],
-            z[:, :, 2] * v[:, :, 0] - z[:, :, 0] * v[:, :, 2],
-            z[:, :, 0] * v[:, :, 1] - z[:, :, 1] * v[:, :, 0],
-        ],
-        axis=1,
-    )
+    J = np.empty((n, 3, nj))
+    J[:, 0] = z[:, :, 1] * v[:, :, 2] - z[:, :, 2] * v[:, :, 1]
+    J[:, 1] = z[:, :, 2] * v[:, :, 0] - z[:, :, 0] * v[:, :, 2]
+    J[:, 2] = z[:, :, 0] * v[:, :, 1] - z[:, :, 1] * v[:, :, 0]
     return p, J
 
 
@@ -172,18 +168,21 @@ def _parts(
     R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
     g = _bmv(R, f)
     r, b, dm = lengths["wheel_radius"], lengths["half_track"], lengths["mount_offset"]
-    dphi = np.stack([-0.5 * r / b, 0.5 * r / b], axis=1)
-    dv = np.stack([0.5 * r, 0.5 * r], axis=1)
-    cs = np.stack([c, s], axis=1)
-    sc = np.stack([-s, c], axis=1)
-    dpc = cs[:, :, None] * dv[:, None, :] + dm[:, None, None] * (sc[:, :, None] * dphi[:, None, :])
+    # the wheel maps entry by entry (the single env's outer products: d phi_dot / d w = [-r/2b, r/2b],
+    # d v / d w = [r/2, r/2], d p_c_dot / d w = [c, s]^T dv + d [-s, c]^T dphi), the same operations per entry
+    dphi = (-0.5 * r / b, 0.5 * r / b)
+    hr = 0.5 * r
+    ms = -s
     J = np.empty((n, 3, nj + 2))
     J[:, :, :nj] = _bmm(R, J_arm)
-    J[:, 0, nj:] = -g[:, 1, None] * dphi
-    J[:, 1, nj:] = g[:, 0, None] * dphi
-    J[:, 2, nj:] = 0.0 * dphi
+    mg1, g0 = -g[:, 1], g[:, 0]
     J_pc = np.zeros((n, 2, nj + 2))
-    J_pc[:, :, nj:] = dpc
+    for k, dk in enumerate(dphi):
+        J[:, 0, nj + k] = mg1 * dk
+        J[:, 1, nj + k] = g0 * dk
+        J[:, 2, nj + k] = 0.0 * dk
+        J_pc[:, 0, nj + k] = c * hr + dm * (ms * dk)
+        J_pc[:, 1, nj + k] = s * hr + dm * (c * dk)
     return g, J, J_pc
 
 
@@ -239,8 +238,13 @@ def ee_and_jacobian(
     g, J, J_pc = _parts(lengths, ca, sa, th, modified, cos_yaw, sin_yaw)
     J[:, :2] += J_pc
     c, s, dm = cos_yaw, sin_yaw, lengths["mount_offset"]
-    pc = np.stack([pose[:, 0] + dm * c, pose[:, 1] + dm * s], axis=1)
-    ee = np.stack([pc[:, 0] + g[:, 0], pc[:, 1] + g[:, 1], lengths["shoulder_height"] + g[:, 2]], axis=1)
+    pc = np.empty((len(c), 2))
+    pc[:, 0] = pose[:, 0] + dm * c
+    pc[:, 1] = pose[:, 1] + dm * s
+    ee = np.empty((len(c), 3))
+    ee[:, 0] = pc[:, 0] + g[:, 0]
+    ee[:, 1] = pc[:, 1] + g[:, 1]
+    ee[:, 2] = lengths["shoulder_height"] + g[:, 2]
     return ee, J, J_pc, pc
 
 
