@@ -145,7 +145,7 @@ class RobotParams:
     def _with_factors(self, factors: Any) -> RobotParams:
         k = len(self.arm.length_slots)
         fr, fb, fd = factors[k], factors[k + 1], factors[k + 2]
-        arm = self.arm.scaled_lengths(factors[:k]).replace(mount_offset=float(self.arm.mount_offset * fd))
+        arm = self.arm.scaled_lengths(factors[:k], mount_factor=fd)
         return dataclasses.replace(
             self, arm=arm, wheel_radius=float(self.wheel_radius * fr), half_track=float(self.half_track * fb)
         )
