@@ -363,6 +363,8 @@ class _JacobianRecorder:
     `eval.metrics.row_space_angle`)."""
 
     def __init__(self, policy: Any, base: Any, n: int):
+        from mobman_env import kinematics as K
+
         kind = getattr(policy, "jacobian_kind", None)
         if kind not in ("paper", "whole_body"):
             raise ValueError(
@@ -370,6 +372,7 @@ class _JacobianRecorder:
                 f"'paper' or 'whole_body' (see policies.base.ControllerPolicy.jacobian_estimate)"
             )
         self.kind = kind
+        self._single = K.whole_body_jacobian if kind == "whole_body" else K.paper_jacobian
         self._policy = policy
         self._base = base
         n_act = len(np.asarray(base.action_scale))
@@ -407,9 +410,11 @@ class _JacobianRecorder:
             for end in range(1, len(steps) + 1):
                 if end == len(steps) or self._params[steps[end]] is not self._params[steps[start]]:
                     run = steps[start:end]
-                    J[start:end] = robot_jacobians(
-                        self._params[run[0]], self._q[run], self._yaw[run], self.kind == "whole_body"
-                    )
+                    params = self._params[run[0]]
+                    if len(run) == 1:  # a robot that changes every step (wear drift): the cheaper single call
+                        J[start] = self._single(params, self._q[run[0]], float(self._yaw[run[0]]))
+                    else:
+                        J[start:end] = robot_jacobians(params, self._q[run], self._yaw[run], self.kind == "whole_body")
                     start = end
             rel[have] = M.jacobian_relative_error(J_hat[have], J)
             angle[have] = M.row_space_angle(J_hat[have], J)
