@@ -18,7 +18,8 @@ bit-identical to the single env, and a batched policy's row i acts bit for bit a
 vectorised law of `policies.kernels` whose single-env class is its N = 1 case, or the single law looped per row:
 `policies.batched`), so every array and metric is equal, for chaotic controllers too
 (`tests/test_batch_rollout.py`). What differs is the timing: `predict_us` of
-a row is the batched call's wall time divided by the robots it served, and `wall_s` is the batch's wall time
+a row is the batched call's wall time divided by the robots it served (for a `policies.batched.StackedPolicy`
+of several controllers, its part's call time divided by the part's rows), and `wall_s` is the batch's wall time
 divided by N. A robot whose episode ended stays out of the statistics (the vector env autoresets it; its later
 rows are ignored). An exception fails the whole batch: every record gets status "failed" and the traceback.
 
@@ -152,7 +153,8 @@ def rollout_batch(
         while running.any():
             t0 = clock()
             actions, _ = policy.predict(obs, episode_start=None, deterministic=True)
-            arr["predict_us"][k] = (clock() - t0) * 1e6 / running.sum()
+            row_us = getattr(policy, "row_us", None)  # a StackedPolicy times each of its parts
+            arr["predict_us"][k] = (clock() - t0) * 1e6 / running.sum() if row_us is None else row_us
             act = np.asarray(actions, dtype=np.float32)
             for i in watched:
                 if running[i]:

@@ -76,6 +76,36 @@ def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id, sma
     assert len({r["wall_s"] for r in single.episodes}) > 1
 
 
+def test_a_batch_of_several_controllers_equals_single_episodes(small_batches):
+    """Episodes of several controllers share one vector env (one group, a StackedPolicy over their rows), and
+    every record equals the one-at-a-time path's; a controller's predict_us is its own part's time."""
+    from policies.batched import StackedPolicy
+
+    specs = ("clik", "nnbc", "nnbc-plus", "qp-oracle")
+    runs = [(spec, k) for spec in specs for k in range(3)]
+    tasks = [Task(i, CIRCLE, "kinematic", spec, k, 10_000 + k, 0.05, 0.001) for i, (spec, k) in enumerate(runs)]
+    env_kwargs = {"path": dict(TASKS[CIRCLE], duration=1.0)}
+    cfg = EvalConfig(env_kwargs=env_kwargs, save_arrays="none", plots=False)
+    units = plan_units(cfg, {}, tasks)
+    assert [len(u) for u in units] == [12]  # one batch: every controller's rows
+    runner = B.UnitRunner(cfg, {})
+    try:
+        policy = runner._policy(runner._vector_env(B.batch_key(cfg, {}, tasks[0]), tasks[0], 12), units[0])
+        assert isinstance(policy, StackedPolicy)
+        assert [sl for _, sl in policy.parts] == [slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)]
+    finally:
+        runner.close()
+    out = {}
+    for name, batch_size in (("single", 1), ("batched", 64)):
+        config = EvalConfig(env_kwargs=env_kwargs, save_arrays="none", plots=False, batch_size=batch_size)
+        records, _ = execute(config, {}, tasks)
+        out[name] = [records[i] for i in range(len(tasks))]
+    assert _fields({"episodes": out["batched"]}) == _fields({"episodes": out["single"]})
+    assert len({r["wall_s"] for r in out["batched"]}) == 1  # one batch
+    us = {spec: {r["predict_us_median"] for r in out["batched"] if r["policy"] == spec} for spec in specs}
+    assert us["nnbc-plus"] != us["clik"]  # each part timed on its own
+
+
 def test_plan_units_batches_kinematic_builtin_specs_only(monkeypatch):
     tasks = []
     for dyn in ("kinematic", "physics"):
@@ -183,8 +213,9 @@ def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch, small_batches)
         run(cfg)
     results = json.loads((tmp_path / "stopped" / "results.json").read_text())
     status = [(r["policy"], r["seed"], r["status"]) for r in results["episodes"]]
-    # units (4 episodes, at most 3 a batch): clik 10000-1, clik 10002-3 (stopped), jmpi 10000-1, jmpi 10002-3
-    assert calls == [[10_000, 10_001], [10_002, 10_003]]
+    # one group of 8 episodes (both controllers), at most 3 a batch: clik 10000-1; clik 10002-3 with jmpi
+    # 10000 (stopped); jmpi 10001-3
+    assert calls == [[10_000, 10_001], [10_002, 10_003, 10_000]]
     assert [s for s in status if s[2] == "ok"] == [("clik", 10_000, "ok"), ("clik", 10_001, "ok")]
     stopped = [("clik", 10_002), ("clik", 10_003)] + [("jmpi", 10_000 + k) for k in range(4)]
     assert [s for s in status if s[2] != "ok"] == [(*p, "interrupted") for p in stopped]
@@ -202,7 +233,7 @@ def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_bat
         done = list(runner.run(unit))
     finally:
         runner.close()
-    assert runner._unbatchable == {(env_id, "kinematic", None, None, "zero")}
+    assert runner._unbatchable == {(env_id, "kinematic", None, None)}
     assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000, "ok"), (10_001, "ok")]
 
 

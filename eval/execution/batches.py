@@ -2,8 +2,10 @@
 
 `plan_units(config, user, tasks)` cuts the task list into *units*, each run by one process (or Ray
 task) with `UnitRunner.run`: a batch of N episodes stepped together through one native vector env
-(`mobman_env.vector.WheeledPumaVectorEnv`) and one batched policy (`policies.make(spec, vector_env)`), or a
-single episode on the single path (`eval.execution.tasks.Executor`, the one rollout loop of `eval.rollout`).
+(`mobman_env.vector.WheeledPumaVectorEnv`) and one batched policy (`policies.make(spec, vector_env)`; for the
+episodes of several controllers, one per controller over its block of rows, stacked:
+`policies.batched.StackedPolicy`), or a single episode on the single path (`eval.execution.tasks.Executor`, the
+one rollout loop of `eval.rollout`).
 
 **Which tasks batch.** `config.batch_size` > 1 and:
 
@@ -17,8 +19,11 @@ single episode on the single path (`eval.execution.tasks.Executor`, the one roll
   not a `WheeledPumaVectorEnv` (`robot="random"`, which falls back to a `SyncVectorEnv`, or another package's
   env) or cannot be built run single; that is found out once per condition, when its first batch is built.
 
-Tasks of the same env id, dynamics, model error, sensor noise and policy spec (the run's `env_kwargs` are common
-to all) form a group, cut in order into the fewest batches of `unit_size` episodes at most (`config.batch_size`,
+Tasks of the same env id, dynamics, model error and sensor noise (the run's `env_kwargs` are common to all),
+whatever their built-in policy spec, form a group: the vector env's cost per step is mostly fixed (about 0.3 ms
+at N = 20 against 2-3 us per robot more), so `mobman-eval paper`'s seven controllers x 20 seeds share 2-3 vector
+envs instead of taking seven. A group is cut in order (the tasks are policy-major, so each controller's
+episodes are consecutive rows) into the fewest batches of `unit_size` episodes at most (`config.batch_size`,
 and with `config.workers` > 1 no more than ceil(batchable episodes / workers), so that every worker gets batches),
 their sizes differing by one at most. A batch smaller than `MIN_BATCH` (4) runs as single episodes: the vector
 env's fixed cost per step makes small batches slower than the single path (see `MIN_BATCH`). Units keep the
@@ -73,7 +78,7 @@ def batch_key(config: EvalConfig, user: dict, task: Task) -> tuple | None:
 
     if task.policy.partition(":")[0] not in KNOWN_POLICIES:  # sb3:PATH, module:attr
         return None
-    return (task.env, task.dynamics, task.model_error, task.obs_noise, task.policy)
+    return (task.env, task.dynamics, task.model_error, task.obs_noise)
 
 
 def unit_size(config: EvalConfig, n_batchable: int, workers: int) -> int:
@@ -110,14 +115,14 @@ def plan_units(config: EvalConfig, user: dict, tasks: list[Task]) -> list[list[T
 
 
 class UnitRunner:
-    """Runs units in one process: batches through cached vector envs and batched policies (the
-    `Executor.MAX_ENVS` most recently used kept), single episodes and fallbacks through an `Executor`."""
+    """Runs units in one process: batches through cached vector envs (the `Executor.MAX_ENVS` most recently used
+    kept) and batched policies built per batch, single episodes and fallbacks through an `Executor`."""
 
     def __init__(self, config: EvalConfig, user: dict):
         self.config = config
         self.user = user
         self.single = Executor(config, user)
-        self._batched: dict[tuple, tuple[Any, Any]] = {}  # (key, n) -> (vector env, batched policy); LRU order
+        self._batched: dict[tuple, Any] = {}  # (key, n) -> vector env; LRU order
         self._unbatchable: set[tuple] = set()  # keys whose vector env is not native or cannot be built
 
     def run(self, unit: list[Task]) -> Iterator[tuple[Task, dict, dict | None]]:
@@ -136,10 +141,12 @@ class UnitRunner:
         key = batch_key(self.config, self.user, unit[0])
         if key is None or key in self._unbatchable:
             return None
-        built = self._build(key, unit[0], len(unit))
-        if built is None:
+        venv = self._vector_env(key, unit[0], len(unit))
+        if venv is None:
             return None
-        venv, policy = built
+        policy = self._policy(venv, unit)
+        if policy is None:
+            return None
         meta = [{"env": t.env, "policy": t.policy, "episode": t.episode} for t in unit]
         try:
             results = rollout_batch(
@@ -160,9 +167,9 @@ class UnitRunner:
             return None
         return [(t, rec, arrays) for t, (rec, arrays) in zip(unit, results)]
 
-    def _build(self, key: tuple, task: Task, n: int) -> tuple[Any, Any] | None:
-        """The cached (vector env, batched policy) of `key` for `n` robots; None (and `key` remembered) if the
-        env's vector env is not native or the pair cannot be built."""
+    def _vector_env(self, key: tuple, task: Task, n: int) -> Any:
+        """The cached vector env of `key` for `n` robots; None (and `key` remembered) if the env's vector env is
+        not native or cannot be built."""
         from mobman_env.vector import WheeledPumaVectorEnv
 
         if (key, n) in self._batched:
@@ -173,7 +180,6 @@ class UnitRunner:
             venv = make_vector_env(task.env, n, task.dynamics, task.model_error, task.obs_noise, self.config.env_kwargs)
             if not isinstance(venv.unwrapped, WheeledPumaVectorEnv):
                 raise TypeError(f"{task.env}: not a native vector env")
-            policy = make_policy(task.policy, venv, self.config.seed)
         except KeyboardInterrupt:
             raise
         except BaseException:  # the single path builds it again and records its error per episode
@@ -182,13 +188,35 @@ class UnitRunner:
             self._unbatchable.add(key)
             return None
         while len(self._batched) >= Executor.MAX_ENVS:
-            old_venv, _ = self._batched.pop(next(iter(self._batched)))
-            old_venv.close()
-        self._batched[(key, n)] = (venv, policy)
-        return venv, policy
+            self._batched.pop(next(iter(self._batched))).close()
+        self._batched[(key, n)] = venv
+        return venv
+
+    def _policy(self, venv: Any, unit: list[Task]) -> Any:
+        """One batched policy for the unit's rows: the spec's for one controller, else one per run of equal specs
+        stacked (`policies.batched.StackedPolicy`); None if one cannot be built (the episodes then run singly, each
+        recording its own error)."""
+        from policies.batched import StackedPolicy, VectorEnvRows
+
+        runs: list[tuple[str, slice]] = []
+        start = 0
+        for i in range(1, len(unit) + 1):
+            if i == len(unit) or unit[i].policy != unit[start].policy:
+                runs.append((unit[start].policy, slice(start, i)))
+                start = i
+        try:
+            if len(runs) == 1:
+                return make_policy(runs[0][0], venv, self.config.seed)
+            return StackedPolicy(
+                [(make_policy(spec, VectorEnvRows(venv, rows), self.config.seed), rows) for spec, rows in runs]
+            )
+        except KeyboardInterrupt:
+            raise
+        except BaseException:
+            return None
 
     def close(self) -> None:
-        for venv, _ in self._batched.values():
+        for venv in self._batched.values():
             venv.close()
         self._batched.clear()
         self.single.close()
