@@ -57,15 +57,10 @@ def is_vector_env(env: Any) -> bool:
     return hasattr(env, "num_envs") and hasattr(env, "single_observation_space")
 
 
-class _RobotView:
-    """What a single-env policy may read of robot i of a vector env (the attributes `policies.make` reads)."""
+class _VectorEnvPart:
+    """What every view of part of a vector env passes through unchanged: dt, action scale, nominal robot."""
 
-    def __init__(self, venv: Any, i: int):
-        self._venv = venv
-        self._i = i
-        self.observation_space = venv.single_observation_space
-        self.action_space = venv.single_action_space
-        self.unwrapped = self
+    _venv: Any
 
     @property
     def dt(self) -> float:
@@ -78,6 +73,17 @@ class _RobotView:
     @property
     def nominal_params(self) -> Any:
         return self._venv.nominal_params
+
+
+class _RobotView(_VectorEnvPart):
+    """What a single-env policy may read of robot i of a vector env (the attributes `policies.make` reads)."""
+
+    def __init__(self, venv: Any, i: int):
+        self._venv = venv
+        self._i = i
+        self.observation_space = venv.single_observation_space
+        self.action_space = venv.single_action_space
+        self.unwrapped = self
 
     @property
     def true_params(self) -> Any:
@@ -148,7 +154,7 @@ class BatchedPolicy:
         return starts if starts.any() else None
 
 
-class VectorEnvRows:
+class VectorEnvRows(_VectorEnvPart):
     """The robots `rows` (a slice) of a vector env, seen as a vector env of their own for `policies.make`: row j
     is robot rows.start + j (its true robot too); spaces, dt, action scale and nominal robot are the env's.
     `StackedPolicy` builds its parts on these views."""
@@ -161,18 +167,6 @@ class VectorEnvRows:
         self.single_observation_space = venv.single_observation_space
         self.single_action_space = venv.single_action_space
         self.unwrapped = self
-
-    @property
-    def dt(self) -> float:
-        return float(self._venv.dt)
-
-    @property
-    def action_scale(self) -> np.ndarray:
-        return np.asarray(self._venv.action_scale, dtype=float)
-
-    @property
-    def nominal_params(self) -> Any:
-        return self._venv.nominal_params
 
     def true_params(self, j: int) -> Any:
         """Row j's current true robot: robot rows.start + j of the underlying vector env."""
