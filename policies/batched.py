@@ -14,24 +14,29 @@ actions, _ = policy.predict(obs, episode_start=mask)   # re-initialise the rows 
 Two kinds behind one interface (`BatchedPolicy`):
 
 * Vectorised laws (`BatchedController`): `zero`, `random`, `jmpi`, `jmpi-full`, `clik`, `clik-full`, `oracle`,
-  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle` (batched up to the QP, which is solved row by row). The law's state is (N, ...) arrays and one `predict` advances every row
-  with whole-array numpy operations (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal
-  or true robots' Jacobians batched by `mobman_env.vector_kinematics`). The single-env class of the spec
-  (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`: the same law with N = 1 (STYLE 14: one implementation per
-  law). So robot i's actions are those of a single policy reset with `policy_seed(S + i)` on the same
-  observations; bit for bit on our machines (products are numpy stacked `matmul`s, the same BLAS kernel per row
-  whatever N; the 3 x 3 algebra is the same expressions on floats and on (N,) arrays), which
-  `tests/test_batched_policies.py` checks to 1e-9 over 200 steps and finds exact. The oracle's true robot is
-  robot i's (`venv.true_params(i)`), read at each of the row's episode starts; nnbc's rows probe, finish the
-  probe and run the ZNN law each at its own step count. Cost per robot-step at N = 64 and 1,024: a few
-  microseconds, against 25-85 us for one single `predict` (`mobman-eval speed`; `random` keeps one draw per
-  row's Generator and step, so its cost stays that of N small draws).
+  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle` (batched up to the QP, which is solved row by row). The
+  law's state is (N, ...) arrays and one `predict` advances every row with whole-array numpy operations
+  (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal or true robots' Jacobians batched by
+  `mobman_env.vector_kinematics`). The single-env class of the spec (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`:
+  the same law with N = 1 (STYLE 14: one implementation per law). So robot i's actions are those of a single policy
+  reset with `policy_seed(S + i)` on the same observations; bit for bit on our machines (products are numpy stacked
+  `matmul`s, the same BLAS kernel per row whatever N; the 3 x 3 algebra is the same expressions on floats and on
+  (N,) arrays), which `tests/test_batched_policies.py` checks to 1e-9 over 200 steps and finds exact. The oracle's
+  true robot is robot i's (`venv.true_params(i)`), read at each of the row's episode starts; nnbc's rows probe,
+  finish the probe and run the ZNN law each at its own step count. Cost per robot-step at N = 64 and 1,024: a few
+  microseconds, against 25-85 us for one single `predict` (`mobman-eval speed`; `random` keeps one draw per row's
+  Generator and step, so its cost stays that of N small draws).
 * Every other spec (`nnbc-plus`, `broyden`, `rls`, `sb3:`, `module:attr`): this class loops
   N single-env policies, row i built for robot i (`_RobotView`: the vector env's dt, action scale, single
   observation space and nominal robot; the true robot is robot i's, read at each of its episode starts) and
   fed row i of each batched observation (float32 rows, as a single env hands them out): bit for bit the single
   policy, at the cost of one single `predict` per robot-step. A vectorised kernel for a law replaces its loop
   without changing this interface (its single-env class gets a `batched` constructor, `policies.registry`).
+
+Several controllers on one vector env: `StackedPolicy` holds one batched policy per consecutive block of rows,
+each built with `policies.make(spec, VectorEnvRows(venv, rows))` (row j of the block is robot rows.start + j), and
+is itself a `BatchedPolicy`; `eval` steps the episodes of every built-in controller of a condition through one
+vector env this way (`eval.execution.batches`).
 
 `reset(obs, info=None, *, seed=None)`: `seed` is the vector env's reset seed S (row i gets `policy_seed(S + i)`,
 the documented rule of `policies.base.policy_seed`), or a list of N policy seeds (None entries: no reseed).
