@@ -13,6 +13,7 @@ What it measures, all in the same run so that the ratios compare like with like 
 | vector env robot-steps/s | `gym.make_vec(..., vectorization_mode="vector_entry_point", dynamics="kinematic")` at N = 1, 64, 1024 (`mobman_env.vector`), random actions, no autoreset inside the timed block |
 | batched predict | the whole batched `predict` of `policies.make(spec, vector_env)` at N = 64, per robot-step |
 | batched episodes/s | `eval.batch_rollout.rollout_batch` of `--batch` 20 s kinematic `nnbc` and `clik` episodes in one process (one vector env, one batched policy) |
+| paper, kinematic half (`--paper`) | CPU seconds of `mobman-eval paper --dynamics kinematic --workers 1` in this process (its 7 controllers x 20 reported seeds, batched, with its figures and files) |
 | peers (`--peers`) | steps/s of panda-gym `PandaReach-v3` and MuJoCo `Reacher-v5` (installed with the `[bench]` extra), timed interleaved with the kinematic env in the same process; ratios mobman / peer |
 
 Timed blocks in this process count its CPU time (`CLOCK`: per CPU-second, so other jobs on a shared machine
@@ -24,6 +25,7 @@ README's Performance block) into `--out` and prints a table.
 
 from __future__ import annotations
 
+import json
 import os
 import platform
 import tempfile
@@ -312,6 +314,25 @@ def batch_episodes_per_second(n: int, policy: str, seed: int = 0) -> dict:
     }
 
 
+def paper_kinematic_seconds() -> dict:
+    """CPU seconds of the kinematic half of `mobman-eval paper` (`eval.paper.reproduce(dynamics="kinematic",
+    workers=1)`, in this process, into a temporary folder), and its wall seconds."""
+    from eval.paper import reproduce
+
+    with tempfile.TemporaryDirectory(prefix="mobman-speed-paper-") as tmp:
+        c0, w0 = CLOCK(), time.perf_counter()
+        out = reproduce(out=tmp, dynamics="kinematic", workers=1, overwrite=True, progress=False)
+        cpu, wall = CLOCK() - c0, time.perf_counter() - w0
+        episodes = json.loads((out / "results.json").read_text())["episodes"]
+    return {
+        "cpu_s": cpu,
+        "wall_s": wall,
+        "episodes": len(episodes),
+        "failed": sum(r["status"] != "ok" for r in episodes),
+        "policies": sorted({r["policy"] for r in episodes}),
+    }
+
+
 def peer_steps(steps: int, repeats: int, seed: int = 0) -> list[dict]:
     """Steps/s of each installed peer and of the kinematic env, timed interleaved (mobman, peer, mobman, peer,
     ...) in this process under random actions, resets not timed; the best repeat of each, and their ratio."""
@@ -375,6 +396,7 @@ def measure(
     progress=print,
     batch: int = 64,
     peers: bool = False,
+    paper: bool = False,
 ) -> dict:
     from eval.output.provenance import git_rev, versions
 
@@ -411,6 +433,9 @@ def measure(
     out["batched_predict"] = batched_predict_times(specs or default_policies(), steps)
     progress(f"timing batched eval ({batch} episodes of nnbc and clik) ...")
     out["batch_episodes"] = [batch_episodes_per_second(batch, p) for p in ("nnbc", "clik")]
+    if paper:
+        progress("timing the kinematic half of mobman-eval paper (1 worker) ...")
+        out["paper"] = paper_kinematic_seconds()
     if peers:
         progress("racing the peers (PandaReach-v3, Reacher-v5) ...")
         out["peers"] = peer_steps(steps, repeats)
@@ -473,6 +498,12 @@ def markdown(res: dict) -> str:
                 f"| episodes/s, 20 s kinematic `{e['policy']}`, one batch of {e['episodes']} "
                 f"(`eval.batch_rollout`) | {e['episodes_per_s']:.2f} |"
             )
+    if "paper" in res:
+        pp = res["paper"]
+        lines.append(
+            f"| `mobman-eval paper --dynamics kinematic --workers 1` ({pp['episodes']} episodes, "
+            f"{len(pp['policies'])} controllers, figures included) | {pp['cpu_s']:.1f} s CPU ({pp['wall_s']:.1f} s wall) |"
+        )
     for p in res.get("peers", []):
         if p["status"] == "ok":
             lines.append(

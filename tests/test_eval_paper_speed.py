@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,6 +126,50 @@ def test_speed_writes_speed_json(tmp_path):
     ]
     text = (out / "speed.md").read_text()
     assert "## Figures" in text and "vector env, N = 1,024" in text and "peers" not in res
+
+
+def test_speed_times_the_kinematic_half_of_paper_on_request(tmp_path, monkeypatch):
+    """`--paper` runs `eval.paper.reproduce(dynamics="kinematic", workers=1)` in the process and reports its CPU
+    seconds, episodes and controllers (the reproduction itself is faked here: `test_paper_*` run it)."""
+    import eval.paper
+    import eval.speed as S
+
+    calls = []
+
+    def fake_reproduce(out, dynamics, workers, overwrite, progress):
+        calls.append((dynamics, workers))
+        episodes = [{"policy": p, "status": "ok"} for p in ("nnbc", "jmpi") for _ in range(3)]
+        Path(out, "results.json").write_text(json.dumps({"episodes": episodes}))
+        return Path(out)
+
+    monkeypatch.setattr(eval.paper, "reproduce", fake_reproduce)
+    res = S.paper_kinematic_seconds()
+    assert calls == [("kinematic", 1)]
+    assert res["episodes"] == 6 and res["failed"] == 0 and res["policies"] == ["jmpi", "nnbc"] and res["cpu_s"] >= 0
+    row = S.markdown({**_minimal_speed_result(), "paper": res}).splitlines()[-1]
+    assert row.startswith("| `mobman-eval paper --dynamics kinematic --workers 1` (6 episodes, 2 controllers")
+
+
+def _minimal_speed_result() -> dict:
+    block = {"dynamics": "kinematic", "n_substeps": 2, "env_steps_per_s": 1000.0}
+    physics = [
+        {
+            "dynamics": "physics",
+            "n_substeps": n,
+            "env_steps_per_s": 1.0,
+            "bare_steps_per_s": 1.0,
+            "ratio_env_to_bare": 1,
+        }
+        for n in (2, 4, 10)
+    ]
+    return {
+        "machine": {"cpus": 2, "platform": "test", "loadavg_1_5_15_at_start": None},
+        "settings": {"repeats": 1, "steps": 1},
+        "when": "now",
+        "env": [block, *physics],
+        "predict": [],
+        "episodes": [],
+    }
 
 
 def test_speed_refuses_an_unknown_policy_before_measuring(tmp_path, capsys, monkeypatch):

@@ -31,6 +31,11 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also race the installed peers (panda-gym PandaReach-v3, MuJoCo Reacher-v5; pip install 'mobman[bench]')",
     )
+    p.add_argument(
+        "--paper",
+        action="store_true",
+        help="also time the kinematic half of `mobman-eval paper` with 1 worker (about 20 s)",
+    )
     p.add_argument("--out", default=None, help="output directory (default: runs/speed-<UTC timestamp>)")
     p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
     p.add_argument("--quiet", action="store_true", help="no table")
@@ -55,7 +60,14 @@ def main(args) -> int:
     out = make_out(out, exclusive=not args.out)
     say = (lambda *a: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     res = speed.measure(
-        args.steps, args.repeats, args.episodes, args.policies, progress=say, batch=args.batch, peers=args.peers
+        args.steps,
+        args.repeats,
+        args.episodes,
+        args.policies,
+        progress=say,
+        batch=args.batch,
+        peers=args.peers,
+        paper=args.paper,
     )
     atomic_write_json(out / "speed.json", res)
     (out / "speed.md").write_text(speed.markdown(res), encoding="utf-8")
