@@ -22,9 +22,10 @@ every module and fails on a cycle or an upward import):
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
    `tables` <- `results`, `plots` <- `stat_plots`, `video`: what is written)
 6. `runner` (`run`), `sweep` (`config`, `journal`, `report`, `plots` <- `run`: resumable grids)
-7. `paper` (section IV of the paper), `speed` (the speed benchmark), `bench` (the benchmark protocol v1:
-   `config` <- `chaos`, `scorecard` <- `run`)
-8. `cli` (one module per subcommand; nothing imports it but `__main__`)
+7. `paper` (section IV of the paper), `bench` (the benchmark protocol v1: `config` <- `chaos`, `scorecard` <-
+   `run`)
+8. `speed` (the speed benchmark; `--paper` times `paper`)
+9. `cli` (one module per subcommand; nothing imports it but `__main__`)
 
 Across packages: `mobman_env` <- `policies` <- `eval` <- `train`; eval never imports `train`.
 """

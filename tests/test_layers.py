@@ -32,10 +32,10 @@ EVAL_LAYERS = {
     "eval.sweep": 6,
     "eval.paper": 7,
     "eval.bench": 7,
-    "eval.speed": 7,
-    "eval.cli": 8,
-    "eval.__main__": 9,
-    "eval": 9,
+    "eval.speed": 8,
+    "eval.cli": 9,
+    "eval.__main__": 10,
+    "eval": 10,
 }
 
 
