@@ -18,7 +18,7 @@ bit-identical to the single env, and a batched policy's row i acts bit for bit a
 vectorised law of `policies.kernels` whose single-env class is its N = 1 case, or the single law looped per row:
 `policies.batched`), so every array and metric is equal, for chaotic controllers too
 (`tests/test_batch_rollout.py`). What differs is the timing: `predict_us` of
-a row is the batched call's wall time divided by the robots it served (for a `policies.batched.StackedPolicy`
+a row is the batched call's wall time divided by the robots it served (for a `policies.stacked.StackedPolicy`
 of several controllers, its part's call time divided by the part's rows), and `wall_s` is the batch's wall time
 divided by N. A robot whose episode ended stays out of the statistics (the vector env autoresets it; its later
 rows are ignored). An exception fails the whole batch: every record gets status "failed" and the traceback.

@@ -200,3 +200,37 @@ def test_nnbc_rows_stay_exact_where_the_damping_acts():
         obs, *_ = venv.step(actions)
     assert damped > 50  # the property was exercised
     venv.close()
+
+
+def test_stacked_policy_rows_equal_their_own_batched_policies():
+    """`StackedPolicy` over row blocks of one vector env acts, row for row, as each block's batched policy on a
+    vector env of its own (same seeds); bad part layouts raise."""
+    from policies.stacked import StackedPolicy, VectorEnvRows
+
+    seeds = [10_600, 10_601, 10_602]
+    venv = _venv(ENV_ID, 6)
+    blocks = ((slice(0, 3), "clik"), (slice(3, 6), "nnbc-plus"))
+    stacked = StackedPolicy([(policies.make(spec, VectorEnvRows(venv, rows)), rows) for rows, spec in blocks])
+    own = [(_venv(ENV_ID, 3), spec) for _, spec in blocks]
+    obs, info = venv.reset(seed=seeds * 2)
+    stacked.reset(obs, info, seed=[policy_seed(s) for s in seeds * 2])
+    pols = []
+    for v, spec in own:
+        pol = policies.make(spec, v)
+        o, i = v.reset(seed=seeds)
+        pol.reset(o, i, seed=[policy_seed(s) for s in seeds])
+        pols.append((v, pol, o))
+    for _ in range(30):
+        actions, _ = stacked.predict(obs)
+        for k, ((rows, _), (v, pol, o)) in enumerate(zip(blocks, pols)):
+            a, _ = pol.predict(o)
+            np.testing.assert_array_equal(actions[rows], a)
+            pols[k] = (v, pol, v.step(a)[0])
+        obs = venv.step(actions)[0]
+    assert stacked.row_us.shape == (6,) and (stacked.row_us > 0).all()
+    assert len(stacked.rows) == 6 and stacked.rows[4].jacobian_estimate is not None  # nnbc-plus row, probe done
+    with pytest.raises(ValueError, match="consecutive non-empty row slices"):
+        StackedPolicy([(stacked.parts[0][0], slice(0, 3)), (stacked.parts[1][0], slice(4, 6))])
+    venv.close()
+    for v, _ in own:
+        v.close()

@@ -79,7 +79,7 @@ def test_batched_run_writes_the_results_of_single_episodes(tmp_path, env_id, sma
 def test_a_batch_of_several_controllers_equals_single_episodes(small_batches):
     """Episodes of several controllers share one vector env (one group, a StackedPolicy over their rows), and
     every record equals the one-at-a-time path's; a controller's predict_us is its own part's time."""
-    from policies.batched import StackedPolicy
+    from policies.stacked import StackedPolicy
 
     specs = ("clik", "nnbc", "nnbc-plus", "qp-oracle")
     runs = [(spec, k) for spec in specs for k in range(3)]

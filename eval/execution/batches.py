@@ -4,7 +4,7 @@
 task) with `UnitRunner.run`: a batch of N episodes stepped together through one native vector env
 (`mobman_env.vector.WheeledPumaVectorEnv`) and one batched policy (`policies.make(spec, vector_env)`; for the
 episodes of several controllers, one per controller over its block of rows, stacked:
-`policies.batched.StackedPolicy`), or a single episode on the single path (`eval.execution.tasks.Executor`, the
+`policies.stacked.StackedPolicy`), or a single episode on the single path (`eval.execution.tasks.Executor`, the
 one rollout loop of `eval.rollout`).
 
 **Which tasks batch.** `config.batch_size` > 1 and:
@@ -194,9 +194,9 @@ class UnitRunner:
 
     def _policy(self, venv: Any, unit: list[Task]) -> Any:
         """One batched policy for the unit's rows: the spec's for one controller, else one per run of equal specs
-        stacked (`policies.batched.StackedPolicy`); None if one cannot be built (the episodes then run singly, each
+        stacked (`policies.stacked.StackedPolicy`); None if one cannot be built (the episodes then run singly, each
         recording its own error)."""
-        from policies.batched import StackedPolicy, VectorEnvRows
+        from policies.stacked import StackedPolicy, VectorEnvRows
 
         runs: list[tuple[str, slice]] = []
         start = 0
