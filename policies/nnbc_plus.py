@@ -116,6 +116,17 @@ What it does not do yet (measured on development seeds, v2.1)
   is 4.5 mm in both modes (development seeds 0-19: 19/20 and 19/20), close to the 6 mm tolerance. On those seeds no
   other damping did better: `sing_threshold` 0.07: 19/20 and 16/20, 0.15: 17/20 and 16/20; `sing_damping` 0.00025:
   19/20 and 17/20, 0.001: 6/20 and 6/20 (kinematic and physics; `docs/results/nnbc-plus-v2/dev-sing.json`).
+  A higher task-space gain shrinks the weak direction's lag in kinematic mode (gamma 30: 40/40, median 3.27 mm,
+  development seeds 0-39, against 39/40 and 4.52 mm at 20; gamma 40: 39/40, one episode lost by 108 mm) and loses
+  nothing on the other kinematic conditions (seeds 0-4), but in physics mode it loses the 0.5 m circle (16/20
+  against 19/20, seeds 0-19) and velocity noise (14/16 against 16/16, seeds 0-3); and the benchmark fixes one
+  gain, 20, for every closed-loop law (`docs/results/nnbc-plus-v2/dev-gamma.json`).
+* **The 10 s circle in kinematic mode** (development seeds 0-39: 38/40; 71 mm on seed 19, 6.8 mm on seed 22). On
+  seed 19 the whole-body Jacobian nears a singularity (true sigma_min 0.22 -> 0.05 between steps 640 and 700) while
+  joint 1 swings fast; the estimate lags (relative error 0.09 -> 0.40), the commands saturate (joint 1 at its
+  3 rad/s) and the error reaches 71 mm before the arm recovers. Saturation in the null space (Flacco, De Luca and
+  Khatib 2012: the actuator furthest beyond its limit is fixed there and the task solved again with the others)
+  gave 65 mm on seed 19 and 9.7 mm on seed 22: the loss is the singularity and the estimate's lag, not the clip.
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
