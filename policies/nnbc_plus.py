@@ -338,9 +338,30 @@ class NNBCPlusConfig(ModelFreeConfig):
     """Upper bound on the covariance trace (divided by the 2n states), applied when forgetting < 1: stops the
     forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
 
+    innov_gate: float = 0.0
+    """Innovation consistency gate (0 turns it off, the default): a measurement whose innovation's mean square per
+    component exceeds innov_gate^2 times its predicted variance h P h^T + R is not learnt (the filter only
+    predicts that step), so a transient where y = J x does not hold (a platform jolt, a joint hitting its stop)
+    does not move J_hat; after `gate_steps` rejections in a row the next measurement is learnt anyway (J has
+    really changed), with P multiplied by `gate_inflate` first. See the module docstring for what it measured."""
+    gate_steps: int = 10
+    """Largest number of consecutive measurements `innov_gate` may reject (control steps, >= 0)."""
+    gate_inflate: float = 1.0
+    """Factor on the Kalman covariance P when `innov_gate` accepts a measurement after `gate_steps` rejections in
+    a row (1: none)."""
+    rate_time: float = 0.0
+    """Time constant of the rate model, s (0 turns it off, the default: a constant rate, J_dot(t + dt) =
+    J_dot(t)): above 0, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t), so a rate the measurements no longer
+    support decays instead of carrying J_hat away in the directions the path does not excite."""
+
     def __post_init__(self):
         number("NNBCPlusConfig.forgetting", self.forgetting, low=0.0, open_low=True, high=1.0)
         super().__post_init__()
+        if isinstance(self.gate_steps, bool) or not isinstance(self.gate_steps, int) or self.gate_steps < 0:
+            raise ValueError(
+                f"NNBCPlusConfig.gate_steps must be an integer >= 0 (control steps), got {self.gate_steps!r}"
+            )
+        number("NNBCPlusConfig.gate_inflate", self.gate_inflate, low=1.0)
 
 
 def _solve3(
@@ -705,6 +726,10 @@ class NNBCPlus(EstimatingController):
             midpoint=not self._use_vel,
             sym_phase=self.n_probe + 1,
             noise_rate=c.noise_rate,
+            innov_gate=c.innov_gate,
+            gate_steps=c.gate_steps,
+            gate_inflate=c.gate_inflate,
+            rate_time=c.rate_time,
         )
 
     @property
