@@ -92,6 +92,7 @@ class KalmanEstimator:
         sym_phase: int = 0,
         noise_rate: float = 0.0,
         innov_gate: float = 0.0,
+        gate_rms: float = 0.0,
         gate_steps: int = 10,
         gate_inflate: float = 1.0,
         rate_time: float = 0.0,
@@ -113,6 +114,7 @@ class KalmanEstimator:
         self._rate = innov_rate
         self._rate_decay = float(np.exp(-dt / rate_time)) if rate_time > 0 else 1.0
         self._gate2 = 3.0 * innov_gate**2  # on the squared norm of the 3-component innovation
+        self._gate_rms2 = gate_rms**2
         self._gate_steps = gate_steps
         self._gate_inflate = gate_inflate
         self._rejected = 0
@@ -190,9 +192,13 @@ class KalmanEstimator:
         innov = y - X.dot(h)
         n2 = float(innov.dot(innov))
         reject = False
-        if self._gate2 > 0.0:  # consistency gate: |innov|^2 / 3 against its predicted variance h P h + R
+        if self._gate2 > 0.0 or self._gate_rms2 > 0.0:
+            # consistency gate: |innov|^2 / 3 against its predicted variance h P h + R (innov_gate), or |innov|^2
+            # against the running mean square of the recent innovations (gate_rms)
             self.nis = n2 / (3.0 * (hPh + self._r))  # normalised innovation (a diagnostic)
-            if n2 > self._gate2 * (hPh + self._r):
+            if (self._gate2 > 0.0 and n2 > self._gate2 * (hPh + self._r)) or (
+                self._gate_rms2 > 0.0 and n2 > self._gate_rms2 * self._innov_ms
+            ):
                 self._rejected += 1
                 reject = self._rejected <= self._gate_steps
                 if not reject and self._gate_inflate != 1.0:
@@ -203,7 +209,7 @@ class KalmanEstimator:
             if not reject:
                 self._rejected = 0
         K = Ph / (hPh + self._r)
-        if self._clip > 0:
+        if self._clip > 0 and not reject:
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
                 innov *= (lim2 / n2) ** 0.5

@@ -157,6 +157,7 @@ r_a_dot - [p_c_dot; 0] ("paper"); `jacobian_kind` says which. None during the pr
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -271,6 +272,12 @@ class ModelFreeConfig:
     since the observation was taken."""
     delay_rate: float = 0.05
     """Per-step weight of the newest mismatch in the running mean squares that pick the delay."""
+    body_frame: bool = False
+    """Estimate J in the platform's frame (off by default): the measured task velocity is rotated by the measured
+    heading `base_yaw` (-phi about z) before the estimator sees it, and J_hat is rotated back (by phi, half a step
+    ahead with the lookahead) for the control law. The whole-body Jacobian of a manipulator on a platform that
+    turns about z is R(phi) J_b(q): in the platform's frame the estimator no longer has to follow the rotation
+    of every column with the heading, only the arm's motion. Needs `measurement="velocity"`."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
@@ -287,6 +294,8 @@ class ModelFreeConfig:
         number(f"{name}.delay_rate", self.delay_rate, low=0.0, open_low=True, high=1.0)
         if isinstance(self.block_every, bool) or not isinstance(self.block_every, int) or self.block_every < 1:
             raise ValueError(f"{name}.block_every must be an integer >= 1 (control steps), got {self.block_every!r}")
+        if self.body_frame and self.measurement != "velocity":
+            raise ValueError(f"{name}.body_frame needs measurement='velocity', got {self.measurement!r}")
         if isinstance(self.max_delay, bool) or not isinstance(self.max_delay, int) or not 0 <= self.max_delay <= 10:
             raise ValueError(
                 f"{name}.max_delay must be an integer from 0 to 10 (control steps), got {self.max_delay!r}"
@@ -344,6 +353,10 @@ class NNBCPlusConfig(ModelFreeConfig):
     predicts that step), so a transient where y = J x does not hold (a platform jolt, a joint hitting its stop)
     does not move J_hat; after `gate_steps` rejections in a row the next measurement is learnt anyway (J has
     really changed), with P multiplied by `gate_inflate` first. See the module docstring for what it measured."""
+    gate_rms: float = 0.0
+    """Innovation gate against the recent innovations instead (0 turns it off, the default): a measurement whose
+    innovation is longer than gate_rms times the running RMS that `innov_clip` keeps is not learnt (and does not
+    enter that RMS); same `gate_steps` bound and `gate_inflate` as `innov_gate`."""
     gate_steps: int = 10
     """Largest number of consecutive measurements `innov_gate` may reject (control steps, >= 0)."""
     gate_inflate: float = 1.0
@@ -402,6 +415,14 @@ def _solve3(
     )
 
 
+def _rotate(A: np.ndarray, cs: float, sn: float) -> np.ndarray:
+    """A (3 x n) with its first two rows rotated by the angle whose cosine and sine are cs, sn (about z)."""
+    out = A.copy()
+    out[0] = cs * A[0] - sn * A[1]
+    out[1] = sn * A[0] + cs * A[1]
+    return out
+
+
 class EstimatingController(ControllerPolicy):
     """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator.
 
@@ -452,6 +473,10 @@ class EstimatingController(ControllerPolicy):
         self.jacobian_kind = "whole_body" if self._whole else "paper"
         # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
         self.uses_keys = USES_KEYS if not self._whole else tuple(k for k in USES_KEYS if not k.startswith("arm_base"))
+        self._body = c.body_frame
+        if self._body:
+            self.uses_keys = (*self.uses_keys, "base_yaw")
+        self._J_world: np.ndarray | None = None  # body_frame: the last J_hat rotated to the world frame
         self._unit_w = not (self._w0 != 1.0).any()  # W = I: the weighting product is skipped
         self.estimator: JacobianEstimator = self._make_estimator()
         self._k = 0
@@ -462,6 +487,8 @@ class EstimatingController(ControllerPolicy):
 
     @property
     def J_hat(self) -> np.ndarray:
+        if self._body and self._J_world is not None:
+            return self._J_world  # (world frame; the estimator's J is the platform frame's)
         return self._J_probe if self._k <= self.n_probe else self.estimator.J
 
     @property
@@ -473,7 +500,9 @@ class EstimatingController(ControllerPolicy):
         """The estimated Jacobian (3 x n, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
         of the last observation: the whole-body Jacobian, or the paper's J of eq. (6) with
         `formulation="paper"` (`jacobian_kind`). None before the probe has finished."""
-        return self.estimator.J.copy() if self._initialised and self._k > self.n_probe else None
+        if not (self._initialised and self._k > self.n_probe):
+            return None
+        return self.J_hat.copy()
 
     # --- episode start ---------------------------------------------------------------------------------
     def _reset(self, obs: dict) -> None:
@@ -509,6 +538,8 @@ class EstimatingController(ControllerPolicy):
         self._block_q = np.zeros(n)
         self._any_blocked = False
         self._w = self._w0
+        self._J_world = None
+        self._prev_psi = float(obs["base_yaw"][0]) if self._body else 0.0
         self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
@@ -613,6 +644,11 @@ class EstimatingController(ControllerPolicy):
         hist[ring] = self.last_u  # the command issued at step k - 1
         probing = k < n_probe
         x, y = self._measure(obs, probing)
+        if self._body:  # the estimator works in the platform's frame: y rotated by -phi
+            psi = float(obs["base_yaw"][0])
+            cs, sn = math.cos(psi), math.sin(psi)
+            y0, y1, y2 = y.tolist()
+            y = np.array([cs * y0 + sn * y1, cs * y1 - sn * y0, y2])
         n_seen = k + 1  # steps counted, this one included (the count the delay refresh is scheduled on)
         if c.max_delay > 0 and n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
             self._track_delay(x, self._lags[ring])
@@ -636,6 +672,12 @@ class EstimatingController(ControllerPolicy):
             p0, p1, p2 = self._prev_vd
             v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2  # r_d_dot half a step ahead
         self._prev_vd = vd
+        if self._body:  # back to the world frame; Jc at the heading half a step ahead (lookahead)
+            psi_c = psi + 0.5 * (psi - self._prev_psi) if c.lookahead and not probing else psi
+            self._prev_psi = psi
+            J = _rotate(J, cs, sn)
+            Jc = _rotate(Jc, math.cos(psi_c), math.sin(psi_c)) if Jc is not J else J
+            self._J_world = J
         d0, d1, d2 = obs["target_pos"].tolist()
         if not self._whole:
             pc, pv = obs["arm_base_pos"].tolist(), obs["arm_base_vel"].tolist()
@@ -727,6 +769,7 @@ class NNBCPlus(EstimatingController):
             sym_phase=self.n_probe + 1,
             noise_rate=c.noise_rate,
             innov_gate=c.innov_gate,
+            gate_rms=c.gate_rms,
             gate_steps=c.gate_steps,
             gate_inflate=c.gate_inflate,
             rate_time=c.rate_time,
