@@ -69,8 +69,9 @@ class KalmanEstimator:
     R = meas_std^2. innov_gate > 0: innovation consistency gate (0 = off): a pair whose innovation's mean square
     per component exceeds innov_gate^2 (h P h^T + R), its predicted variance, is not learnt (the step is
     predicted only); after gate_steps rejections in a row the next pair is learnt anyway, with P multiplied by
-    gate_inflate first (a real change of J, not a transient); the noise statistics (clip RMS, R) see every
-    innovation, gated or not. rate_time > 0: the rate decays, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t)
+    gate_inflate first (a real change of J, not a transient). gate_rms > 0: the same gate against gate_rms times
+    the running RMS the clip keeps. R's statistics see every innovation, gated or not; the clip's RMS only the
+    accepted ones. rate_time > 0: the rate decays, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t)
     (a first-order Gauss-Markov rate instead of a constant one; 0 = constant).
     """
 
