@@ -220,6 +220,7 @@ BLOCK_CHECKS = 2  # consecutive checks
 BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
 DELAY_SETTLE = 200  # steps during which the delay estimate is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
+WHEEL_DRIFT_MAX = 16.0  # largest wheel weight of `wheel_drift`
 
 
 @dataclass(frozen=True)
@@ -252,6 +253,10 @@ class ModelFreeConfig:
     `weighting`): above 1 the platform takes more of the motion and the arm stays nearer its start. Measured on
     development seeds (module docstring, "Wheel weight"): 16 keeps random arms off their stops on Line-v0 but
     lost a physics episode with velocity noise; 4 lost a 0.5 m physics circle; 1 (the default) is v2."""
+    wheel_drift: float = 0.0
+    """Drift-dependent wheel weight, rad (0 turns it off, the default): the wheels' pseudo-inverse weight is
+    multiplied by 1 + (d / wheel_drift)^2, at most `WHEEL_DRIFT_MAX`, d the largest distance of an arm joint from
+    its angle at the episode start: the platform takes over a long motion once the arm has drifted."""
     posture_gain: float = 2.0
     """Null-space pull of the n - 2 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
     weighting: str = "none"
@@ -755,7 +760,13 @@ class EstimatingController(ControllerPolicy):
         if probing and not c.probe_tracking:
             v0 = v1 = v2 = 0.0
             z = np.zeros(self.n_act)
-        JW = Jc if self._unit_w and not self._any_blocked else Jc * self._w
+        if c.wheel_drift > 0:  # the wheels' weight grows with the arm's drift from its start
+            drift = float(np.abs(self._q0 - q_arm).max()) / c.wheel_drift
+            w = self._w.copy()
+            w[-2:] *= min(1.0 + drift * drift, WHEEL_DRIFT_MAX)
+            JW = Jc * w
+        else:
+            JW = Jc if self._unit_w and not self._any_blocked else Jc * self._w
         # (.dot: the same BLAS calls as @, at about half numpy's per-call overhead; equal bit for bit)
         r0, r1, r2 = Jc.dot(z).tolist()
         lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)

@@ -157,3 +157,33 @@ def test_the_options_parse_from_a_spec_and_are_validated():
             NNBCPlusConfig(gate_steps=bad)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="gate_inflate"):
         NNBCPlusConfig(gate_inflate=0.5)
+
+
+def test_wheel_drift_lets_the_wheels_take_over_once_the_arm_has_drifted():
+    """A linear plant whose six arm columns (each about 0.5 m/rad) together outweigh the wheels' (0.2): on a
+    long straight line the minimum-norm command moves the arm, which drifts from its start; with wheel_drift the
+    wheels' weight grows with that drift and the arm drifts less."""
+    n, dt = 8, 0.01
+    facts = EnvFacts(dt=dt, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=mobman_env.OBS_KEYS)
+    rng = np.random.default_rng(2)
+    J = np.hstack([0.3 * rng.standard_normal((3, 6)), [[0.2, 0.0], [0.0, 0.2], [0.0, 0.0]]])  # wheels: x and y
+    drift = {}
+    for wd in (0.0, 0.1):  # (no posture pull: the drift is the wheel weight's alone to stop)
+        policy = NNBCPlus(facts, NNBCPlusConfig(wheel_drift=wd, posture_gain=0.0), seed=1)
+        q, r, u = np.zeros(n), np.zeros(3), np.zeros(n)
+        errors = []
+        for k in range(800):
+            t = k * dt
+            target, target_vel = np.array([0.1 * t, 0.0, 0.0]), np.array([0.1, 0.0, 0.0])
+            obs = {
+                "ee_pos": r.copy(), "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
+                "joint_pos": q.copy(), "joint_vel": u.copy(), "target_pos": target, "target_vel": target_vel,
+                "base_yaw": np.zeros(1), "time": np.array([t]),
+            }  # fmt: skip
+            action, _ = policy.predict(obs)
+            u = np.asarray(action, float) * facts.scale
+            q, r = q + dt * u, r + dt * J @ u
+            errors.append(np.linalg.norm(r - np.array([0.1 * (t + dt), 0.0, 0.0])))
+        drift[wd] = float(np.abs(q[:6]).max())
+        assert max(errors[100:]) < 2e-3, (wd, max(errors[100:]))
+    assert drift[0.1] < 0.85 * drift[0.0], drift  # (0.43 against 0.55 rad: the weight is capped at 16)
