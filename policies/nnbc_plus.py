@@ -148,6 +148,15 @@ What it does not do yet (measured on development seeds, v2.1)
   * Existing options (`dev-explore16.json`): `q_rate=0.01,q_jacobian=1e-5`, seeds 0-39: circle-10s 31/40
     against 28/40, but circle-0.5m 34/40 against 39/40 (kinematic 38/40 both and 38/40 against 39/40);
     `dither` 0.02: circle-5s 2/10, circle-10s 9/10, 0.01: 1/10, 7/10; `accel_time=0.1`: 0/10, 9/10.
+* **A wheel weight that grows with the arm's drift** (`wheel_drift`, off by default; for the Line with velocity
+  noise, where the arm drifts until a joint reaches its stop): physics `noise`, development seeds 0-19 (Circle /
+  Lemniscate / Line / Random), the default 20 / 18 / 14 / 20 (72/80); `wheel_drift` 0.3 rad: 1 / 17 / 20 / 17 (55/80),
+  0.6: 13 / 18 / 20 / 19 (70/80), 1.0: 18 / 16 / 19 / 20 (73/80), 1.5: 20 / 17 / 13 / 20 (70/80). Like a fixed
+  `wheel_weight` it fixes the Line and costs the circles with noise. 1.0 beside the default on the physics circle
+  cells (seeds 0-9): circle-5s 0/10 and 0/10, circle-10s 10/10 (max 0.6 mm) against 9/10, circle-0.5m 6/10
+  against 10/10; on the check grid (seeds 0-3, four tasks): physics default 16/16 both, noise 14/16 against 16/16,
+  joint-speed noise 16/16 against 15/16, random starts 15/16 against 14/16, 30% wear 11/16 against 12/16,
+  kinematic default and noise 16/16 both (`dev-wheel-drift.json`). Not the default.
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
