@@ -66,7 +66,13 @@ class KalmanEstimator:
     middle, so the regressor gets -dt/2 x on the rate states. noise_rate > 0: the measurement noise R is
     estimated online by covariance matching (a running mean, with that per-step weight, of the (clipped)
     innovation's mean square per component minus its predicted part h P h^T), never below meas_std^2; 0 keeps
-    R = meas_std^2.
+    R = meas_std^2. innov_gate > 0: innovation consistency gate (0 = off): a pair whose innovation's mean square
+    per component exceeds innov_gate^2 (h P h^T + R), its predicted variance, is not learnt (the step is
+    predicted only); after gate_steps rejections in a row the next pair is learnt anyway, with P multiplied by
+    gate_inflate first (a real change of J, not a transient). gate_rms > 0: the same gate against gate_rms times
+    the running RMS the clip keeps. R's statistics see every innovation, gated or not; the clip's RMS only the
+    accepted ones. rate_time > 0: the rate decays, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t)
+    (a first-order Gauss-Markov rate instead of a constant one; 0 = constant).
     """
 
     def __init__(
@@ -86,6 +92,11 @@ class KalmanEstimator:
         midpoint: bool,
         sym_phase: int = 0,
         noise_rate: float = 0.0,
+        innov_gate: float = 0.0,
+        gate_rms: float = 0.0,
+        gate_steps: int = 10,
+        gate_inflate: float = 1.0,
+        rate_time: float = 0.0,
     ):
         self._n = n
         self._dt = dt
@@ -102,6 +113,14 @@ class KalmanEstimator:
         self._clip = innov_clip
         self._clip2 = innov_clip**2
         self._rate = innov_rate
+        self._rate_decay = float(np.exp(-dt / rate_time)) if rate_time > 0 else 1.0
+        self._gate2 = 3.0 * innov_gate**2  # on the squared norm of the 3-component innovation
+        self._gate_rms2 = gate_rms**2
+        self._gate_steps = gate_steps
+        self._gate_inflate = gate_inflate
+        self._rejected = 0
+        self.n_rejected = 0  # updates skipped by the gate since the reset (a diagnostic)
+        self.nis = 0.0  # the last innovation's mean square per component over h P h + R (with the gate on)
         # [X; P] in one (3 + 2n) x 2n array (`X` and `P` are views of it): the constant-rate prediction of X and
         # the column step of F P F^T are then one operation (the same per-entry arithmetic as two)
         self._M0 = np.zeros((3 + ns, ns))
@@ -136,6 +155,8 @@ class KalmanEstimator:
         self._innov_ms = INNOV_MS0
         self._r = self._r_est = self._r0
         self._m = 0
+        self._rejected = 0
+        self.n_rejected = 0
 
     def init(self, J0: np.ndarray) -> None:
         self._M[:3, : self._n] = J0
@@ -152,7 +173,12 @@ class KalmanEstimator:
         X = M[:3]
         P = M[3:]
         P[:n] += dt * P[n:]  # the rows of F P
+        a = self._rate_decay
+        if a != 1.0:  # a decaying rate (first-order Gauss-Markov): F = [[I, dt I], [0, a I]]
+            P[n:] *= a
         M[:, :n] += dt * M[:, n:]  # X's constant-rate prediction and the columns of (F P) F^T
+        if a != 1.0:
+            M[:, n:] *= a
         if self._inv_lambda != 1.0:
             P *= self._inv_lambda
         if self._q is not None:
@@ -164,10 +190,27 @@ class KalmanEstimator:
             h[n:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
         Ph = P.dot(h)  # (.dot: the same BLAS call as @ at about half the overhead)
         hPh = float(h.dot(Ph))
-        K = Ph / (hPh + self._r)
         innov = y - X.dot(h)
         n2 = float(innov.dot(innov))
-        if self._clip > 0:
+        reject = False
+        if self._gate2 > 0.0 or self._gate_rms2 > 0.0:
+            # consistency gate: |innov|^2 / 3 against its predicted variance h P h + R (innov_gate), or |innov|^2
+            # against the running mean square of the recent innovations (gate_rms)
+            self.nis = n2 / (3.0 * (hPh + self._r))  # normalised innovation (a diagnostic)
+            if (self._gate2 > 0.0 and n2 > self._gate2 * (hPh + self._r)) or (
+                self._gate_rms2 > 0.0 and n2 > self._gate_rms2 * self._innov_ms
+            ):
+                self._rejected += 1
+                reject = self._rejected <= self._gate_steps
+                if not reject and self._gate_inflate != 1.0:
+                    # gate_steps rejections in a row: y = J x has really changed; learn it, with P widened
+                    P *= self._gate_inflate
+                    Ph = P.dot(h)
+                    hPh = float(h.dot(Ph))
+            if not reject:
+                self._rejected = 0
+        K = Ph / (hPh + self._r)
+        if self._clip > 0 and not reject:
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
                 innov *= (lim2 / n2) ** 0.5
@@ -176,6 +219,9 @@ class KalmanEstimator:
         if self._noise_rate > 0:  # covariance matching: E[innov_i^2] = h P h + R per component
             self._r_est += self._noise_rate * (n2 / 3.0 - hPh - self._r_est)
             self._r = max(self._r0, self._r_est)
+        if reject:  # the noise statistics see every innovation; the state does not learn this one
+            self.n_rejected += 1
+            return
         X += innov[:, None] * K
         P -= K[:, None] * Ph
         if (self._m + self._sym_phase) % 64 == 0:  # P is symmetric in exact arithmetic; remove the round-off

@@ -53,6 +53,15 @@ def run_seeds(task: str, config: NNBCPlusConfig | None = None, **env_kwargs) -> 
         env.close()
 
 
+def plant_obs(q, r, u, J, t, target, target_vel) -> dict:
+    """The observation of a linear plant r_dot = J u at joint angles q and speeds u (no platform, heading 0)."""
+    return {
+        "ee_pos": r.copy(), "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
+        "joint_pos": q.copy(), "joint_vel": u.copy(), "target_pos": target, "target_vel": target_vel,
+        "base_yaw": np.zeros(1), "time": np.array([t]),
+    }  # fmt: skip
+
+
 # --- accuracy claims ---------------------------------------------------------------------------------------
 @pytest.mark.parametrize("task", TASKS)
 def test_tracks_every_task_within_the_papers_6mm(task):
@@ -172,11 +181,7 @@ def test_any_number_of_actuators_on_a_linear_plant():
         t = k * dt
         target = 0.05 * np.array([np.sin(t), 1.0 - np.cos(t), 0.5 * np.sin(2 * t)])
         target_vel = 0.05 * np.array([np.cos(t), np.sin(t), np.cos(2 * t)])
-        obs = {
-            "ee_pos": r.copy(), "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
-            "joint_pos": q.copy(), "joint_vel": u.copy(), "target_pos": target, "target_vel": target_vel,
-            "base_yaw": np.zeros(1), "time": np.array([t]),
-        }  # fmt: skip
+        obs = plant_obs(q, r, u, J, t, target, target_vel)
         action, _ = policy.predict(obs)
         assert action.shape == (n,)
         u = np.asarray(action, float) * facts.scale
