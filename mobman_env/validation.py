@@ -64,19 +64,19 @@ def number(
     hint: str = "",
     error: type[Exception] = ValueError,
 ) -> float:
-    """Return `value` as a float if it is a finite real number within the bounds; else raise `error`."""
+    """Return `value` as a float if it is a finite real number within the bounds; else raise `error`.
+    (The message is built only on failure: hot paths, such as the wear drift's `RobotParams.scaled` every step,
+    check numbers too.)"""
+    if type(value) is float or (not isinstance(value, bool) and isinstance(value, numbers.Real)):
+        v = float(value)
+        if (
+            math.isfinite(v)
+            and (low is None or (v > low if open_low else v >= low))
+            and (high is None or (v < high if open_high else v <= high))
+        ):
+            return v
     bounds = _range_text(low, high, open_low, open_high)
-    what = "a finite number" + (f" {bounds}" if bounds else "")
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise _fail(error, name, what, value, hint)
-    v = float(value)
-    if not math.isfinite(v):
-        raise _fail(error, name, what, value, hint)
-    if low is not None and (v <= low if open_low else v < low):
-        raise _fail(error, name, what, value, hint)
-    if high is not None and (v >= high if open_high else v > high):
-        raise _fail(error, name, what, value, hint)
-    return v
+    raise _fail(error, name, "a finite number" + (f" {bounds}" if bounds else ""), value, hint)
 
 
 def integer(
