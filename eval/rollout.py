@@ -40,6 +40,7 @@ traceback, its metrics are None, and the caller goes on with the next episode.
 
 from __future__ import annotations
 
+import itertools
 import os
 import time
 import traceback
@@ -404,18 +405,18 @@ class _JacobianRecorder:
         rel = np.full(k, np.nan)
         angle = np.full(k, np.nan)
         if have.any():
-            steps = np.flatnonzero(have)
+            steps = np.flatnonzero(have).tolist()
             J = np.empty((len(steps),) + J_hat.shape[1:])
             start = 0  # runs of steps with the same true robot, one numpy pass each
-            for end in range(1, len(steps) + 1):
-                if end == len(steps) or self._params[steps[end]] is not self._params[steps[start]]:
-                    run = steps[start:end]
-                    params = self._params[run[0]]
-                    if len(run) == 1:  # a robot that changes every step (wear drift): the cheaper single call
-                        J[start] = self._single(params, self._q[run[0]], float(self._yaw[run[0]]))
-                    else:
-                        J[start:end] = robot_jacobians(params, self._q[run], self._yaw[run], self.kind == "whole_body")
-                    start = end
+            for _, group in itertools.groupby(steps, key=lambda step: id(self._params[step])):
+                run = list(group)
+                end = start + len(run)
+                params = self._params[run[0]]
+                if len(run) == 1:  # a robot that changes every step (wear drift): the cheaper single call
+                    J[start] = self._single(params, self._q[run[0]], float(self._yaw[run[0]]))
+                else:
+                    J[start:end] = robot_jacobians(params, self._q[run], self._yaw[run], self.kind == "whole_body")
+                start = end
             rel[have] = M.jacobian_relative_error(J_hat[have], J)
             angle[have] = M.row_space_angle(J_hat[have], J)
         return {

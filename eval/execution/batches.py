@@ -53,6 +53,7 @@ names) and `mobman_env.vector`.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 from typing import Any
@@ -200,10 +201,10 @@ class UnitRunner:
 
         runs: list[tuple[str, slice]] = []
         start = 0
-        for i in range(1, len(unit) + 1):
-            if i == len(unit) or unit[i].policy != unit[start].policy:
-                runs.append((unit[start].policy, slice(start, i)))
-                start = i
+        for spec, group in itertools.groupby(task.policy for task in unit):
+            end = start + len(list(group))
+            runs.append((spec, slice(start, end)))
+            start = end
         try:
             if len(runs) == 1:
                 return make_policy(runs[0][0], venv, self.config.seed)
