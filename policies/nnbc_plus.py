@@ -268,6 +268,12 @@ class ModelFreeConfig:
     """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
     task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
+    dither_freq: float = 0.0
+    """Smooth dither, Hz (0 turns it off, the default: new random signs every step): each actuator's dither is
+    dither * sin(2 pi f_j t + phi_j), the n frequencies f_j spread evenly over [dither_freq, 2 dither_freq], the
+    phases drawn from the controller's RNG at the first step after the probe. The random-sign dither changes each
+    actuator's speed by up to 2 dither per step (10 rad/s^2 at the default); the sinusoid by at most
+    dither 2 pi f_j dt. See the module docstring for what it measured."""
     wheel_weight: float = 1.0
     """Pseudo-inverse weight of the two wheels relative to the arm joints (W = diag(1, ..., 1, w, w) times the
     `weighting`): above 1 the platform takes more of the motion and the arm stays nearer its start. Measured on
@@ -423,6 +429,15 @@ class NNBCPlusConfig(ModelFreeConfig):
     """Time constant of the rate model, s (0 turns it off, the default: a constant rate, J_dot(t + dt) =
     J_dot(t)): above 0, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t), so a rate the measurements no longer
     support decays instead of carrying J_hat away in the directions the path does not excite."""
+    info_dither: float = 0.0
+    """Directed excitation, rad/s (0 turns it off, the default): added to the command (after the control law, so
+    not projected into J_hat's null space) along the direction of the actuator space in which the filter is least
+    sure of J (the top eigenvector of the covariance of one row of J_hat, followed by one power-iteration step
+    per use), with a random sign on even steps and the opposite sign on the next (zero mean: the end-effector
+    comes back), or as a sinusoid (`info_freq`). The null-space dither never excites J's row space, and a path
+    excites one direction of it at a time. See the module docstring for what it measured."""
+    info_freq: float = 0.0
+    """Frequency of `info_dither` as a sinusoid, Hz (0: the two-step +-info_dither)."""
 
     def __post_init__(self):
         number("NNBCPlusConfig.forgetting", self.forgetting, low=0.0, open_low=True, high=1.0)
@@ -535,6 +550,7 @@ class EstimatingController(ControllerPolicy):
             self.uses_keys = (*self.uses_keys, "base_yaw")
         self._J_world: np.ndarray | None = None  # body_frame: the last J_hat rotated to the world frame
         self._unit_w = not (self._w0 != 1.0).any()  # W = I: the weighting product is skipped
+        self._info_a = float(getattr(c, "info_dither", 0.0))  # (a Kalman option: it reads the covariance P)
         self.estimator: JacobianEstimator = self._make_estimator()
         self._k = 0
         self.delay_estimate = 0
@@ -595,6 +611,10 @@ class EstimatingController(ControllerPolicy):
         self._block_q = np.zeros(n)
         self._any_blocked = False
         self._w = self._w0
+        self._phase: np.ndarray | None = None  # dither_freq: the sinusoids' phases, drawn at the first block
+        self._dither_t = 0  # dither_freq: steps of sinusoid drawn so far
+        self._info_v = np.full(n, 1.0 / math.sqrt(n))  # info_dither: the power iteration's vector
+        self._info_s = 0.0  # info_dither: the signed amplitude of the current two-step pair
         self._J_world = None
         self._prev_psi = float(obs["base_yaw"][0]) if self._body else 0.0
         self.estimator.reset()
@@ -689,6 +709,33 @@ class EstimatingController(ControllerPolicy):
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
         self.estimator.init(J0)
 
+    def _sinusoids(self) -> np.ndarray:
+        """The next `_SIGN_BLOCK` rows of the smooth dither (`dither_freq`)."""
+        c = self.config
+        n = self.n_act
+        if self._phase is None:
+            self._phase = self.rng.uniform(0.0, 2.0 * math.pi, n)
+        f = c.dither_freq * (1.0 + np.arange(n) / (n - 1))
+        t = (self._dither_t + np.arange(_SIGN_BLOCK))[:, None] * self._dt
+        self._dither_t += _SIGN_BLOCK
+        return c.dither * np.sin(2.0 * math.pi * f * t + self._phase)
+
+    def _directed(self, k: int) -> np.ndarray:
+        """This step's `info_dither` (n): along the power-iterated top eigenvector of the covariance of a row of J
+        (the part of the Kalman filter's P that belongs to J)."""
+        a = self._info_a
+        freq = getattr(self.config, "info_freq", 0.0)
+        if freq <= 0.0 and k % 2 == 1:
+            return -self._info_s * self._info_v  # the second step of the pair: back
+        n = self.n_act
+        vec = self.estimator.P[:n, :n].dot(self._info_v)  # type: ignore[attr-defined]
+        vec /= np.linalg.norm(vec)
+        self._info_v = vec
+        if freq > 0.0:
+            return (a * math.sin(2.0 * math.pi * freq * k * self._dt)) * vec
+        self._info_s = a if self.rng.random() < 0.5 else -a
+        return self._info_s * vec
+
     # --- one step --------------------------------------------------------------------------------------
     def _act(self, obs: dict) -> np.ndarray:
         k = self._k
@@ -761,7 +808,7 @@ class EstimatingController(ControllerPolicy):
             i = self._sign_i
             if i >= len(self._dtd):  # random signs, one row per step: n for the dither, 3 for the task dither
                 signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
-                self._dz = c.dither * signs[:, : self.n_act]
+                self._dz = c.dither * signs[:, : self.n_act] if c.dither_freq <= 0 else self._sinusoids()
                 self._dtd = (c.task_dither * signs[:, self.n_act :]).tolist()
                 i = 0
             self._sign_i = i + 1
@@ -791,6 +838,8 @@ class EstimatingController(ControllerPolicy):
         r0, r1, r2 = Jc.dot(z).tolist()
         lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)
         u = z + JW.T.dot(lam)
+        if self._info_a > 0.0 and not probing:
+            u = u + self._directed(k)
         if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
             u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
         if self._any_blocked:  # never further into a stop
