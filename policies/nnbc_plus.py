@@ -218,8 +218,9 @@ import numpy as np
 from mobman_env.validation import number
 from policies.base import ControllerPolicy, EnvFacts
 from policies.estimators import JacobianEstimator, KalmanEstimator
+from policies.structured import StructuredEstimator
 
-FORMULATIONS = ("whole_body", "paper")
+FORMULATIONS = ("whole_body", "paper", "structured")
 MEASUREMENTS = ("velocity", "position")
 
 
@@ -253,7 +254,9 @@ class ModelFreeConfig:
     formulation: str = "whole_body"
     """"whole_body": J_hat maps u to the whole r_a_dot (the platform's translation is learnt, so it can drive);
     "paper": J_hat maps u to r_a_dot - [p_c_dot; 0] and the measured p_c_dot is subtracted in the control law, as
-    in the paper's eq. (11)."""
+    in the paper's eq. (11); "structured" (`nnbc-plus` only): the whole-body J composed from an arm Jacobian in
+    the platform's frame, learnt from the end-effector velocity minus the platform's measured motion, and a learnt
+    map from the wheel speeds to the platform's motion (`policies.structured`: platform slip is not learnt)."""
     measurement: str = "velocity"
     """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "position": from
     finite differences of ee_pos (arm_base_pos) against joint_pos over the last step (for sensor sets without
@@ -357,6 +360,11 @@ class ModelFreeConfig:
         number(f"{name}.delay_rate", self.delay_rate, low=0.0, open_low=True, high=1.0)
         if isinstance(self.block_every, bool) or not isinstance(self.block_every, int) or self.block_every < 1:
             raise ValueError(f"{name}.block_every must be an integer >= 1 (control steps), got {self.block_every!r}")
+        if self.formulation == "structured" and (self.measurement != "velocity" or self.body_frame):
+            raise ValueError(
+                f"{name}.formulation='structured' needs measurement='velocity' and body_frame=False, got "
+                f"measurement={self.measurement!r}, body_frame={self.body_frame!r}"
+            )
         if self.body_frame and self.measurement != "velocity":
             raise ValueError(f"{name}.body_frame needs measurement='velocity', got {self.measurement!r}")
         if isinstance(self.max_delay, bool) or not isinstance(self.max_delay, int) or not 0 <= self.max_delay <= 10:
@@ -429,6 +437,12 @@ class NNBCPlusConfig(ModelFreeConfig):
     """Time constant of the rate model, s (0 turns it off, the default: a constant rate, J_dot(t + dt) =
     J_dot(t)): above 0, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t), so a rate the measurements no longer
     support decays instead of carrying J_hat away in the directions the path does not excite."""
+    q_platform: float = 1e-7
+    """`formulation="structured"`: process noise of the wheel map's entries per step, (m/rad)^2 (the map is a
+    constant of the platform; this lets it follow wear)."""
+    platform_std: float = 0.01
+    """`formulation="structured"`: smallest measurement noise assumed for the platform's velocity, m/s (the
+    wheel map is learnt over many steps, so a slip or a noisy reading moves it little)."""
     info_dither: float = 0.0
     """Directed excitation, rad/s (0 turns it off, the default): added to the command (after the control law, so
     not projected into J_hat's null space) along the direction of the actuator space in which the filter is least
@@ -540,18 +554,26 @@ class EstimatingController(ControllerPolicy):
         self._half_dt = 0.5 * self._dt
         self._eps2 = c.sing_threshold**2
         self._du = self._scale * (self._dt / c.accel_time) if c.accel_time > 0 else None
-        self._whole = c.formulation == "whole_body"
+        self._whole = c.formulation != "paper"  # (the structured estimate is a whole-body J too)
+        self._structured = c.formulation == "structured"
         self._use_vel = c.measurement == "velocity"
         self.jacobian_kind = "whole_body" if self._whole else "paper"
         # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
         self.uses_keys = USES_KEYS if not self._whole else tuple(k for k in USES_KEYS if not k.startswith("arm_base"))
         self._body = c.body_frame
+        if self._structured:
+            self.uses_keys = (*USES_KEYS, "base_yaw")
         if self._body:
             self.uses_keys = (*self.uses_keys, "base_yaw")
         self._J_world: np.ndarray | None = None  # body_frame: the last J_hat rotated to the world frame
         self._unit_w = not (self._w0 != 1.0).any()  # W = I: the weighting product is skipped
         self._info_a = float(getattr(c, "info_dither", 0.0))  # (a Kalman option: it reads the covariance P)
         self.estimator: JacobianEstimator = self._make_estimator()
+        if self._structured and not hasattr(self.estimator, "observe"):
+            raise ValueError(
+                f"{cls}: formulation='structured' is nnbc-plus's (two Kalman filters); this controller estimates "
+                f"one Jacobian: use formulation 'whole_body' or 'paper'"
+            )
         self._k = 0
         self.delay_estimate = 0
 
@@ -748,6 +770,8 @@ class EstimatingController(ControllerPolicy):
         hist[ring] = self.last_u  # the command issued at step k - 1
         probing = k < n_probe
         x, y = self._measure(obs, probing)
+        if self._structured:  # the platform's measurements (every step: the wheel map learns from the probe too)
+            est.observe(obs)  # type: ignore[attr-defined]
         if self._body:  # the estimator works in the platform's frame: y rotated by -phi
             psi = float(obs["base_yaw"][0])
             cs, sn = math.cos(psi), math.sin(psi)
@@ -862,12 +886,10 @@ class NNBCPlus(EstimatingController):
     config_cls = NNBCPlusConfig
     Config = NNBCPlusConfig
 
-    def _make_estimator(self) -> KalmanEstimator:
+    def _make_estimator(self) -> KalmanEstimator | StructuredEstimator:
         c = self.config
         assert isinstance(c, NNBCPlusConfig)
-        return KalmanEstimator(
-            self.n_act,
-            self._dt,
+        kw: dict[str, Any] = dict(
             q_jacobian=c.q_jacobian,
             q_rate=c.q_rate,
             meas_std=c.meas_std,
@@ -886,6 +908,11 @@ class NNBCPlus(EstimatingController):
             gate_inflate=c.gate_inflate,
             rate_time=c.rate_time,
         )
+        if c.formulation == "structured":
+            return StructuredEstimator(
+                self.n_act, self._dt, q_platform=c.q_platform, platform_std=c.platform_std, arm_kw=kw
+            )
+        return KalmanEstimator(self.n_act, self._dt, **kw)
 
     @property
     def P(self) -> np.ndarray:
