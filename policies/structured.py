@@ -54,7 +54,17 @@ class StructuredEstimator:
         self._na = n - 2
         self._dt = dt
         self.arm = KalmanEstimator(self._na, dt, **arm_kw)
-        plat_kw = dict(arm_kw, q_jacobian=q_platform, q_rate=0.0, p0_rate=0.0, meas_std=platform_std)
+        # the wheel map: a plain Kalman filter (no innovation clip, R fixed at platform_std^2: its first
+        # innovations are large, and the clip's running RMS would throttle them)
+        plat_kw = dict(
+            arm_kw,
+            q_jacobian=q_platform,
+            q_rate=0.0,
+            p0_rate=0.0,
+            meas_std=platform_std,
+            innov_clip=0.0,
+            noise_rate=0.0,
+        )
         plat_kw.pop("sym_phase", None)
         self.platform = KalmanEstimator(2, dt, **plat_kw)
         self._J = np.zeros((3, n))
