@@ -42,54 +42,79 @@ import numpy as np
 from policies.estimators import KalmanEstimator
 
 
+class WheelMap:
+    """M (3 x 2): a Kalman filter on the constant map from the two wheel speeds to the platform's velocity in its
+    own frame (forward, sideways, yaw rate), in plain floats: the three rows share one 2 x 2 covariance P;
+    random-walk process noise q per entry and step, measurement noise r (fixed)."""
+
+    def __init__(self, q: float, r: float, p0: float):
+        self._q, self._r, self._p0 = q, r, p0
+        self.reset()
+
+    def reset(self) -> None:
+        self.rows = [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]
+        self.P = [[self._p0, 0.0], [0.0, self._p0]]
+
+    def update(self, h0: float, h1: float, z: tuple[float, float, float]) -> None:
+        (a, b), (_, d) = self.P
+        a, d = a + self._q, d + self._q
+        p0, p1 = a * h0 + b * h1, b * h0 + d * h1  # P h
+        s = h0 * p0 + h1 * p1 + self._r
+        k0, k1 = p0 / s, p1 / s
+        for row, zi in zip(self.rows, z):
+            e = zi - (row[0] * h0 + row[1] * h1)
+            row[0] += k0 * e
+            row[1] += k1 * e
+        b = b - k0 * p1
+        self.P = [[a - k0 * p0, b], [b, d - k1 * p1]]
+
+    @property
+    def M(self) -> np.ndarray:
+        return np.array(self.rows)
+
+
 class StructuredEstimator:
     """The whole-body J of an arm on a platform, from an arm Jacobian in the platform's frame and a learnt
     wheel map (see the module docstring). n actuators: n - 2 arm joints, then the left and right wheel.
 
     `observe(obs)` must be called at every control step before `update` (and during the probe, so the wheel
-    map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter."""
+    map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. J and J_dot are
+    composed when read."""
 
     def __init__(self, n: int, dt: float, *, q_platform: float, platform_std: float, arm_kw: dict):
         self._n = n
         self._na = n - 2
         self._dt = dt
         self.arm = KalmanEstimator(self._na, dt, **arm_kw)
-        # the wheel map: a plain Kalman filter (no innovation clip, R fixed at platform_std^2: its first
-        # innovations are large, and the clip's running RMS would throttle them)
-        plat_kw = dict(
-            arm_kw,
-            q_jacobian=q_platform,
-            q_rate=0.0,
-            p0_rate=0.0,
-            meas_std=platform_std,
-            innov_clip=0.0,
-            noise_rate=0.0,
-        )
-        plat_kw.pop("sym_phase", None)
-        self.platform = KalmanEstimator(2, dt, **plat_kw)
-        self._J = np.zeros((3, n))
-        self._Jdot = np.zeros((3, n))
+        # the wheel map: no innovation clip and R fixed at platform_std^2 (its first innovations are large, and
+        # a clip's running RMS would throttle them)
+        self.platform = WheelMap(q_platform, platform_std**2, arm_kw["p0_jacobian"])
         self._P = np.zeros((2 * n, 2 * n))
         self.reset()
 
     def reset(self) -> None:
         self.arm.reset()
         self.platform.reset()
-        self._J[:] = 0.0
-        self._Jdot[:] = 0.0
         self._yaw: float | None = None
         self.omega = 0.0  # rad/s, the heading's rate over the last step
         self._cs = (1.0, 0.0)
-        self._lever = np.zeros(2)  # r_a - p_c (x, y), m
-        self._lever_rate = np.zeros(2)
-        self._base_vel = np.zeros(2)
+        self._lever = (0.0, 0.0)  # r_a - p_c (x, y), m
+        self._lever_rate = (0.0, 0.0)
+        self._base_vel = (0.0, 0.0)
+        self._dirty = True
+        self._J = np.zeros((3, self._n))
+        self._Jdot = np.zeros((3, self._n))
 
     @property
     def J(self) -> np.ndarray:
+        if self._dirty:
+            self._compose()
         return self._J
 
     @property
     def Jdot(self) -> np.ndarray:
+        if self._dirty:
+            self._compose()
         return self._Jdot
 
     @property
@@ -99,35 +124,36 @@ class StructuredEstimator:
         na, n = self._na, self._n
         P = self._P
         P[:na, :na] = self.arm.P[:na, :na]
-        P[na:n, na:n] = self.platform.P[:2, :2]
+        P[na:n, na:n] = self.platform.P
         return P
 
     def observe(self, obs: dict) -> None:
-        """This step's platform measurements: heading and its rate, the lever r_a - p_c, the wheel map's update
-        (when the wheels turn), and J, J_dot composed for the control law."""
+        """This step's platform measurements: heading and its rate, the lever r_a - p_c, and the wheel map's
+        update (when the wheels turn)."""
         yaw = float(obs["base_yaw"][0])
         if self._yaw is not None:
             self.omega = (yaw - self._yaw) / self._dt
         self._yaw = yaw
         c, s = math.cos(yaw), math.sin(yaw)
         self._cs = (c, s)
-        ee, pc = obs["ee_pos"], obs["arm_base_pos"]
-        self._lever = np.array([ee[0] - pc[0], ee[1] - pc[1]])
-        v, pv = obs["ee_vel"], obs["arm_base_vel"]
-        self._base_vel = np.array([pv[0], pv[1]])
-        self._lever_rate = np.array([v[0] - pv[0], v[1] - pv[1]])
-        wheels = obs["joint_vel"][self._na :]
-        if float(wheels.dot(wheels)) > 0.0:
-            body = np.array([c * pv[0] + s * pv[1], c * pv[1] - s * pv[0], self.omega])
-            self.platform.update(wheels, body)
-        self._compose()
+        e0, e1, _ = obs["ee_pos"].tolist()
+        p0, p1 = obs["arm_base_pos"].tolist()
+        v0, v1, _ = obs["ee_vel"].tolist()
+        b0, b1 = obs["arm_base_vel"].tolist()
+        self._lever = (e0 - p0, e1 - p1)
+        self._base_vel = (b0, b1)
+        self._lever_rate = (v0 - b0, v1 - b1)
+        w0, w1 = obs["joint_vel"][self._na :].tolist()
+        if w0 != 0.0 or w1 != 0.0:
+            self.platform.update(w0, w1, (c * b0 + s * b1, c * b1 - s * b0, self.omega))
+        self._dirty = True
 
     def init(self, J0: np.ndarray) -> None:
         """A(0) from the probe's whole-body fit: its arm columns in the platform's frame (A_dot(0) = 0)."""
         c, s = self._cs
         na = self._na
         self.arm.init(np.vstack([c * J0[0, :na] + s * J0[1, :na], c * J0[1, :na] - s * J0[0, :na], J0[2, :na]]))
-        self._compose()
+        self._dirty = True
 
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
         """Learn A from the arm's share of the measured end-effector velocity y (x: all n actuator speeds)."""
@@ -135,29 +161,30 @@ class StructuredEstimator:
         w = self.omega
         lx, ly = self._lever
         bx, by = self._base_vel
-        a0, a1 = y[0] - bx + w * ly, y[1] - by - w * lx
-        self.arm.update(x[: self._na], np.array([c * a0 + s * a1, c * a1 - s * a0, y[2]]))
-        self._compose()
+        y0, y1, y2 = y.tolist()
+        a0, a1 = y0 - bx + w * ly, y1 - by - w * lx
+        self.arm.update(x[: self._na], np.array([c * a0 + s * a1, c * a1 - s * a0, y2]))
+        self._dirty = True
 
     def _compose(self) -> None:
         """J and J_dot (world frame) from A, A_dot, M and this step's heading, rate and lever."""
         c, s = self._cs
-        na = self._na
         w = self.omega
-        A, Ad, M = self.arm.J, self.arm.Jdot, self.platform.J
-        J, Jd = self._J, self._Jdot
-        J[0, :na] = c * A[0] - s * A[1]
-        J[1, :na] = s * A[0] + c * A[1]
-        J[2, :na] = A[2]
+        R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        A = self.arm.J
+        Ja = R.dot(A)
+        (m0, n0), (m1, n1), (m2, n2) = self.platform.rows
         lx, ly = self._lever
-        J[0, na:] = c * M[0] - s * M[1] - ly * M[2]
-        J[1, na:] = s * M[0] + c * M[1] + lx * M[2]
-        J[2, na:] = 0.0
-        # the rate: A's, plus the heading turning every column (d/dt R = omega z x R), plus the lever's motion
-        Jd[0, :na] = c * Ad[0] - s * Ad[1] - w * J[1, :na]
-        Jd[1, :na] = s * Ad[0] + c * Ad[1] + w * J[0, :na]
-        Jd[2, :na] = Ad[2]
         rx, ry = self._lever_rate
-        Jd[0, na:] = -w * (s * M[0] + c * M[1]) - ry * M[2]
-        Jd[1, na:] = w * (c * M[0] - s * M[1]) + rx * M[2]
-        Jd[2, na:] = 0.0
+        f0, f1 = c * m0 - s * m1, c * n0 - s * n1  # R M_p, first row
+        g0, g1 = s * m0 + c * m1, s * n0 + c * n1  # second row
+        self._J = np.concatenate(
+            (Ja, np.array([[f0 - ly * m2, f1 - ly * n2], [g0 + lx * m2, g1 + lx * n2], [0.0, 0.0]])), axis=1
+        )
+        # the rate: A's turned by R, plus the heading turning every column (d/dt R = omega z x R), plus the
+        # lever's motion (d/dt (z x L) = z x L_dot)
+        turn = np.array([[0.0, -w, 0.0], [w, 0.0, 0.0], [0.0, 0.0, 0.0]])
+        Jda = R.dot(self.arm.Jdot) + turn.dot(Ja)
+        Jdw = np.array([[-w * g0 - ry * m2, -w * g1 - ry * n2], [w * f0 + rx * m2, w * f1 + rx * n2], [0.0, 0.0]])
+        self._Jdot = np.concatenate((Jda, Jdw), axis=1)
+        self._dirty = False

@@ -95,7 +95,7 @@ def test_slip_does_not_reach_the_structured_estimate_but_corrupts_the_whole_body
     # before the slip both are right; the slip moves the whole-body estimate, not the structured one
     assert errors["structured"][0] < 0.02 and errors["whole"][0] < 0.02, errors
     assert errors["structured"][1] < 0.02 < 0.05 < errors["whole"][1], errors
-    np.testing.assert_allclose(structured.platform.J, plant.M, atol=5e-3)  # the wheel map, learnt
+    np.testing.assert_allclose(structured.platform.M, plant.M, atol=5e-3)  # the wheel map, learnt
 
 
 def test_the_composed_rate_is_the_derivative_of_the_composed_jacobian():
@@ -106,7 +106,7 @@ def test_the_composed_rate_is_the_derivative_of_the_composed_jacobian():
     x = np.r_[0.2 * np.ones(6), 0.5, 1.5]  # turning
     est.observe(plant.step(x, 0.0))
     est.init(plant.jacobian())
-    est.platform._M[:3, :2] = plant.M  # (the learnt map, exact here)
+    est.platform.rows = plant.M.tolist()  # (the learnt map, exact here)
     Js, Jds = [], []
     for _ in range(3):
         est.observe(plant.step(x, 0.0))
