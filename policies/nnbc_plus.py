@@ -378,6 +378,9 @@ class NNBCPlusConfig(ModelFreeConfig):
     """Gains of `NNBCPlus`: the scaffolding's (`ModelFreeConfig`) and the Kalman filter's; defaults tuned on
     development seeds 0-999 only (see the module docstring)."""
 
+    formulation: str = "structured"
+    """As in `ModelFreeConfig`, but `nnbc-plus`'s default is "structured" (v3: platform slip is not learnt; the
+    whole-body estimate of v2 is "whole_body")."""
     forgetting: float = 1.0
     """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
     divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off

@@ -173,7 +173,7 @@ def test_any_number_of_actuators_on_a_linear_plant():
     facts = EnvFacts(dt=dt, action_scale=(3.0,) * 7 + (10.0, 10.0), obs_keys=mobman_env.OBS_KEYS)
     rng = np.random.default_rng(5)
     J = 0.3 * rng.standard_normal((3, n))
-    policy = NNBCPlus(facts, seed=1)
+    policy = NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body"), seed=1)  # (a linear plant: no platform)
     assert policy.n_act == 9 and policy.n_arm == 7 and policy.n_probe == 18
     q, r, u = np.zeros(n), np.zeros(3), np.zeros(n)
     errors = []

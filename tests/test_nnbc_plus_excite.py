@@ -1,5 +1,5 @@
 """`nnbc-plus` excitation options of issue 16 (`info_dither`, `info_freq`, `dither_freq`): unit tests on linear
-plants (y = J x) and on the excitation signals themselves.
+plants (y = J x, so with the whole-body estimate: a linear plant has no platform) and on the excitation signals.
 
 All are off by default (the default controller's actions are unchanged); their measured effect on the
 conditions of issue 16 is in the module docstring of `policies.nnbc_plus`.
@@ -46,14 +46,14 @@ def test_directed_excitation_learns_what_the_path_leaves_unexcited_at_a_cost_in_
     changes in the others, J_hat goes stale (18-20% here). `info_dither` excites the filter's least certain
     direction and keeps J_hat within about 5%, but it moves the end-effector (0.5 -> 1 mm here)."""
     for seed in range(2):
-        err0, track0 = run_plant(NNBCPlusConfig(), seed)
-        err1, track1 = run_plant(NNBCPlusConfig(info_dither=0.05), seed)
+        err0, track0 = run_plant(NNBCPlusConfig(formulation="whole_body"), seed)
+        err1, track1 = run_plant(NNBCPlusConfig(formulation="whole_body", info_dither=0.05), seed)
         assert err1 < 0.4 * err0, (err0, err1)
         assert track0 < track1 < 2e-3, (track0, track1)
 
 
 def test_the_directed_excitation_follows_the_top_eigenvector_and_comes_back():
-    policy = NNBCPlus(FACTS, NNBCPlusConfig(info_dither=0.05), seed=0)
+    policy = NNBCPlus(FACTS, NNBCPlusConfig(formulation="whole_body", info_dither=0.05), seed=0)
     policy._reset(plant_obs(np.zeros(N), np.zeros(3), np.zeros(N), np.zeros((3, N)), 0.0, np.zeros(3), np.zeros(3)))
     top = np.zeros(N)
     top[3] = 1.0
@@ -63,7 +63,7 @@ def test_the_directed_excitation_follows_the_top_eigenvector_and_comes_back():
     d = policy._directed(40)
     np.testing.assert_allclose(np.abs(d), 0.05 * top, atol=1e-9)  # power iteration: on the top eigenvector
     np.testing.assert_allclose(pairs, 0.0, atol=1e-15)  # every pair sums to zero: the end-effector comes back
-    smooth = NNBCPlus(FACTS, NNBCPlusConfig(info_dither=0.05, info_freq=5.0), seed=0)
+    smooth = NNBCPlus(FACTS, NNBCPlusConfig(formulation="whole_body", info_dither=0.05, info_freq=5.0), seed=0)
     smooth._reset(plant_obs(np.zeros(N), np.zeros(3), np.zeros(N), np.zeros((3, N)), 0.0, np.zeros(3), np.zeros(3)))
     smooth.P[:N, :N] = P[:N, :N]
     steps = np.array([smooth._directed(k) for k in range(60)])
@@ -76,7 +76,7 @@ def test_the_smooth_dither_bounds_the_step_to_step_change():
     sinusoids of `dither_freq` by at most dither 2 pi f dt, f from dither_freq (actuator 0) to twice it (the
     last)."""
     freq = 2.0
-    policy = NNBCPlus(FACTS, NNBCPlusConfig(dither_freq=freq), seed=0)
+    policy = NNBCPlus(FACTS, NNBCPlusConfig(formulation="whole_body", dither_freq=freq), seed=0)
     policy._reset(plant_obs(np.zeros(N), np.zeros(3), np.zeros(N), np.zeros((3, N)), 0.0, np.zeros(3), np.zeros(3)))
     a = policy.config.dither
     rows = np.vstack([policy._sinusoids(), policy._sinusoids()])  # 5.12 s, continuous across the blocks

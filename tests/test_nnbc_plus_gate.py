@@ -1,6 +1,6 @@
 """`nnbc-plus` options of issue 16 v2 (`innov_gate`, `gate_rms`, `gate_steps`, `gate_inflate`, `rate_time`,
-`body_frame`): unit tests on linear plants (y = J x; for `body_frame`, a J turning with the heading), and the
-options' parsing.
+`body_frame`): unit tests on linear plants (y = J x; for `body_frame`, a J turning with the heading; so with the
+whole-body estimate: a linear plant has no platform), and the options' parsing.
 
 Both options are off by default (the default controller's actions are unchanged); their measured effect on the
 conditions of issue 16 is in the module docstring of `policies.nnbc_plus`.
@@ -25,7 +25,7 @@ N, DT = 8, 0.01
 def make_estimator(**options) -> KalmanEstimator:
     """The Kalman filter `nnbc-plus` builds with these options, for N actuators at DT."""
     facts = EnvFacts(dt=DT, action_scale=(1.0,) * N, obs_keys=())
-    est = NNBCPlus(facts, NNBCPlusConfig(**options)).estimator
+    est = NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body", **options)).estimator
     assert isinstance(est, KalmanEstimator)
     return est
 
@@ -100,7 +100,7 @@ def test_body_frame_learns_the_platform_frame_jacobian_and_controls_with_the_wor
 
     est_err = {}
     for body in (False, True):
-        policy = NNBCPlus(facts, NNBCPlusConfig(body_frame=body), seed=1)
+        policy = NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body", body_frame=body), seed=1)
         q, r, u = np.zeros(n), np.zeros(3), np.zeros(n)
         for k in range(400):
             t = k * dt
@@ -119,14 +119,15 @@ def test_body_frame_learns_the_platform_frame_jacobian_and_controls_with_the_wor
         np.testing.assert_allclose(policy.jacobian_estimate, policy.J_hat)
     assert est_err[True] < 0.05 < est_err[False], est_err  # (after 4 s the world J has turned by 2 rad)
     with pytest.raises(ValueError, match="body_frame"):
-        NNBCPlusConfig(body_frame=True, measurement="position")
+        NNBCPlusConfig(formulation="whole_body", body_frame=True, measurement="position")
 
 
 def test_the_options_parse_from_a_spec_and_are_validated():
     env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
     try:
         pol = policies.make(
-            "nnbc-plus:innov_gate=3,gate_rms=5,gate_steps=5,gate_inflate=10,rate_time=0.05,body_frame=true", env, seed=0
+            "nnbc-plus:formulation=whole_body,innov_gate=3,gate_rms=5,gate_steps=5,gate_inflate=10,rate_time=0.05,"
+            "body_frame=true", env, seed=0
         )
     finally:
         env.close()
@@ -154,7 +155,7 @@ def test_wheel_drift_lets_the_wheels_take_over_once_the_arm_has_drifted():
     J = np.hstack([0.3 * rng.standard_normal((3, 6)), [[0.2, 0.0], [0.0, 0.2], [0.0, 0.0]]])  # wheels: x and y
     drift = {}
     for wd in (0.0, 0.1):  # (no posture pull: the drift is the wheel weight's alone to stop)
-        policy = NNBCPlus(facts, NNBCPlusConfig(wheel_drift=wd, posture_gain=0.0), seed=1)
+        policy = NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body", wheel_drift=wd, posture_gain=0.0), seed=1)
         q, r, u = np.zeros(n), np.zeros(3), np.zeros(n)
         errors = []
         for k in range(800):
