@@ -127,7 +127,9 @@ def test_the_options_parse_from_a_spec_and_are_validated():
     try:
         pol = policies.make(
             "nnbc-plus:formulation=whole_body,innov_gate=3,gate_rms=5,gate_steps=5,gate_inflate=10,rate_time=0.05,"
-            "body_frame=true", env, seed=0
+            "body_frame=true",
+            env,
+            seed=0,
         )
     finally:
         env.close()
