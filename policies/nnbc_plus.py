@@ -1,5 +1,6 @@
 """`nnbc-plus`: a model-free controller that keeps NNBC's promise (no kinematic model, only measurements) and
-tracks every task: the Jacobian is a moving state estimated by a Kalman filter, not a rank-one ZNN update.
+tracks every task: the Jacobian is a moving state estimated by Kalman filters, not a rank-one ZNN update, and
+(v3) it is estimated in two parts, the arm's and the platform's, so that platform slip never enters it.
 
 Why the paper's NNBC fails
 --------------------------
@@ -19,7 +20,16 @@ right wheel. Nothing else about the robot is assumed.
    instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt, which holds at the interval's
    middle), for sensor sets without velocities; that variant needs clean positions (1 mm of noise on ee_pos
    is 0.14 m/s on y).
-2. **Estimate** J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
+2. **Estimate** J in two parts (v3, `formulation="structured"`, the default; `policies.structured`): the arm's
+   Jacobian in the platform's frame, learnt from y minus the platform's measured motion ([p_c_dot; 0] +
+   omega z x (r_a - p_c), from `arm_base_vel`, the heading's rate and the lever `ee_pos - arm_base_pos`), and
+   the constant map from the two wheel speeds to the platform's motion, learnt by a small Kalman filter of its
+   own; J_hat is composed from them and the measured heading. Why: on a fast path in physics mode the platform
+   slips (its wheels turn, the ground does not follow), y = J x fails for about ten steps, and a filter that
+   learns the whole-body J from y learns the slip into every column (below, "The 5 s circle"); slip moves p_c
+   and the heading, which are measured, so it never reaches the arm's part, and the wheel map is a long average
+   a few steps of slip barely move. The arm's part (and, with `formulation="whole_body"`, v2's whole-body J) is
+   learnt as follows: J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
    Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)) driven by random-walk process
    noise (`q_jacobian`, `q_rate`); the three rows see the same regressor, so they share one 2n x 2n covariance
    and one gain. Every direction of J follows the arm, not only the current u's. A robust update
@@ -78,9 +88,32 @@ right wheel. Nothing else about the robot is assumed.
 The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics, no
 sensor settings (noise and delay are estimated).
 
-What it does not do yet (measured on development seeds, v2.1)
---------------------------------------------------------------
-* **The 5 s circle in physics mode** (peak 0.79 m/s). It is feasible: the known-model `qp-oracle` tracks it in
+What it does not do yet (measured on development seeds with v2.1's whole-body estimate unless noted)
+------------------------------------------------------------------------------------------------------
+v3 against v2.1 on development seeds 0-4, every condition of issue 16, both modes
+(`docs/results/nnbc-plus-v2/dev-structured.md`): no cell worse; physics 5 s circle 5/5 against 0/5, joint-speed
+noise 20/20 against 19/20, 30% wear 18/20 against 16/20. Still lost there: physics random starts 18/20 (as v2.1),
+30% wear in physics 18/20 (one episode by 112 mm), random arms 16/20 (as v2.1). The reported-seed figures are in
+`summary.md`.
+
+* **The 5 s circle in physics mode, and why v3 estimates J in two parts.** What v2.1 did (peak speed 0.79
+  m/s): `docs/results/nnbc-plus-v2/trace.py` traces development seed 0 (`trace-circle5s*.md`). Over steps
+  100-320 J_hat's error (0.11-0.48 m/rad) lies in J's row space (0.10-0.48 of it: the null-space dither never
+  excites the row space and the path excites one direction of it at a time), and the filter's covariance ranks
+  it right (its top standard deviation 0.15-0.24 m/rad against an actual 0.04-0.27 along that direction; along
+  the commanded direction the error stays below 0.003 m/rad). By step 325 the platform slips: its mount moves
+  15-38 mm/s unlike the wheel speeds say over steps 325-335 (slip column), and |y - J x| (J the true Jacobian)
+  follows. The directed excitation `info_dither` = 0.05 keeps the error at 0.03-0.09 m/rad over steps 100-320,
+  and the episode is still lost: the slip, learnt into J_hat, is what diverges. `qp-oracle` slips as well (15-61
+  mm/s over steps 0-360, seeds 0-2, `trace-circle5s-qp-oracle.md`) and tracks (1.5-3.7 mm), because its J is
+  not learnt; v3 slips 15 mm/s on seed 0 and tracks within 0.8 mm (`trace-circle5s-structured.md`).
+  The excitation options did not lift the cell (`dev-excite.json`, seeds 0-9, physics; the default 0/10 on the
+  5 s circle, 9/10 on the 10 s one, 10/10 on the 0.5 m one, 36/40 with noise): `info_dither` 0.05: 0/10, 10/10,
+  5/10, 32/40; as a 5 Hz sinusoid: 0/10, 8/10, 8/10, 29/40; `dither_freq=2` (a smooth dither: slower actuator
+  changes than random signs' 10 rad/s^2): 0/10, 5/10, 5/10, 27/40; with `accel_time=0.25`: 3/10, 8/10, 5/10,
+  23/40; `info_dither` 0.05 with `accel_time=0.25`: 1/10, 7/10, 7/10, 31/40 (run at b73970b, before v3: the
+  same specs now need `formulation=whole_body`). v3's structured estimate: 5/5 on seeds 0-4 (max 2.3 mm). What v2.1's docstring recorded before: It is
+  feasible: the known-model `qp-oracle` tracks it in
   physics (seeds 0-2: 3/3, 2.5 mm median, 3.8 mm max) and under its commands y = J x holds within 1 mm/s all
   along. `nnbc-plus` tracks it within 0.5 mm for 3 s, but the fast path excites few directions of J: at its
   peak speed J_hat's columns are off by 0.1-0.36 m/rad while its residual |y - J_hat x| is 0.1 mm/s. Around
@@ -171,7 +204,9 @@ What it does not do yet (measured on development seeds, v2.1)
 
 Ablation (development seeds) and conditions (reported seeds)
 -------------------------------------------------------------
-Every v2 mechanism was switched off on the condition it targets, on development seeds, both dynamics modes:
+v3's structured estimate against v2.1's whole-body one, every condition, development seeds 0-4:
+`docs/results/nnbc-plus-v2/dev-structured.md` (from `dev-structured.json`). Every v2 mechanism was switched off
+on the condition it targets, on development seeds, both dynamics modes:
 `docs/results/nnbc-plus-v2/ablation.md` (from `ablation.json`; command in its header), copied into the README
 by `mobman-eval readme`. The v1 baseline on the same development seeds is `v1-dev.json`; the reported-seed
 sweep over every condition of issue 16 is `results.json` / `summary.md` in the same folder (the conditions

@@ -46,8 +46,10 @@ def _conditions():
 
 def trace(
     spec: str, condition: str, task: str | None, mode: str, seed: int, first: int, last: int, every: int
-) -> list[dict]:
-    """One row per traced step (see the module docstring)."""
+) -> tuple[list[dict], dict]:
+    """One row per traced step (see the module docstring), and the largest tracking error (mm) and slip (mm/s)
+    over every step up to `last`. A controller without a Jacobian estimate (a known-model one) gets only the
+    plant's columns."""
     from eval.rollout import make_env, make_policy
     from mobman_env.kinematics import arm_base_jacobian, whole_body_jacobian
 
@@ -63,64 +65,73 @@ def trace(
         obs, info = env.reset(seed=seed)
         policy = make_policy(spec, env, seed)
         policy.reset(obs, info, seed=seed)
-        n = policy.n_act
+        n = len(base.action_scale)
         prev_u1 = 0.0
+        worst = {"err_mm": 0.0, "slip_mm_s": 0.0, "steps": 0}
         for k in range(last + 1):
             action, _ = policy.predict(obs)
-            u1 = float(policy.last_u[0])
-            if k >= first and (k - first) % every == 0 and policy.jacobian_estimate is not None:
-                q, x, yaw = obs["joint_pos"], obs["joint_vel"], float(obs["base_yaw"][0])
+            u = np.asarray(action, float).reshape(-1) * np.asarray(base.action_scale)
+            u1 = float(u[0])
+            q, x, yaw = obs["joint_pos"], obs["joint_vel"], float(obs["base_yaw"][0])
+            slip = 1e3 * float(np.linalg.norm(obs["arm_base_vel"] - arm_base_jacobian(base.true_params, yaw) @ x))
+            err = 1e3 * float(np.linalg.norm(obs["ee_pos"] - obs["target_pos"]))
+            worst = {"err_mm": max(worst["err_mm"], err), "slip_mm_s": max(worst["slip_mm_s"], slip), "steps": k + 1}
+            estimate = getattr(policy, "jacobian_estimate", None)
+            if k >= first and (k - first) % every == 0:
                 J = whole_body_jacobian(base.true_params, q[: n - 2], yaw)
-                E = policy.jacobian_estimate - J
-                row = E @ np.linalg.pinv(J) @ J
-                ev, V = np.linalg.eigh(policy.P[:n, :n])
-                u = policy.last_u
-                slip = obs["arm_base_vel"] - arm_base_jacobian(base.true_params, yaw) @ x
-                rows.append(
-                    {
-                        "step": k,
-                        "err_mm": 1e3 * float(np.linalg.norm(obs["ee_pos"] - obs["target_pos"])),
-                        "E": float(np.linalg.norm(E)),
-                        "row": float(np.linalg.norm(row)),
-                        "null": float(np.linalg.norm(E - row)),
-                        "p_top": float(np.sqrt(ev[-1])),
-                        "e_top": float(np.linalg.norm(E @ V[:, -1]) / np.sqrt(3)),
-                        "u_dir": float(np.linalg.norm(E @ u) / (np.sqrt(3) * max(np.linalg.norm(u), 1e-12))),
-                        "sv_est": float(np.linalg.svd(policy.jacobian_estimate, compute_uv=False)[-1]),
-                        "sv_true": float(np.linalg.svd(J, compute_uv=False)[-1]),
-                        "res_mms": 1e3 * float(np.linalg.norm(obs["ee_vel"] - J @ x)),
-                        "slip_mms": 1e3 * float(np.linalg.norm(slip)),
-                        "u1": u1,
-                        "du1": u1 - prev_u1,
-                    }
-                )
+                r = {"step": k, "err_mm": err, "res_mms": 1e3 * float(np.linalg.norm(obs["ee_vel"] - J @ x))}
+                r.update(slip_mms=slip, u1=u1, du1=u1 - prev_u1, sv_true=float(np.linalg.svd(J, compute_uv=False)[-1]))
+                if estimate is not None:
+                    E = estimate - J
+                    row = E @ np.linalg.pinv(J) @ J
+                    ev, V = np.linalg.eigh(policy.P[:n, :n])
+                    r.update(
+                        E=float(np.linalg.norm(E)),
+                        row=float(np.linalg.norm(row)),
+                        null=float(np.linalg.norm(E - row)),
+                        p_top=float(np.sqrt(ev[-1])),
+                        e_top=float(np.linalg.norm(E @ V[:, -1]) / np.sqrt(3)),
+                        u_dir=float(np.linalg.norm(E @ u) / (np.sqrt(3) * max(np.linalg.norm(u), 1e-12))),
+                        sv_est=float(np.linalg.svd(estimate, compute_uv=False)[-1]),
+                    )
+                rows.append(r)
             prev_u1 = u1
             obs, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
                 break
     finally:
         env.close()
-    return rows
+    return rows, worst
 
 
-def markdown(rows: list[dict], command: str) -> str:
+def _f(r: dict, key: str, fmt: str) -> str:
+    return format(r[key], fmt) if key in r else "-"
+
+
+def markdown(traces: list[tuple[int, list[dict], dict]], command: str) -> str:
     try:
         git = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], capture_output=True, text=True).stdout.strip()
     except OSError:
         git = "unknown"
-    head = (
+    out = [
         f"# nnbc-plus: step trace\n\n`{command}` (git {git}, {platform.machine()}); columns defined in "
-        "`docs/results/nnbc-plus-v2/trace.py`.\n\n"
-        "| step | err (mm) | \\|E\\| | row | null | P top | E top | u-dir | sv est / true | \\|y - Jx\\| (mm/s) "
-        "| slip (mm/s) | u1 | du1 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
-    )
-    body = "".join(
-        f"| {r['step']} | {r['err_mm']:.1f} | {r['E']:.3f} | {r['row']:.3f} | {r['null']:.3f} | {r['p_top']:.3f} "
-        f"| {r['e_top']:.3f} | {r['u_dir']:.4f} | {r['sv_est']:.3f} / {r['sv_true']:.3f} | {r['res_mms']:.1f} "
-        f"| {r['slip_mms']:.1f} | {r['u1']:.2f} | {r['du1']:+.2f} |\n"
-        for r in rows
-    )
-    return head + body
+        "`docs/results/nnbc-plus-v2/trace.py`.\n"
+    ]
+    for seed, rows, worst in traces:
+        out.append(
+            f"\n## seed {seed}\n\nOver steps 0-{worst['steps'] - 1}: max tracking error {worst['err_mm']:.1f} mm, "
+            f"max slip {worst['slip_mm_s']:.1f} mm/s.\n\n"
+            "| step | err (mm) | \\|E\\| | row | null | P top | E top | u-dir | sv est / true | \\|y - Jx\\| (mm/s) "
+            "| slip (mm/s) | u1 | du1 |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
+        )
+        out.extend(
+            f"| {r['step']} | {r['err_mm']:.1f} | {_f(r, 'E', '.3f')} | {_f(r, 'row', '.3f')} | {_f(r, 'null', '.3f')} "
+            f"| {_f(r, 'p_top', '.3f')} | {_f(r, 'e_top', '.3f')} | {_f(r, 'u_dir', '.4f')} "
+            f"| {_f(r, 'sv_est', '.3f')} / {r['sv_true']:.3f} | {r['res_mms']:.1f} | {r['slip_mms']:.1f} | {r['u1']:.2f} "
+            f"| {r['du1']:+.2f} |\n"
+            for r in rows
+        )
+    return "".join(out)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -129,15 +140,18 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--condition", default="circle-5s")
     p.add_argument("--task", default=None, help="default: the condition's first task")
     p.add_argument("--mode", default="physics", choices=("kinematic", "physics"))
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=int, nargs="+", default=[0])
     p.add_argument("--steps", type=int, nargs=2, default=(100, 345), metavar=("FIRST", "LAST"))
     p.add_argument("--every", type=int, default=5)
     p.add_argument("--out", type=Path, required=True)
     a = p.parse_args(argv)
-    rows = trace(a.policy, a.condition, a.task, a.mode, a.seed, a.steps[0], a.steps[1], a.every)
+    traces = []
+    for seed in a.seed:
+        rows, worst = trace(a.policy, a.condition, a.task, a.mode, seed, a.steps[0], a.steps[1], a.every)
+        traces.append((seed, rows, worst))
     command = "docs/results/nnbc-plus-v2/trace.py " + " ".join(sys.argv[1:] if argv is None else argv)
-    a.out.write_text(markdown(rows, command))
-    print(f"wrote {a.out} ({len(rows)} steps)")
+    a.out.write_text(markdown(traces, command))
+    print(f"wrote {a.out} ({sum(len(t[1]) for t in traces)} steps)")
 
 
 if __name__ == "__main__":
