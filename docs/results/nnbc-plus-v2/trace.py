@@ -51,6 +51,7 @@ def trace(
     over every step up to `last`. A controller without a Jacobian estimate (a known-model one) gets only the
     plant's columns."""
     from eval.rollout import make_env, make_policy
+    from policies.base import policy_seed
     from mobman_env.kinematics import arm_base_jacobian, whole_body_jacobian
 
     cond = _conditions()
@@ -64,7 +65,7 @@ def trace(
         base = env.unwrapped
         obs, info = env.reset(seed=seed)
         policy = make_policy(spec, env, seed)
-        policy.reset(obs, info, seed=seed)
+        policy.reset(obs, info, seed=policy_seed(seed))  # (as eval's rollout: the episode of the conditions' runs)
         n = len(base.action_scale)
         prev_u1 = 0.0
         worst = {"err_mm": 0.0, "slip_mm_s": 0.0, "steps": 0}
