@@ -98,15 +98,16 @@ noise 20/20 against 19/20, 30% wear 18/20 against 16/20. Still lost there: physi
 
 * **The 5 s circle in physics mode, and why v3 estimates J in two parts.** What v2.1 did (peak speed 0.79
   m/s): `docs/results/nnbc-plus-v2/trace.py` traces development seed 0 (`trace-circle5s*.md`). Over steps
-  100-320 J_hat's error (0.11-0.48 m/rad) lies in J's row space (0.10-0.48 of it: the null-space dither never
+  100-320 J_hat's error (0.12-0.46 m/rad) lies in J's row space (0.11-0.46 of it: the null-space dither never
   excites the row space and the path excites one direction of it at a time), and the filter's covariance ranks
-  it right (its top standard deviation 0.15-0.24 m/rad against an actual 0.04-0.27 along that direction; along
-  the commanded direction the error stays below 0.003 m/rad). By step 325 the platform slips: its mount moves
-  15-38 mm/s unlike the wheel speeds say over steps 325-335 (slip column), and |y - J x| (J the true Jacobian)
-  follows. The directed excitation `info_dither` = 0.05 keeps the error at 0.03-0.09 m/rad over steps 100-320,
-  and the episode is still lost: the slip, learnt into J_hat, is what diverges. `qp-oracle` slips as well (15-61
-  mm/s over steps 0-360, seeds 0-2, `trace-circle5s-qp-oracle.md`) and tracks (1.5-3.7 mm), because its J is
-  not learnt; v3 slips 15 mm/s on seed 0 and tracks within 0.8 mm (`trace-circle5s-structured.md`).
+  it right (its top standard deviation 0.15-0.23 m/rad against an actual 0.06-0.26 along that direction; along
+  the commanded direction the error stays below 0.002 m/rad). From step 325 the platform slips: its mount moves
+  10-36 mm/s unlike the wheel speeds say over steps 325-340 (slip column), |y - J x| (J the true Jacobian)
+  follows, and the slip grows to 74-210 mm/s as the episode diverges. The directed excitation `info_dither` =
+  0.05 keeps the error at 0.03-0.12 m/rad over steps 100-320, and the episode is still lost: the slip, learnt
+  into J_hat, is what diverges. `qp-oracle` slips as well (15-61 mm/s over steps 0-360, seeds 0-2,
+  `trace-circle5s-qp-oracle.md`) and tracks (1.5-3.7 mm), because its J is not learnt; v3 slips up to 21 mm/s
+  on seed 0 and tracks within 0.9 mm (`trace-circle5s-structured.md`).
   The excitation options did not lift the cell (`dev-excite.json`, seeds 0-9, physics; the default 0/10 on the
   5 s circle, 9/10 on the 10 s one, 10/10 on the 0.5 m one, 36/40 with noise): `info_dither` 0.05: 0/10, 10/10,
   5/10, 32/40; as a 5 Hz sinusoid: 0/10, 8/10, 8/10, 29/40; `dither_freq=2` (a smooth dither: slower actuator
