@@ -96,6 +96,12 @@ noise 20/20 against 19/20, 30% wear 18/20 against 16/20. Still lost there: physi
 30% wear in physics 18/20 (one episode by 112 mm), random arms 16/20 (as v2.1). The reported-seed figures are in
 `summary.md`.
 
+* **The 10 s circle in physics mode (v3)**: reported seeds 13/20; development seeds 0-29: 21/30, v2.1's
+  whole-body estimate 19/30, `sing_damping` 0.001 23/30, the known-model `qp-oracle` 27/30 (`dev-circle10s.json`).
+  On development seed 7 (`trace-circle10s.md`) the estimate is right (smallest singular value 0.045 against a
+  true 0.055 m/rad at step 700) but the path passes that near a singularity of the whole-body J: joint 1
+  saturates at 3 rad/s, the platform slips 286-660 mm/s and the error reaches 22 mm. Keeping off such
+  configurations needs more than the damping (a posture that the estimate can rate, not tried yet).
 * **The 5 s circle in physics mode, and why v3 estimates J in two parts.** What v2.1 did (peak speed 0.79
   m/s): `docs/results/nnbc-plus-v2/trace.py` traces development seed 0 (`trace-circle5s*.md`). Over steps
   100-320 J_hat's error (0.12-0.46 m/rad) lies in J's row space (0.11-0.46 of it: the null-space dither never
