@@ -230,7 +230,12 @@ comparisons between them isolate the estimator. The shared options are the field
 
 Cost of one `predict`
 ---------------------
-PUMA, kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with other jobs running
+v3's structured estimate costs more than v2's whole-body one: a second filter (the wheel map, in floats), J and
+J_dot composed from four arrays every step, and three more observation keys converted. `mobman-eval speed`
+(`docs/results/speed/speed.md`, a slow phase of the machine: `nnbc` 63 us there against 37 us in the previous
+file) gives `nnbc-plus` 109 us, 1.7x `nnbc`; the previous file gave v2.1 45 us, 1.2x `nnbc`. Issue 16's 40 us is
+not met. What follows was measured on v2 (the whole-body estimate, still `formulation="whole_body"`): PUMA,
+kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with other jobs running
 (so absolute figures are high; ratios are measured against the previous version in the same process).
 Replaying the episode's 2,000 observations to both versions back to back: median 61.5 -> 41.1 us (load average
 3.3; 5 rounds). Inside eval's rollout loop (`eval.rollout.rollout` on `eval.speed`'s env, 6 alternating
