@@ -51,8 +51,8 @@ def trace(
     over every step up to `last`. A controller without a Jacobian estimate (a known-model one) gets only the
     plant's columns."""
     from eval.rollout import make_env, make_policy
-    from policies.base import policy_seed
     from mobman_env.kinematics import arm_base_jacobian, whole_body_jacobian
+    from policies.base import policy_seed
 
     cond = _conditions()
     if seed >= 1000:
