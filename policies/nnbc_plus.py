@@ -928,8 +928,9 @@ class EstimatingController(ControllerPolicy):
 class NNBCPlus(EstimatingController):
     """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
 
-    After each step: `J_hat` (3 x n) and `Jdot_hat` (3 x n) are the current estimates, `P` the shared 2n x 2n
-    covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
+    After each step: `J_hat` (3 x n) and `Jdot_hat` (3 x n) are the current estimates (with the default
+    "structured" formulation composed from the arm's and the wheel map's filters, `policies.structured`), `P` the
+    2n x 2n covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
     """
 
     name = "nnbc-plus"
@@ -966,7 +967,8 @@ class NNBCPlus(EstimatingController):
 
     @property
     def P(self) -> np.ndarray:
-        """The Kalman filter's shared 2n x 2n covariance."""
+        """2n x 2n: the Kalman filter's shared covariance ("whole_body", "paper"), or with "structured" the arm
+        filter's covariance of its Jacobian's entries and the wheel map's, as blocks (`StructuredEstimator.P`)."""
         return self.estimator.P  # type: ignore[attr-defined]
 
     @property
