@@ -265,7 +265,7 @@ import numpy as np
 from mobman_env.validation import number
 from policies.base import ControllerPolicy, EnvFacts
 from policies.estimators import JacobianEstimator, KalmanEstimator
-from policies.structured import StructuredEstimator
+from policies.structured import StructuredEstimator, rotate_z
 
 FORMULATIONS = ("whole_body", "paper", "structured")
 MEASUREMENTS = ("velocity", "position")
@@ -551,14 +551,6 @@ def _solve3(
     )
 
 
-def _rotate(A: np.ndarray, cs: float, sn: float) -> np.ndarray:
-    """A (3 x n) with its first two rows rotated by the angle whose cosine and sine are cs, sn (about z)."""
-    out = A.copy()
-    out[0] = cs * A[0] - sn * A[1]
-    out[1] = sn * A[0] + cs * A[1]
-    return out
-
-
 class EstimatingController(ControllerPolicy):
     """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator.
 
@@ -617,7 +609,8 @@ class EstimatingController(ControllerPolicy):
             self.uses_keys = (*self.uses_keys, "base_yaw")
         self._J_world: np.ndarray | None = None  # body_frame: the last J_hat rotated to the world frame
         self._unit_w = not (self._w0 != 1.0).any()  # W = I: the weighting product is skipped
-        self._info_a = float(getattr(c, "info_dither", 0.0))  # (a Kalman option: it reads the covariance P)
+        self._info_a = float(getattr(c, "info_dither", 0.0))  # (Kalman options: it reads the covariance P)
+        self._info_f = float(getattr(c, "info_freq", 0.0))
         self.estimator: JacobianEstimator = self._make_estimator()
         if self._structured and not hasattr(self.estimator, "observe"):
             raise ValueError(
@@ -795,8 +788,7 @@ class EstimatingController(ControllerPolicy):
     def _directed(self, k: int) -> np.ndarray:
         """This step's `info_dither` (n): along the power-iterated top eigenvector of the covariance of a row of J
         (the part of the Kalman filter's P that belongs to J)."""
-        a = self._info_a
-        freq = getattr(self.config, "info_freq", 0.0)
+        a, freq = self._info_a, self._info_f
         if freq <= 0.0 and k % 2 == 1:
             return -self._info_s * self._info_v  # the second step of the pair: back
         n = self.n_act
@@ -853,8 +845,8 @@ class EstimatingController(ControllerPolicy):
         if self._body:  # back to the world frame; Jc at the heading half a step ahead (lookahead)
             psi_c = psi + 0.5 * (psi - self._prev_psi) if c.lookahead and not probing else psi
             self._prev_psi = psi
-            J = _rotate(J, cs, sn)
-            Jc = _rotate(Jc, math.cos(psi_c), math.sin(psi_c)) if Jc is not J else J
+            J = rotate_z(J, cs, sn)
+            Jc = rotate_z(Jc, math.cos(psi_c), math.sin(psi_c)) if Jc is not J else J
             self._J_world = J
         d0, d1, d2 = obs["target_pos"].tolist()
         if not self._whole:

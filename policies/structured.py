@@ -42,6 +42,14 @@ import numpy as np
 from policies.estimators import KalmanEstimator
 
 
+def rotate_z(A: np.ndarray, cs: float, sn: float) -> np.ndarray:
+    """A (3 x n) with its first two rows rotated about z by the angle whose cosine and sine are cs, sn (a copy)."""
+    out = A.copy()
+    out[0] = cs * A[0] - sn * A[1]
+    out[1] = sn * A[0] + cs * A[1]
+    return out
+
+
 class WheelMap:
     """M (3 x 2): a Kalman filter on the constant map from the two wheel speeds to the platform's velocity in its
     own frame (forward, sideways, yaw rate), in plain floats: the three rows share one 2 x 2 covariance P;
@@ -151,8 +159,7 @@ class StructuredEstimator:
     def init(self, J0: np.ndarray) -> None:
         """A(0) from the probe's whole-body fit: its arm columns in the platform's frame (A_dot(0) = 0)."""
         c, s = self._cs
-        na = self._na
-        self.arm.init(np.vstack([c * J0[0, :na] + s * J0[1, :na], c * J0[1, :na] - s * J0[0, :na], J0[2, :na]]))
+        self.arm.init(rotate_z(J0[:, : self._na], c, -s))
         self._dirty = True
 
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
