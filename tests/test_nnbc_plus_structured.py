@@ -5,6 +5,7 @@ platform that slips, the composition of J, the option's checks, and the physics 
 from __future__ import annotations
 
 import math
+from typing import TypeVar
 
 import gymnasium as gym
 import numpy as np
@@ -18,6 +19,7 @@ from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
 from policies.structured import StructuredEstimator
 
 N, DT = 8, 0.01
+E = TypeVar("E")
 FACTS = EnvFacts(dt=DT, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=mobman_env.OBS_KEYS)
 
 
@@ -63,19 +65,17 @@ class SlippingPlatform:
         return J
 
 
-def arm_kw() -> dict:
-    c = NNBCPlusConfig()
-    return dict(
-        q_jacobian=c.q_jacobian, q_rate=c.q_rate, meas_std=c.meas_std, innov_clip=c.innov_clip,
-        innov_rate=c.innov_rate, p0_jacobian=c.p0_jacobian, p0_rate=c.p0_rate, forgetting=1.0, p_max=1.0,
-        midpoint=False, noise_rate=c.noise_rate,
-    )  # fmt: skip
+def estimator(kind: type[E], formulation: str) -> E:
+    """The estimator `nnbc-plus` builds with its default gains and this formulation, for N actuators at DT."""
+    est = NNBCPlus(FACTS, NNBCPlusConfig(formulation=formulation)).estimator
+    assert isinstance(est, kind)
+    return est
 
 
 def test_slip_does_not_reach_the_structured_estimate_but_corrupts_the_whole_body_one():
     plant = SlippingPlatform(0)
-    structured = StructuredEstimator(N, DT, q_platform=1e-7, platform_std=0.01, arm_kw=arm_kw())
-    whole = KalmanEstimator(N, DT, **arm_kw())
+    structured = estimator(StructuredEstimator, "structured")
+    whole = estimator(KalmanEstimator, "whole_body")
     rng = np.random.default_rng(1)
     obs = plant.step(np.zeros(N), 0.0)
     structured.observe(obs)
@@ -102,7 +102,7 @@ def test_the_composed_rate_is_the_derivative_of_the_composed_jacobian():
     """J_dot from A_dot, the heading's rate and the lever's motion: against a finite difference of J along a
     plant with a constant A (so A_dot = 0) that turns and moves its arm."""
     plant = SlippingPlatform(2)
-    est = StructuredEstimator(N, DT, q_platform=1e-7, platform_std=0.01, arm_kw=arm_kw())
+    est = estimator(StructuredEstimator, "structured")
     x = np.r_[0.2 * np.ones(6), 0.5, 1.5]  # turning
     est.observe(plant.step(x, 0.0))
     est.init(plant.jacobian())
