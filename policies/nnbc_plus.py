@@ -511,6 +511,8 @@ class NNBCPlusConfig(ModelFreeConfig):
                 f"NNBCPlusConfig.gate_steps must be an integer >= 0 (control steps), got {self.gate_steps!r}"
             )
         number("NNBCPlusConfig.gate_inflate", self.gate_inflate, low=1.0)
+        # (the wheel map divides by h P h + platform_std^2: 0 could divide by zero once P has collapsed)
+        number("NNBCPlusConfig.platform_std", self.platform_std, low=0.0, open_low=True)
 
 
 def _solve3(

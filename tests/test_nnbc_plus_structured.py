@@ -118,6 +118,8 @@ def test_the_composed_rate_is_the_derivative_of_the_composed_jacobian():
 def test_the_structured_formulation_is_checked_and_uses_the_platform_keys():
     with pytest.raises(ValueError, match="structured"):
         NNBCPlusConfig(formulation="structured", measurement="position")
+    with pytest.raises(ValueError, match="platform_std"):
+        NNBCPlusConfig(platform_std=0.0)
     env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
     try:
         with pytest.raises(ValueError, match="structured"):

@@ -138,7 +138,7 @@ def markdown(traces: list[tuple[int, list[dict], dict]], command: str) -> str:
 def main(argv: list[str] | None = None) -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--policy", default="nnbc-plus")
-    p.add_argument("--condition", default="circle-5s")
+    p.add_argument("--condition", default="circle-5s", choices=sorted(_conditions().CONDITIONS))
     p.add_argument("--task", default=None, help="default: the condition's first task")
     p.add_argument("--mode", default="physics", choices=("kinematic", "physics"))
     p.add_argument("--seed", type=int, nargs="+", default=[0])
