@@ -2,15 +2,22 @@
 
 * Repository manuals outside docs/ (the shipped agents' READMEs) become pages at their repository paths, so the
   README text embedded in the site (pymdownx snippets) keeps its relative links working.
-* The tutorial notebook becomes a Markdown page (its Markdown cells as they are, code cells as Python blocks,
-  no outputs: the notebook is stored without outputs, which is checked here, and run in CI by nbmake), beside
-  the `.ipynb` download.
+* The tutorial notebook becomes a Markdown page beside the `.ipynb` download: it is stored without outputs
+  (checked here), executed when the site is built (nbclient, the checkout's packages; a failing cell fails the
+  build) and shown with what it printed and drew: Markdown cells as they are, code cells as Python blocks, text
+  outputs as text blocks, images inline.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
 * Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
   tag, so the text disappears) and a list written without the blank line before it (rendered as one paragraph).
-* `<!-- mobman:policy-table -->` in a page becomes the table of every built-in policy name and spec form,
-  read from `policies.KNOWN_POLICIES` and `policies.SPEC_FORMS` when the site is built.
+* `<!-- mobman:conditions-table -->` becomes the protocol's conditions table (`eval.bench.config`).
+* `<!-- mobman:policy-table -->` in a page becomes the table of every built-in policy name and spec form with
+  its knowledge class, read from `policies.KNOWN_POLICIES`, `policies.SPEC_FORMS` and `policies.knowledge_of`
+  when the site is built.
+* After the build, every local target of the built HTML (`<img src>`, `<a href>`, `<link href>`,
+  `<script src>`, `<source src>`) must be a file of the site: a missing image or page is a warning, so
+  `mkdocs build --strict` fails (mkdocs itself validates the Markdown links, not what HTML, snippets and
+  plugins add).
 
 Imports the repository's `policies` package (from the directory of mkdocs.yml, not an installed copy).
 """
@@ -21,8 +28,10 @@ import json
 import logging
 import re
 import sys
+from html.parser import HTMLParser
 from pathlib import Path
 from typing import Any
+from urllib.parse import unquote, urlsplit
 
 from mkdocs.structure.files import File, Files
 
@@ -32,6 +41,7 @@ REPO_PAGES_GLOB = "policies/models/*/README.md"
 #: Notebooks in docs/ rendered as Markdown pages next to them.
 NOTEBOOKS = ("tutorials/benchmark-your-controller.ipynb",)
 POLICY_TABLE = "<!-- mobman:policy-table -->"
+CONDITIONS_TABLE = "<!-- mobman:conditions-table -->"
 #: The packages whose every module the API reference must document.
 PACKAGES = ("mobman_env", "policies", "eval", "train")
 
@@ -54,19 +64,55 @@ def _root(config: Any) -> Path:
     return Path(config.config_file_path).resolve().parent
 
 
+def _text(value: str | list[str]) -> str:
+    return value if isinstance(value, str) else "".join(value)
+
+
+def output_markdown(output: dict) -> str:
+    """One code cell output as Markdown: a PNG inline (a data URI), text in a text block, stderr (libraries'
+    banners and warnings) dropped; an error raises."""
+    kind = output["output_type"]
+    if kind == "error":
+        raise RuntimeError(f"the notebook failed: {output['ename']}: {output['evalue']}")
+    if kind == "stream" and output.get("name") == "stderr":
+        return ""
+    if kind == "stream":
+        text = _text(output["text"])
+    else:  # execute_result, display_data
+        data = output.get("data", {})
+        if "image/png" in data:
+            return f"![output](data:image/png;base64,{_text(data['image/png']).strip()})"
+        text = _text(data.get("text/plain", ""))
+    text = text.strip("\n")
+    return f"```text\n{text}\n```" if text else ""
+
+
 def notebook_markdown(nb: dict, name: str) -> str:
     """Notebook `nb` (the JSON of file `name`) as Markdown: Markdown cells unchanged, code cells fenced as
-    Python, outputs dropped, and a download link under the title."""
+    Python followed by their outputs (if it was executed), and a download link under the title."""
     parts = []
+    ran = any(c.get("outputs") for c in nb["cells"] if c["cell_type"] == "code")
     for cell in nb["cells"]:
         source = "".join(cell["source"]).strip("\n")
         if cell["cell_type"] == "markdown":
             parts.append(source)
         elif cell["cell_type"] == "code" and source:
             parts.append(f"```python\n{source}\n```")
-    download = f"*This page is the notebook [`{name}`]({name}) without its outputs: download it and run it.*"
+            parts += [md for md in map(output_markdown, cell.get("outputs", [])) if md]
+    how = "run when this site was built" if ran else "without its outputs"
+    download = f"*This page is the notebook [`{name}`]({name}), {how}: download it and run it.*"
     title, _, rest = "\n\n".join(parts).partition("\n")
     return f"{title}\n\n{download}\n{rest}\n"
+
+
+def execute_notebook(nb: dict, cwd: Path, timeout: int = 900) -> dict:
+    """A copy of notebook `nb` executed in `cwd` (nbclient, a python3 kernel; outputs kept), as JSON."""
+    import nbformat
+    from nbclient import NotebookClient
+
+    node = nbformat.reads(json.dumps(nb), as_version=4)
+    NotebookClient(node, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(cwd)}}).execute()
+    return json.loads(nbformat.writes(node))
 
 
 def undocumented_modules(root: Path, docs_dir: Path) -> list[str]:
@@ -102,7 +148,7 @@ def on_files(files: Files, config: Any) -> Files:
                 f"{shown} is stored with outputs: clear them (jupyter nbconvert --clear-output --inplace {shown})"
             )
         md = rel.removesuffix(".ipynb") + ".md"
-        files.append(File.generated(config, md, content=notebook_markdown(nb, path.name)))
+        files.append(File.generated(config, md, content=notebook_markdown(execute_notebook(nb, root), path.name)))
     return files
 
 
@@ -112,13 +158,26 @@ def policy_table(root: Path) -> str:
         sys.path.insert(0, str(root))
     import policies
 
-    rows = [f"| `{name}` | {text} |" for name, text in {**policies.KNOWN_POLICIES, **policies.SPEC_FORMS}.items()]
-    return "\n".join(["| spec | what |", "|---|---|", *rows])
+    rows = [f"| `{name}` | {policies.knowledge_of(name)} | {text} |" for name, text in policies.KNOWN_POLICIES.items()]
+    forms = {"sb3:PATH": policies.knowledge_of("sb3:PATH"), "module:attr": "its `knowledge` attribute, else unknown"}
+    rows += [f"| `{name}` | {forms[name]} | {text} |" for name, text in policies.SPEC_FORMS.items()]
+    return "\n".join(["| spec | knowledge | what |", "|---|---|---|", *rows])
+
+
+def conditions_table(root: Path) -> str:
+    """The protocol's conditions table, from the repository's `eval.bench.config` (the one table)."""
+    if str(root) not in sys.path:
+        sys.path.insert(0, str(root))
+    from eval.bench.config import CONDITIONS, conditions_markdown
+
+    return conditions_markdown({n: c.to_dict() for n, c in CONDITIONS.items()})
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
     if POLICY_TABLE in markdown:
         markdown = markdown.replace(POLICY_TABLE, policy_table(_root(config)))
+    if CONDITIONS_TABLE in markdown:
+        markdown = markdown.replace(CONDITIONS_TABLE, conditions_table(_root(config)))
     return _embed_readme_sections(markdown, _root(config), page.file.src_uri.count("/"))
 
 
@@ -135,10 +194,19 @@ def _embed_readme_sections(markdown: str, root: Path, depth: int) -> str:
         start, end = f"<!-- --8<-- [start:{name}] -->", f"<!-- --8<-- [end:{name}] -->"
         if start not in readme or end not in readme:
             raise ValueError(f"README.md has no section {name!r} (markers {start} ... {end})")
-        text = readme.split(start, 1)[1].split(end, 1)[0]
-        return text.replace("](docs/", "](" + "../" * depth)
+        return relink(readme.split(start, 1)[1].split(end, 1)[0], depth)
 
     return _README_SNIPPET.sub(section, markdown)
+
+
+_RELATIVE_LINK = re.compile(r"\]\((?![a-z][a-z0-9+.-]*:|#|/)(docs/)?")
+
+
+def relink(text: str, depth: int) -> str:
+    """README text (links relative to the repository) made relative to a page `depth` folders below docs/:
+    `docs/x.md` -> `../` * depth + `x.md`; a repository page the site publishes at its own path
+    (`policies/models/.../README.md`) -> `../` * depth + that path. URLs and anchors are left alone."""
+    return _RELATIVE_LINK.sub("](" + "../" * depth, text)
 
 
 def rendering_problems(html: str) -> list[str]:
@@ -154,6 +222,45 @@ def rendering_problems(html: str) -> list[str]:
             text = re.sub(r"<[^>]+>", "", m.group(1))[:100].replace("\n", " ")
             problems.append(f"a list without a blank line before it: '{text}...'")
     return problems
+
+
+#: The HTML elements whose URL the post-build check follows: tag -> the attribute holding the URL.
+URL_ATTRIBUTES = {"img": "src", "a": "href", "link": "href", "script": "src", "source": "src"}
+
+
+class _Targets(HTMLParser):
+    """The local targets of one HTML page: the URLs of `URL_ATTRIBUTES`, without query and fragment."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.found: list[tuple[str, str]] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        name = URL_ATTRIBUTES.get(tag)
+        value = dict(attrs).get(name) if name else None
+        if value:
+            url = urlsplit(value)
+            if not url.scheme and not url.netloc and url.path and not url.path.startswith("/"):
+                self.found.append((tag, unquote(url.path)))
+
+
+def missing_targets(site_dir: Path) -> list[str]:
+    """Every local image, link, stylesheet or script of the built site at `site_dir` that names no file (a folder
+    counts when it holds index.html), as "page: <tag> target"."""
+    missing = []
+    for page in sorted(site_dir.rglob("*.html")):
+        parser = _Targets()
+        parser.feed(page.read_text(encoding="utf-8", errors="replace"))
+        for tag, target in parser.found:
+            path = (page.parent / target).resolve()
+            if not (path.is_file() or (path / "index.html").is_file()):
+                missing.append(f"{page.relative_to(site_dir).as_posix()}: <{tag}> {target}")
+    return missing
+
+
+def on_post_build(config: Any) -> None:
+    for problem in missing_targets(Path(config.site_dir)):
+        log.warning(f"the built site has a broken target: {problem}")
 
 
 def on_page_content(html: str, page: Any, config: Any, files: Files) -> str:

@@ -5,9 +5,13 @@ from eval import EvalConfig, run
 result = run(EvalConfig(policies=("nnbc", "jmpi"), episodes=5, dynamics=("kinematic",)),
              policies={"mine": MyController()})   # your own objects with reset/predict, beside the specs
 result.aggregate    # one row per (env, policy, dynamics, model_error, obs_noise)
+
+res = eval.load_results("runs/first")   # a results.json or its folder (schema 1, 2 or 3)
+res.to_dataframe()                      # pandas: one row per episode (pip install "mobman[pandas]")
 ```
 
-Command line: `mobman-eval run|sweep|bench|paper|speed` (`eval.cli.main(argv)`); eval/README.md is the manual.
+Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme` (`eval.cli.main(argv)`); eval/README.md is
+the manual.
 
 ## Layout and dependency rule
 
@@ -15,17 +19,20 @@ Each layer may import only the layers above it in this list (imports inside func
 every module and fails on a cycle or an upward import):
 
 1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays)
-2. `rollout` (make_env, make_policy, the one rollout loop)
-3. `config` (EvalConfig), `batch_rollout` (the rollout loop for N episodes through one vector env and one
-   batched policy)
+2. `rollout` (make_env, make_vector_env, make_policy, the one rollout loop: `rollout` for one env, `rollout_batch`
+   for a vector env and a batched policy)
+3. `config` (EvalConfig)
 4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
-   `tables` <- `results`, `plots` <- `stat_plots`, `video`: what is written)
-6. `runner` (`run`), `sweep` (`config`, `journal`, `report`, `plots` <- `run`: resumable grids)
-7. `paper` (section IV of the paper), `bench` (the benchmark protocol v1: `config` <- `chaos`, `scorecard` <-
-   `run`)
-8. `speed` (the speed benchmark; `--paper` times `paper`)
-9. `cli` (one module per subcommand; nothing imports it but `__main__`)
+   `tables` <- `results`, `styles` <- `plots` <- `stat_plots`, `video`, `picture`, `journal`, `readme` <-
+   `layout`: what is written)
+6. `grid` (the one executor path of run and sweep: episodes dispatched, each record journaled as it ends)
+7. `runner` (`run`), `sweep` (`config`, `report`, `plots` <- `run`: resumable grids)
+8. `paper` (section IV of the paper), `bench` (the benchmark protocol v2: `config` <- `chaos`, `scorecard` <-
+   `against` <- `run`)
+9. `speed` (the speed benchmark; `--paper` times `paper`)
+10. `cli` (one module per subcommand, `common`, `options`: the options generated from the config dataclasses;
+    nothing in eval imports it but `__main__`; train's command lines use `options`)
 
 Across packages: `mobman_env` <- `policies` <- `eval` <- `train`; eval never imports `train`.
 """
@@ -38,14 +45,16 @@ from eval.errors import EvalError
 
 if TYPE_CHECKING:
     from eval.config import EvalConfig
+    from eval.output.analysis import load_results
     from eval.runner import RunResult, run
 
-__all__ = ["EvalConfig", "EvalError", "RunResult", "run"]
+__all__ = ["EvalConfig", "EvalError", "RunResult", "load_results", "run"]
 
 
 def __getattr__(name: str) -> Any:
     """`EvalConfig`, `RunResult` and `run` are imported on first use, after checking that no file of the user's
-    hides `policies` or `mobman_env` (so `mobman-eval` can say so before anything imports them)."""
+    hides `policies` or `mobman_env` (so `mobman-eval` can say so before anything imports them);
+    `load_results` (`eval.output.analysis`) on first use too."""
     if name in ("EvalConfig", "RunResult", "run"):
         from mobman_env.packages import check_not_shadowed
 
@@ -53,4 +62,8 @@ def __getattr__(name: str) -> Any:
         from eval import config, runner
 
         return {"EvalConfig": config.EvalConfig, "RunResult": runner.RunResult, "run": runner.run}[name]
+    if name == "load_results":
+        from eval.output.analysis import load_results
+
+        return load_results
     raise AttributeError(f"module 'eval' has no attribute {name!r}")

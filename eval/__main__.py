@@ -1,4 +1,4 @@
-"""`python -m eval run|paper|speed` (same as `mobman-eval`)."""
+"""`python -m eval COMMAND`: the same as `mobman-eval COMMAND` (run, sweep, bench, paper, speed, picture, readme)."""
 
 import sys
 

@@ -31,7 +31,7 @@ class EvalConfig:
     policies: tuple[str, ...] = ("nnbc", "jmpi", "oracle")
     """Policy specs for `policies.make` (`name[:key=value,...]`, `sb3:PATH`, `module:attr`)."""
     episodes: int = 5
-    """Episodes per (env, dynamics, policy)."""
+    """Seeds per (env, dynamics, policy): episode k uses seed + k, so this is the number of episodes of each."""
     seed: int = 10_000
     """Seed of episode 0 (reported results use seeds >= 10,000; tune on 0-999)."""
     out: str | None = None
@@ -55,7 +55,9 @@ class EvalConfig:
     """Ray cluster to connect to ("auto", "HOST:6379", "ray://HOST:10001"); None: start a local Ray instance
     (or use the one this process already initialised). Only with backend="ray"."""
     dynamics: tuple[str, ...] = ("physics",)
-    """Dynamics modes to run ("physics", "kinematic"); each is a separate condition."""
+    """Dynamics modes to run ("physics", "kinematic"); each is a separate condition. Default physics, the envs'
+    own default: evaluation runs the realistic mode (contact dynamics, torque limits, wheel slip) unless asked
+    otherwise. (`mobman-train` trains kinematic by default: a physics step costs about 30 kinematic ones.)"""
     model_error: float | None = None
     """Relative std of the true robot's lengths (env argument); None: the env's default (0.05)."""
     obs_noise: float | None = None
@@ -95,7 +97,7 @@ class EvalConfig:
         """Raise `EvalError` naming the bad value, the accepted ones and the fix."""
         if not self.envs:
             raise EvalError("no env given; pass at least one --env, e.g. --env WheeledPuma-Circle-v0")
-        integer("episodes", self.episodes, low=1, hint="e.g. --episodes 5", error=EvalError)
+        integer("episodes", self.episodes, low=1, hint="the number of seeds, e.g. --seeds 5", error=EvalError)
         integer("seed", self.seed, low=0, hint="reported seeds start at 10000", error=EvalError)
         integer("workers", self.workers, low=1, hint="e.g. --workers 2", error=EvalError)
         integer("batch_size", self.batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
@@ -104,7 +106,7 @@ class EvalConfig:
             values = getattr(self, name)
             dup = sorted({v for v in values if values.count(v) > 1})
             if dup:
-                raise EvalError(f"{name} given more than once: {dup}; give each once (use --episodes for more runs)")
+                raise EvalError(f"{name} given more than once: {dup}; give each once (use --seeds for more episodes)")
         if not self.dynamics:
             raise EvalError("no dynamics mode given; accepted: physics, kinematic")
         for d in self.dynamics:

@@ -3,7 +3,8 @@ finished episodes were written). A leaf module: it imports nothing."""
 
 
 class EvalError(ValueError):
-    """A bad configuration found before any rollout (unknown env id or policy, existing --out, ...).
+    """A bad configuration found before any rollout (unknown env id or policy, existing --out, ...), or a file
+    that cannot be written (a full disk).
 
     The CLIs print it as `mobman-eval <command>: error: <message>` and exit with code 2; the message names the bad
     value, what is accepted and the fix."""

@@ -20,8 +20,17 @@ Conventions (SI units throughout; the Markdown and console reports convert to mm
   t_k >= the settle time (default `DEFAULT_SETTLE_TIME` = 0.5 s), so a start-up transient (NNBC's probe, a
   controller converging from its initial estimate) is visible beside the whole-episode figures and separable
   from them. None when the episode ended before the settle time.
+* Command smoothness (schema 3), what a real actuator is asked to do: with u_k = a_k * action_scale the commanded
+  speeds (rad/s) and u_{-1} = 0 (the robot starts at rest), `cmd_accel_rms` = sqrt(mean_k ||u_k - u_{k-1}||^2) / dt
+  (rad/s^2) and `cmd_jerk_rms` the same of the second difference / dt^2 (rad/s^3), the norm over all actuators.
+  A dither or a chattering law shows here while its `effort` (the squared action's integral) stays small.
+* `limit_margin_min` (rad): the smallest distance of any arm joint to its limit over the episode (the joint
+  angles as observed: noise-free, delayed under `obs_delay`); `clean_success`: a success without a single
+  joint-limit hit (a controller that "tracks" by riding a stop is not clean).
+* `converge_time_s`: the first time after which the error stays within the tolerance to the end (0 when it
+  never leaves it); None when the episode ends outside it.
 
-Statistics over episodes (results.json schema 2; all pure functions with fixed seeds):
+Statistics over episodes (results.json schemas 2 and 3; all pure functions with fixed seeds):
 
 * IQM, the interquartile mean: `scipy.stats.trim_mean(x, 0.25)`, i.e. sort the n values, cut
   floor(0.25 n) from each end and average the rest (for n = 20: the middle 10 values; n = 5: the middle 3).
@@ -35,7 +44,11 @@ Statistics over episodes (results.json schema 2; all pure functions with fixed s
 * Success rate intervals: the Wilson score interval at 95% (z = 1.959964), which, unlike the normal
   approximation, stays inside [0, 1] and is not empty at 0/n or n/n.
 * `success_curve`: the success rate at every tolerance of `SUCCESS_CURVE_TOLERANCES` (31 points, 10 per decade,
-  0.1 mm to 100 mm; recorded in results.json), so controllers that all pass the 6 mm line are still ranked.
+  0.1 mm to 100 mm; recorded in results.json), so controllers that all pass the 6 mm line are still ranked;
+  `success_curve_ci95` (schema 3) its Wilson band, point by point.
+* Tails (schema 3): every summary metric's `p90`, and for the metrics with an IQM the `worst` episode (= `max`);
+  the IQM of 20 episodes ignores the worst 5, and a benchmark that saturates at the top shows its differences
+  there. `clean_success_rate` with its interval beside `success_rate`.
 """
 
 from __future__ import annotations
@@ -65,7 +78,7 @@ Z95 = 1.959963984540054
 #: Episode fields that identify an experimental condition; `aggregate` groups by them.
 GROUP_KEYS = ("env", "policy", "dynamics", "model_error", "obs_noise")
 
-#: Scalar episode metrics that `aggregate` summarises with median / mean / std (over successful rollouts,
+#: Scalar episode metrics that `aggregate` summarises with median / mean / std / min / max / p90 (over successful rollouts,
 #: i.e. status "ok"; failed episodes only count in `n_failed` and lower the success rate).
 SUMMARY_METRICS = (
     "max_error_m",
@@ -76,6 +89,10 @@ SUMMARY_METRICS = (
     "effort",
     "peak_joint_speed",
     "peak_wheel_speed",
+    "cmd_accel_rms",
+    "cmd_jerk_rms",
+    "limit_margin_min",
+    "converge_time_s",
     "predict_us_median",
     "predict_us_p99",
 )
@@ -132,7 +149,9 @@ def effort(actions: np.ndarray, dt: float) -> float:
     return float(np.sum(a * a) * dt)
 
 
-def peak_speeds(actions: np.ndarray, action_scale: Sequence[float], n_arm: int | None = None) -> tuple[float, float]:
+def peak_speeds(
+    actions: np.ndarray, action_scale: Sequence[float] | np.ndarray, n_arm: int | None = None
+) -> tuple[float, float]:
     """(peak arm joint speed, peak wheel speed), rad/s: max |a_i| * scale_i over time, per actuator group.
     `n_arm`: the arm joints (the last two actuators are the wheels); None: len(action_scale) - 2."""
     a = np.asarray(actions, float)
@@ -143,6 +162,41 @@ def peak_speeds(actions: np.ndarray, action_scale: Sequence[float], n_arm: int |
         return 0.0, 0.0
     speeds = np.abs(a) * scale
     return float(speeds[:, :n_arm].max()), float(speeds[:, n_arm:].max())
+
+
+def command_smoothness(
+    actions: np.ndarray, dt: float, action_scale: Sequence[float] | np.ndarray
+) -> tuple[float, float]:
+    """(`cmd_accel_rms` rad/s^2, `cmd_jerk_rms` rad/s^3) of the commanded speeds u_k = a_k * action_scale, from
+    rest (u_{-1} = u_{-2} = 0): RMS over the steps of the norm over the actuators of the first and second
+    differences, divided by dt and dt^2."""
+    a = np.asarray(actions, float)
+    if a.size == 0 or dt <= 0:
+        return 0.0, 0.0
+    u = np.vstack([np.zeros((2, a.shape[1])), a * np.asarray(action_scale, float)])
+    d1 = np.diff(u, axis=0)  # u_k - u_{k-1}, from u_{-1}
+    d2 = np.diff(d1, axis=0)  # the second difference, from u_{-1} - u_{-2} = 0
+    accel = math.sqrt(float(np.mean(np.sum(d1[1:] * d1[1:], axis=1)))) / dt
+    jerk = math.sqrt(float(np.mean(np.sum(d2 * d2, axis=1)))) / (dt * dt)
+    return accel, jerk
+
+
+def limit_margin(q: np.ndarray, lower: Sequence[float], upper: Sequence[float]) -> float:
+    """The smallest distance of any joint to its limit over the samples q (n, joints), rad (negative beyond)."""
+    q = np.asarray(q, float)
+    if q.size == 0:
+        return math.nan
+    return float(np.minimum(q - np.asarray(lower, float), np.asarray(upper, float) - q).min())
+
+
+def converge_time(err: np.ndarray, dt: float, tolerance: float = DEFAULT_TOLERANCE) -> float | None:
+    """The first t_k = k dt from which every later error sample is within `tolerance` (s); None when the last
+    sample is outside it."""
+    err = np.asarray(err, float)
+    if err.size == 0 or not err[-1] <= tolerance:
+        return None
+    later_max = np.maximum.accumulate(err[::-1])[::-1]  # max of e_k .. e_n
+    return float(np.argmax(later_max <= tolerance) * dt)
 
 
 def timing_stats(us: np.ndarray) -> tuple[float, float]:
@@ -167,21 +221,27 @@ def episode_metrics(
     r_a: np.ndarray,
     actions: np.ndarray,
     dt: float,
-    action_scale: Sequence[float],
+    action_scale: Sequence[float] | np.ndarray,
     tolerance: float = DEFAULT_TOLERANCE,
     tipped_over: bool = False,
     err: np.ndarray | None = None,
     settle_time: float = DEFAULT_SETTLE_TIME,
+    q: np.ndarray | None = None,
+    limits: tuple[Sequence[float], Sequence[float]] | None = None,
+    limit_hits: int = 0,
 ) -> dict[str, Any]:
     """All per-episode tracking metrics of one completed rollout, as a dict of plain floats.
 
     `err` is the error norm per sample if it was recorded (the env's exact `info["tracking_error"]`);
     otherwise it is computed from `r_d` and `r_a`. The steady-state errors use the samples at t >= `settle_time`
-    (s; sample k is at t = k dt)."""
+    (s; sample k is at t = k dt). `q` (samples, arm joints) and `limits` (lower, upper) give `limit_margin_min`
+    (None without them); `limit_hits` (the env's count) decides `clean_success`."""
     err = error_norm(r_d, r_a) if err is None else np.asarray(err, float)
     joint_peak, wheel_peak = peak_speeds(actions, action_scale)
     m = max_error(err)
     steady_max, steady_rms = steady_errors(err, dt, settle_time)
+    accel, jerk = command_smoothness(actions, dt, action_scale)
+    success = is_success(m, tolerance, tipped_over=tipped_over)
     return {
         "max_error_m": m,
         "rms_error_m": rms_error(err),
@@ -192,7 +252,12 @@ def episode_metrics(
         "effort": effort(actions, dt),
         "peak_joint_speed": joint_peak,
         "peak_wheel_speed": wheel_peak,
-        "success": is_success(m, tolerance, tipped_over=tipped_over),
+        "cmd_accel_rms": accel,
+        "cmd_jerk_rms": jerk,
+        "limit_margin_min": None if q is None or limits is None else limit_margin(q, *limits),
+        "converge_time_s": converge_time(err, dt, tolerance),
+        "success": success,
+        "clean_success": success and limit_hits == 0,
     }
 
 
@@ -275,16 +340,18 @@ def success_curve(records: Sequence[dict], tolerances: Sequence[float] = SUCCESS
 
 
 def describe(values: Iterable[float | None]) -> dict[str, float | None]:
-    """median / mean / std (population) / min / max of the finite values; None when there are none."""
+    """median / mean / std (population) / min / max / p90 (the 90th percentile, numpy's linear interpolation) of
+    the finite values; None when there are none."""
     v = _finite(values)
     if v.size == 0:
-        return {"median": None, "mean": None, "std": None, "min": None, "max": None}
+        return {"median": None, "mean": None, "std": None, "min": None, "max": None, "p90": None}
     return {
         "median": float(np.median(v)),
         "mean": float(np.mean(v)),
         "std": float(np.std(v)),
         "min": float(np.min(v)),
         "max": float(np.max(v)),
+        "p90": float(np.percentile(v, 90)),
     }
 
 
@@ -315,7 +382,11 @@ def aggregate(
         n_success = sum(bool(r.get("success")) for r in recs)
         row["success_rate"] = n_success / len(recs)
         row["success_rate_ci95"] = wilson_interval(n_success, len(recs))
-        row["success_curve"] = success_curve(recs)
+        n_clean = sum(bool(r.get("clean_success")) for r in recs)
+        row["clean_success_rate"] = n_clean / len(recs)
+        row["clean_success_rate_ci95"] = wilson_interval(n_clean, len(recs))
+        row["success_curve"] = curve = success_curve(recs)
+        row["success_curve_ci95"] = [wilson_interval(round(p * len(recs)), len(recs)) for p in curve]
         for name in metrics:
             row[name] = describe(r.get(name) for r in ok)
             if name in IQM_METRICS:
@@ -324,6 +395,7 @@ def aggregate(
                     strata.setdefault(r.get(strata_key) if strata_key else None, []).append(r.get(name))
                 row[name]["iqm"] = iqm(r.get(name) for r in ok)
                 row[name]["iqm_ci95"] = iqm_ci95(list(strata.values()))
+                row[name]["worst"] = row[name]["max"]  # the tail the IQM hides (failed episodes: n_failed)
         rows.append(row)
     return rows
 
@@ -394,3 +466,39 @@ def jacobian_quality(rel_error: np.ndarray, angle: np.ndarray) -> dict[str, floa
         out[f"{key}_median{unit}"] = float(np.median(v)) if v.size else None
         out[f"{key}_max{unit}"] = float(np.max(v)) if v.size else None
     return out
+
+
+# --- probability of improvement ------------------------------------------------------------------------------------
+def probability_of_improvement(
+    x: Sequence[Sequence[float]],
+    y: Sequence[Sequence[float]],
+    resamples: int = 1000,
+    seed: int = BOOTSTRAP_SEED,
+) -> tuple[float, list[float]] | None:
+    """rliable's probability of improvement on a lower-is-better score: P(X < Y), with X, Y the max errors of two
+    controllers, per task (stratum) the share of pairs (x_i, y_j) with x_i < y_j (ties count half), averaged over
+    the tasks both have; and its 95% stratified percentile bootstrap interval (each resample redraws, within every
+    task, each controller's episodes with replacement). `x[t]`, `y[t]`: the episodes of task t (a failed episode
+    is +inf: worse than any). None when no task has episodes of both.
+
+    (Agarwal et al., "Deep RL at the edge of the statistical precipice", NeurIPS 2021, the average probability of
+    improvement; here on the max tracking error, so "improvement" is a smaller error.)"""
+    pairs = [(np.asarray(a, float), np.asarray(b, float)) for a, b in zip(x, y) if len(a) and len(b)]
+    if not pairs:
+        return None
+
+    def p_lt(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        # a (..., n), b (..., m) -> the share of pairs with a < b, ties half, over the last two axes
+        lt = (a[..., :, None] < b[..., None, :]).mean(axis=(-1, -2))
+        eq = (a[..., :, None] == b[..., None, :]).mean(axis=(-1, -2))
+        return lt + 0.5 * eq
+
+    point = float(np.mean([p_lt(a, b) for a, b in pairs]))
+    rng = np.random.default_rng(seed)
+    boot = np.zeros(resamples)
+    for a, b in pairs:
+        ia = rng.integers(0, len(a), (resamples, len(a)))
+        ib = rng.integers(0, len(b), (resamples, len(b)))
+        boot += p_lt(a[ia], b[ib])
+    boot /= len(pairs)
+    return point, [float(np.percentile(boot, 2.5)), float(np.percentile(boot, 97.5))]

@@ -23,7 +23,9 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -46,7 +48,54 @@ CORE_POLICIES = ("nnbc", "jmpi", ORACLE, "nnbc-full")
 OPTIONAL_POLICIES = ("nnbc-plus", "clik", "qp-oracle")
 #: policies run by name whose defaults must equal the paper's gains (else the spec sets them): {name: fields}
 PAPER_GAINS = {"nnbc": ("gamma", "mu")}
-DYNAMICS_ARG = {"both": ("kinematic", "physics"), "kinematic": ("kinematic",), "physics": ("physics",)}
+#: the dynamics modes paper.md reports, in its order
+PAPER_DYNAMICS = ("kinematic", "physics")
+
+
+@dataclass(frozen=True)
+class PaperConfig:
+    """What one `mobman-eval paper` runs besides what the paper fixes (env, policies, first seed: the module
+    docstring)."""
+
+    out: str | None = None
+    """Output directory; None: `runs/paper-<UTC timestamp>`."""
+    overwrite: bool = False
+    """Write into an existing non-empty `out` (files of the same name are replaced)."""
+    seeds: int = 20
+    """Reported seeds 10000, 10001, ...: each a different worn true robot (the paper's section IV has 20)."""
+    dynamics: tuple[str, ...] = PAPER_DYNAMICS
+    """Dynamics modes ("kinematic": the paper's idealised model; "physics": PyBullet contact dynamics), reported
+    in this order. Default both: the paper's claims are checked in its own setting and in the realistic one."""
+    workers: int = 2
+    """Worker processes (results do not depend on it; 2 halves the physics half on a two-core machine)."""
+    batch_size: int = EvalConfig.batch_size
+    """Most kinematic episodes stepped together through one vector env (`EvalConfig.batch_size`)."""
+    video: bool = False
+    """Also write videos of seed 10000 (slow)."""
+    progress: bool = True
+    """Show a progress bar (stderr) and where paper.md is (stdout)."""
+
+    def __post_init__(self) -> None:
+        modes = (self.dynamics,) if isinstance(self.dynamics, str) else tuple(self.dynamics)
+        if modes == ("both",):  # the spelling of release 0.1 (the CLI says it is deprecated)
+            modes = PAPER_DYNAMICS
+        object.__setattr__(self, "dynamics", modes)
+
+    def validate(self) -> None:
+        """Raise EvalError naming the bad value, the accepted ones and the fix."""
+        if isinstance(self.seeds, bool) or not isinstance(self.seeds, int) or self.seeds < 1:
+            raise EvalError(f"--seeds must be an integer >= 1, got {self.seeds!r}")
+        unknown = [m for m in self.dynamics if m not in PAPER_DYNAMICS]
+        if unknown or not self.dynamics or len(set(self.dynamics)) != len(self.dynamics):
+            raise EvalError(
+                f"--dynamics {','.join(self.dynamics)!r}: give each of {', '.join(PAPER_DYNAMICS)} at most once "
+                f"(default: both)"
+            )
+
+    @property
+    def modes(self) -> tuple[str, ...]:
+        """The dynamics modes in the report's order."""
+        return tuple(m for m in PAPER_DYNAMICS if m in self.dynamics)
 
 
 def choose_policies(dynamics: str) -> tuple[tuple[str, ...], list[str]]:
@@ -80,42 +129,32 @@ def choose_policies(dynamics: str) -> tuple[tuple[str, ...], list[str]]:
     return tuple(specs), notes
 
 
-def reproduce(
-    out: str | None = None,
-    seeds: int = 20,
-    dynamics: str = "both",
-    workers: int = 2,
-    batch_size: int = EvalConfig.batch_size,
-    overwrite: bool = False,
-    video: bool = False,
-    progress: bool = True,
-) -> Path:
-    """Run the section IV experiment and write the figures and paper.md; returns the output directory."""
+def reproduce(config: PaperConfig | None = None, **changes: Any) -> Path:
+    """Run the section IV experiment and write the figures and paper.md; returns the output directory.
+    `changes` replace fields of `config` (default `PaperConfig()`), e.g. `reproduce(dynamics="kinematic")`."""
     from eval.runner import run
 
-    if dynamics not in DYNAMICS_ARG:
-        raise EvalError(f"unknown --dynamics {dynamics!r}; accepted: {', '.join(DYNAMICS_ARG)}")
-    if isinstance(seeds, bool) or not isinstance(seeds, int) or seeds < 1:
-        raise EvalError(f"--seeds must be an integer >= 1, got {seeds!r}")
-    modes = DYNAMICS_ARG[dynamics]
+    paper = replace(config or PaperConfig(), **changes)
+    paper.validate()
+    modes = paper.modes
     specs, notes = choose_policies(modes[0])
-    config = EvalConfig(
+    run_config = EvalConfig(
         envs=(PAPER_ENV,),
         policies=specs,
-        episodes=seeds,
+        episodes=paper.seeds,
         seed=PAPER_SEED,
-        out=out,
-        overwrite=overwrite,
-        workers=workers,
-        batch_size=batch_size,
+        out=paper.out,
+        overwrite=paper.overwrite,
+        workers=paper.workers,
+        batch_size=paper.batch_size,
         dynamics=modes,
-        video=video,
+        video=paper.video,
         save_arrays="first",
-        progress=progress,
+        progress=paper.progress,
         command="paper",
     )
     t0 = time.perf_counter()
-    result = run(config)
+    result = run(run_config)
     wall = time.perf_counter() - t0
     out_dir = Path(result.out)
     figures = write_figures(result, out_dir)
@@ -242,6 +281,8 @@ def paper_markdown(result, specs, notes, figures, wall_s: float) -> str:
     cfg = res["config"]
     modes = cfg["dynamics"]
     nnbc = spec_of(specs, "nnbc")
+    if nnbc is None:  # choose_policies always runs it: the claims are about it
+        raise EvalError(f"paper.md compares NNBC with the others, but no nnbc spec was run ({', '.join(specs)})")
     oracle = spec_of(specs, "oracle") or ORACLE
     first = next((r for r in result.episodes if r["index"] in result.arrays), None)
     measured = path_extent(result.arrays[first["index"]]["r_d"]) if first else None
@@ -502,51 +543,53 @@ def _baselines(result, specs, nnbc: str, oracle: str, modes) -> list[str]:
             'the closed-loop controller an engineer would run. Without it, "JMPI fails" only shows that open '
             "loop fails, not that a model-free controller beats a model-based one."
         )
-    for dyn in modes if clik else ():
-        c, j, m = _success(result, clik, dyn), _success(result, "jmpi", dyn), _success(result, nnbc, dyn)
-        if c is None or j is None or m is None:
-            continue
-        ca = _agg(result, clik, dyn)
-        med = format_mm(ca["max_error_m"]["median"], clik, 1) + " mm"
-        line = (
-            f"* **`{clik}` vs JMPI, {dyn}:** the same nominal model as JMPI with eq. (10)'s feedback term (its default gain) is within "
-            f"6 mm in {c[0]}/{c[1]} seeds (median {med}); JMPI in {j[0]}/{j[1]}, `{nnbc}` in {m[0]}/{m[1]}."
-        )
-        if c[0] > j[0]:
-            line += (
-                " So JMPI's failure is the failure of open loop, not of knowing only the nominal model: the "
-                'paper\'s comparison cannot separate "model-free" from "feedback".'
+    else:
+        for dyn in modes:
+            c, j, m = _success(result, clik, dyn), _success(result, "jmpi", dyn), _success(result, nnbc, dyn)
+            ca = _agg(result, clik, dyn)
+            if c is None or j is None or m is None or ca is None:
+                continue
+            med = format_mm(ca["max_error_m"]["median"], clik, 1) + " mm"
+            line = (
+                f"* **`{clik}` vs JMPI, {dyn}:** the same nominal model as JMPI with eq. (10)'s feedback term (its default gain) is within "
+                f"6 mm in {c[0]}/{c[1]} seeds (median {med}); JMPI in {j[0]}/{j[1]}, `{nnbc}` in {m[0]}/{m[1]}."
             )
-        if c[0] >= m[0]:
-            line += (
-                " At this model error the practitioner's baseline does at least as well as the paper's NNBC, "
-                'so the paper\'s "superiority" claim holds against JMPI only.'
-            )
-        else:
-            line += f" Here `{nnbc}` beats it: learning J pays off at this model error."
-        out.append(line)
+            if c[0] > j[0]:
+                line += (
+                    " So JMPI's failure is the failure of open loop, not of knowing only the nominal model: the "
+                    'paper\'s comparison cannot separate "model-free" from "feedback".'
+                )
+            if c[0] >= m[0]:
+                line += (
+                    " At this model error the practitioner's baseline does at least as well as the paper's NNBC, "
+                    'so the paper\'s "superiority" claim holds against JMPI only.'
+                )
+            else:
+                line += f" Here `{nnbc}` beats it: learning J pays off at this model error."
+            out.append(line)
     if ceiling is None:
         out.append(
             "* **`qp-oracle` was not run** (not registered in this install). It is the known-model ceiling: the "
             "true robot's Jacobian in a QP that respects joint limits. Without it, `oracle` (eq. (10) on the "
             "true robot, which runs into joint 1's stop) understates what a controller can reach on this task."
         )
-    for dyn in modes if ceiling else ():
-        q, o = _success(result, ceiling, dyn), _success(result, oracle, dyn)
-        if q is None:
-            continue
-        qa = _agg(result, ceiling, dyn)
-        line = (
-            f"* **`{ceiling}`, {dyn}:** within 6 mm in {q[0]}/{q[1]} seeds, median max error "
-            f"{format_mm(qa['max_error_m']['median'], ceiling, 2)} mm: what knowing the robot allows on this task"
-        )
-        if o is not None:
-            line += f" (eq. (10) with the same knowledge, `{oracle}`: {o[0]}/{o[1]})"
-        m = _agg(result, nnbc, dyn)
-        if m is not None and m["max_error_m"]["median"] is not None and qa["max_error_m"]["median"]:
-            ratio = m["max_error_m"]["median"] / qa["max_error_m"]["median"]
-            line += f". `{nnbc}`'s median is {format_value(ratio, nnbc, 1)} times it"
-        out.append(line + ".")
+    else:
+        for dyn in modes:
+            q, o = _success(result, ceiling, dyn), _success(result, oracle, dyn)
+            qa = _agg(result, ceiling, dyn)
+            if q is None or qa is None:
+                continue
+            line = (
+                f"* **`{ceiling}`, {dyn}:** within 6 mm in {q[0]}/{q[1]} seeds, median max error "
+                f"{format_mm(qa['max_error_m']['median'], ceiling, 2)} mm: what knowing the robot allows on this task"
+            )
+            if o is not None:
+                line += f" (eq. (10) with the same knowledge, `{oracle}`: {o[0]}/{o[1]})"
+            na = _agg(result, nnbc, dyn)
+            if na is not None and na["max_error_m"]["median"] is not None and qa["max_error_m"]["median"]:
+                ratio = na["max_error_m"]["median"] / qa["max_error_m"]["median"]
+                line += f". `{nnbc}`'s median is {format_value(ratio, nnbc, 1)} times it"
+            out.append(line + ".")
     if is_chaotic(nnbc):
         out.append(f"* {CHAOTIC_NOTE}.")
     return out

@@ -1,13 +1,23 @@
-"""One rollout loop for every policy: controllers, SB3 agents and the user's own objects alike.
+"""One rollout loop for every policy and every env: controllers, SB3 agents and the user's own objects, one env
+or N robots of a vector env.
 
 ```
-obs, info = env.reset(seed=S + k)
-policy.reset(obs, info, seed=policy_seed(S + k))   # if the object has `reset` (SB3-only objects do not)
-repeat: action, state = policy.predict(obs, state)   # timed with perf_counter, whole call
-        obs, reward, terminated, truncated, info = env.step(action)
+obs, info = envs.reset(seed=[S_0, ..., S_N-1])          # robot i: the single env's episode of seed S_i
+policy.reset(obs, info, seed=[policy_seed(S_i) ...])    # if the object has `reset` (SB3-only objects do not)
+repeat: actions, state = policy.predict(obs, state)      # timed with perf_counter, whole call
+        obs, reward, terminated, truncated, info = envs.step(actions)
 ```
 
-Per step it records (SI units, float64 unless noted):
+`run_episodes` is the loop. `rollout(env, policy, seed)` runs it on one env and the policy object as it is (a
+batch of one: the env's own observation dict goes to `predict`, the action comes back as the env takes it), which
+is how physics episodes, SB3 agents, `module:attr` specs and the user's objects run; `rollout_batch(venv, policy,
+seeds)` runs it on a vector env with a batched policy (`policies.make(spec, venv)`), which is how `eval` runs the
+kinematic episodes of built-in controllers. Both return per robot the same (record, arrays), the same code
+making them: the records of a batched episode equal the single path's, timing fields (`wall_s`,
+`predict_us_*`) and `pid` excepted (`tests/test_batch_rollout.py`), because robot i of the vector env is the single
+env and row i of a batched policy the single policy, by construction (`mobman_env.engine`, `policies.kernels`).
+
+Per step and robot it records (SI units, float64 unless noted):
 
 | array | shape | meaning |
 |---|---|---|
@@ -16,13 +26,14 @@ Per step it records (SI units, float64 unless noted):
 | r_a | (n+1, 3) | true end-effector position (`info["ee_pos_true"]`, noise-free), m |
 | p_c | (n+1, 2) | arm mount position p_c as observed (`obs["arm_base_pos"]`), m |
 | error | (n+1,) | tracking error `info["tracking_error"]` (noise-free), m |
-| action | (n, 8) | normalised action the env applied (after clipping to [-1, 1]) |
-| predict_us | (n,) | wall time of each `predict` call, microseconds |
+| action | (n, m) | normalised action the env applied (after clipping to [-1, 1]) |
+| predict_us | (n,) | wall time of each `predict` call (batched: the call's time / robots served), microseconds |
+| q | (n+1, n_arm) | the arm's joint angles as observed (`obs["joint_pos"]`, float32 precision), rad |
 
 Policies that expose a Jacobian estimate (a `jacobian_kind` other than None and `jacobian_estimate`: see
-`policies.base.ControllerPolicy`) get two more per-step arrays, computed here from the true robot
-(`env.unwrapped.true_params` and `mobman_env.kinematics`, at the joint angles and heading of the observation the
-policy was given), never by the policy; nan on steps without an estimate (during a probe):
+`policies.base.ControllerPolicy`) get two more per-step arrays, computed here from the true robot (the env's
+`true_params` and `mobman_env.engine.jacobians`, the env's own chain, at the joint angles and heading of the
+observation the policy was given), never by the policy; nan on steps without an estimate (during a probe):
 
 | array | shape | meaning |
 |---|---|---|
@@ -31,20 +42,20 @@ policy was given), never by the policy; nan on steps without an estimate (during
 
 and the record gets their median and max (`JACOBIAN_KEYS`; None for policies without an estimate).
 
-The policy's seed is `policies.base.policy_seed(S + k)`, derived from the episode seed by a documented rule so
+The policy's seed is `policies.base.policy_seed(S_i)`, derived from the episode seed by a documented rule so
 that it reveals nothing the env drew (the true robot, the path, the noise); it never is the env's seed itself.
 
-A crash anywhere in the episode (env or policy) is caught: the record gets `status: "failed"` and the
-traceback, its metrics are None, and the caller goes on with the next episode.
+A crash anywhere in the call (env or policy) is caught: every record of the call gets `status: "failed"` and the
+traceback, its metrics None, and the caller goes on (`eval.execution.batches` runs a failed batch's episodes
+again one by one, so only the episodes that really fail are recorded failed).
 """
 
 from __future__ import annotations
 
-import itertools
 import os
 import time
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -55,7 +66,7 @@ from eval.errors import EvalError
 from policies.base import policy_seed
 
 #: Keys of the per-step arrays one rollout returns (see the module docstring).
-ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us")
+ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us", "q")
 
 #: Per-step arrays recorded only for policies that expose `jacobian_estimate` (see the module docstring).
 JACOBIAN_ARRAY_KEYS = ("jacobian_rel_error", "jacobian_angle_rad")
@@ -75,6 +86,9 @@ RECORD_KEYS = (
     "policy",
     "episode",
     "seed",
+    "robot",
+    "knowledge",
+    "artefacts",
     "dynamics",
     "model_error",
     "obs_noise",
@@ -93,7 +107,12 @@ RECORD_KEYS = (
     "effort",
     "peak_joint_speed",
     "peak_wheel_speed",
+    "cmd_accel_rms",
+    "cmd_jerk_rms",
+    "limit_margin_min",
+    "converge_time_s",
     "success",
+    "clean_success",
     "n_steps",
     "joint_limit_hits",
     "n_clipped",
@@ -131,6 +150,26 @@ def make_env(
     return gym.make(env_id, **kwargs)
 
 
+def make_vector_env(
+    env_id: str,
+    num_envs: int,
+    dynamics: str | None = None,
+    model_error: float | None = None,
+    obs_noise: float | None = None,
+    env_kwargs: dict | None = None,
+) -> Any:
+    """`gym.make_vec(env_id, num_envs, vectorization_mode="vector_entry_point", **kwargs)` with the eval flags
+    (None: the env's default) and extra constructor kwargs, as `make_env` builds a single env. Kinematic mode
+    gives the native `mobman_env.vector.WheeledPumaVectorEnv`."""
+    import mobman_env  # noqa: F401  (registers the ids)
+
+    kwargs = dict(env_kwargs or {})
+    for name, value in (("dynamics", dynamics), ("model_error", model_error), ("obs_noise", obs_noise)):
+        if value is not None:
+            kwargs[name] = value
+    return gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point", **kwargs)
+
+
 def _metrics_none() -> dict[str, Any]:
     return {
         "max_error_m": None,
@@ -142,60 +181,13 @@ def _metrics_none() -> dict[str, Any]:
         "effort": None,
         "peak_joint_speed": None,
         "peak_wheel_speed": None,
+        "cmd_accel_rms": None,
+        "cmd_jerk_rms": None,
+        "limit_margin_min": None,
+        "converge_time_s": None,
         "success": False,
+        "clean_success": False,
     }
-
-
-def rollout(
-    env,
-    policy,
-    seed: int,
-    *,
-    tolerance: float = M.DEFAULT_TOLERANCE,
-    settle_time: float = M.DEFAULT_SETTLE_TIME,
-    meta: dict | None = None,
-    on_step: Callable[[int], None] | None = None,
-) -> tuple[dict, dict | None]:
-    """Run one episode of `policy` on `env` from `env.reset(seed=seed)`.
-
-    Returns (record, arrays): the episode record of the `results.json` schema (without the fields only the
-    caller knows, which it passes in `meta`: env, policy, episode) and the per-step arrays (None if the episode
-    failed before its first step). `on_step(k)` is called after the reset (k = 0) and after each step k (used
-    to grab video frames). `settle_time` (s) starts the window of the steady-state errors."""
-    base = env.unwrapped
-    rec = _empty_record(base, seed, meta)
-    buf: _Buffers | None = None
-    jac = None
-    k = 0
-    wall0 = time.perf_counter()
-    try:
-        obs, info = env.reset(seed=seed)
-        task = info["task"]
-        rec.update(path=task["path"], start=task["start"], true_params_hash=info["true_params_hash"])
-        n = int(task["n_steps"])
-        buf = _Buffers(n, float(base.dt), len(np.asarray(base.action_scale)))
-        buf.observe(0, obs, info)
-        reset = getattr(policy, "reset", None)
-        if reset is not None:
-            reset(obs, info, seed=policy_seed(seed))
-        if getattr(policy, "jacobian_kind", None) is not None:
-            jac = _JacobianRecorder(policy, base, n)
-        if on_step is not None:
-            on_step(0)
-        k, info, rec["terminated"] = _run_steps(env, policy, obs, n, buf, jac, on_step)
-        arrays: dict | None = _finish(rec, buf.arrays(k), info, k, base, tolerance, settle_time, jac)
-    except KeyboardInterrupt:
-        raise
-    except BaseException:  # SystemExit from a user's policy too: a failed episode, not a stopped evaluation
-        k = buf.k if buf is not None else 0
-        rec["status"] = "failed"
-        rec["error"] = traceback.format_exc()
-        rec["n_steps"] = k
-        rec.update(_metrics_none())
-        arrays = buf.arrays(k) if buf is not None else None
-    rec["wall_s"] = time.perf_counter() - wall0
-    rec["pid"] = os.getpid()
-    return rec, arrays
 
 
 def _empty_record(base: Any, seed: int, meta: dict | None) -> dict[str, Any]:
@@ -204,6 +196,9 @@ def _empty_record(base: Any, seed: int, meta: dict | None) -> dict[str, Any]:
     rec.update(
         {
             "seed": int(seed),
+            "robot": getattr(base, "robot", None),
+            "knowledge": None,
+            "artefacts": None,
             "dynamics": getattr(base, "dynamics", None),
             "model_error": getattr(base, "model_error", None),
             "obs_noise": getattr(base, "obs_noise", None),
@@ -231,71 +226,6 @@ def _empty_record(base: Any, seed: int, meta: dict | None) -> dict[str, Any]:
     return rec
 
 
-class _Buffers:
-    """The per-step arrays of one episode, allocated for its full length and cut to the steps that ran."""
-
-    def __init__(self, n: int, dt: float, n_act: int):
-        self.t = np.arange(n + 1) * dt
-        self.r_d = np.empty((n + 1, 3))
-        self.r_a = np.empty((n + 1, 3))
-        self.p_c = np.empty((n + 1, 2))
-        self.err = np.empty(n + 1)
-        self.act = np.empty((n, n_act))
-        self.us = np.empty(n)
-        self.k = 0  # steps run so far: the index of the latest state observed
-
-    def observe(self, k: int, obs: dict, info: dict) -> None:
-        """The state after step k (k = 0: after the reset), from the observation and the noise-free info."""
-        self.k = k
-        self.r_d[k], self.r_a[k], self.p_c[k], self.err[k] = (
-            obs["target_pos"],
-            info["ee_pos_true"],
-            obs["arm_base_pos"],
-            info["tracking_error"],
-        )
-
-    def arrays(self, k: int) -> dict[str, np.ndarray]:
-        """The arrays of the first k steps (states 0..k, actions and timings 0..k-1)."""
-        return {
-            "t": self.t[: k + 1],
-            "r_d": self.r_d[: k + 1],
-            "r_a": self.r_a[: k + 1],
-            "p_c": self.p_c[: k + 1],
-            "error": self.err[: k + 1],
-            "action": self.act[:k],
-            "predict_us": self.us[:k],
-        }
-
-
-def _run_steps(env, policy, obs: dict, n: int, buf: _Buffers, jac, on_step) -> tuple[int, dict, bool]:
-    """Step until truncation, termination or n steps; returns (steps run, last info, terminated). Each
-    `predict` call is timed whole; the action stored is the one the env applied (clipped to [-1, 1])."""
-    predict = policy.predict
-    clock = time.perf_counter
-    n_act = buf.act.shape[1]
-    state = None
-    info: dict = {}
-    k = 0
-    while k < n:
-        t0 = clock()
-        action, state = predict(obs, state=state, episode_start=None, deterministic=True)
-        buf.us[k] = (clock() - t0) * 1e6
-        if jac is not None:
-            jac.record(k, obs)
-        a = np.asarray(action, dtype=np.float32)
-        if a.shape == (1, n_act):  # a batch of one back from an SB3-style object
-            a = a[0]
-        obs, _, terminated, truncated, info = env.step(a)
-        buf.act[k] = np.clip(a, -1.0, 1.0)
-        k += 1
-        buf.observe(k, obs, info)
-        if on_step is not None:
-            on_step(k)
-        if terminated or truncated:
-            return k, info, bool(terminated)
-    return k, info, False
-
-
 def _finish(rec: dict, arrays: dict, info: dict, k: int, base: Any, tolerance: float, settle_time: float, jac) -> dict:
     """Fill `rec` with the episode's counters and metrics (and the Jacobian-estimate quality); returns the
     arrays, with the Jacobian-estimate arrays added."""
@@ -314,6 +244,9 @@ def _finish(rec: dict, arrays: dict, info: dict, k: int, base: Any, tolerance: f
             tipped_over=rec["tipped_over"],
             err=arrays["error"],
             settle_time=settle_time,
+            q=arrays["q"],
+            limits=base.limits,
+            limit_hits=rec["joint_limit_hits"],
         )
     )
     rec["predict_us_median"], rec["predict_us_p99"] = M.timing_stats(arrays["predict_us"])
@@ -358,14 +291,11 @@ class _JacobianRecorder:
     """Per-step Jacobian-estimate quality of a policy exposing `jacobian_estimate` (see the module docstring).
 
     Per step it stores the policy's estimate and the state (arm angles, heading) of the observation the policy
-    acted on; at the end the true robot's Jacobian of the same kind is computed at all those states in one
-    numpy pass (`mobman_env.vector_kinematics.robot_jacobians`, bit for bit the per-step
-    `mobman_env.kinematics` function) and the metrics batched (`eval.metrics.jacobian_relative_error`,
-    `eval.metrics.row_space_angle`)."""
+    acted on, and the true robot of that step; at the end the true robot's Jacobian of the same kind is computed
+    at all those states in one call of `mobman_env.engine.jacobians` (the env's own chain) and the metrics batched
+    (`eval.metrics.jacobian_relative_error`, `eval.metrics.row_space_angle`)."""
 
     def __init__(self, policy: Any, base: Any, n: int):
-        from mobman_env import kinematics as K
-
         kind = getattr(policy, "jacobian_kind", None)
         if kind not in ("paper", "whole_body"):
             raise ValueError(
@@ -373,16 +303,15 @@ class _JacobianRecorder:
                 f"'paper' or 'whole_body' (see policies.base.ControllerPolicy.jacobian_estimate)"
             )
         self.kind = kind
-        self._single = K.whole_body_jacobian if kind == "whole_body" else K.paper_jacobian
         self._policy = policy
         self._base = base
         n_act = len(np.asarray(base.action_scale))
         self._J_hat = np.full((n, 3, n_act), np.nan)
-        self._q = np.zeros((n, n_act - 2))
+        self._q = np.zeros((n, n_act))
         self._yaw = np.zeros(n)
         self._params: list[Any] = [None] * n  # the true robot at each step (it changes under wear drift)
 
-    def record(self, k: int, obs: dict) -> None:
+    def record(self, k: int, joint_pos: np.ndarray, base_yaw: np.ndarray) -> None:
         J_hat = self._policy.jacobian_estimate
         if J_hat is None:
             return
@@ -393,30 +322,24 @@ class _JacobianRecorder:
                 f"{self._J_hat.shape[1:]} (3 x actuators)"
             )
         self._J_hat[k] = J_hat
-        self._q[k] = np.asarray(obs["joint_pos"], float)[:-2]  # the n arm angles (the last two are the wheels)
-        self._yaw[k] = obs["base_yaw"][0]
+        self._q[k] = joint_pos
+        self._yaw[k] = base_yaw[0]
         self._params[k] = self._base.true_params
 
     def finish(self, k: int) -> dict[str, Any]:
-        from mobman_env.vector_kinematics import robot_jacobians
+        from mobman_env import engine
 
         J_hat = self._J_hat[:k]
-        have = np.isfinite(J_hat).all(axis=(1, 2))
+        have = np.flatnonzero(np.isfinite(J_hat).all(axis=(1, 2)))
         rel = np.full(k, np.nan)
         angle = np.full(k, np.nan)
-        if have.any():
-            steps = np.flatnonzero(have).tolist()
-            J = np.empty((len(steps),) + J_hat.shape[1:])
-            start = 0  # runs of steps with the same true robot, one numpy pass each
-            for _, group in itertools.groupby(steps, key=lambda step: id(self._params[step])):
-                run = list(group)
-                end = start + len(run)
-                params = self._params[run[0]]
-                if len(run) == 1:  # a robot that changes every step (wear drift): the cheaper single call
-                    J[start] = self._single(params, self._q[run[0]], float(self._yaw[run[0]]))
-                else:
-                    J[start:end] = robot_jacobians(params, self._q[run], self._yaw[run], self.kind == "whole_body")
-                start = end
+        if have.size:
+            robots: dict[int, int] = {}  # the distinct true robots of the steps, packed once each
+            index = np.array([robots.setdefault(id(self._params[s]), len(robots)) for s in have.tolist()])
+            first = {v: have[j] for j, v in reversed(list(enumerate(index.tolist())))}
+            arm, prm = engine.packed([self._params[first[r]] for r in range(len(robots))])
+            J = np.empty((have.size, *J_hat.shape[1:]))
+            engine.jacobians(arm, prm, index, self._q[have], self._yaw[have], self.kind == "whole_body", J)
             rel[have] = M.jacobian_relative_error(J_hat[have], J)
             angle[have] = M.row_space_angle(J_hat[have], J)
         return {
@@ -424,3 +347,316 @@ class _JacobianRecorder:
             **M.jacobian_quality(rel, angle),
             "arrays": {"jacobian_rel_error": rel, "jacobian_angle_rad": angle},
         }
+
+
+# --- the loop -------------------------------------------------------------------------------------------------
+class _RobotBase:
+    """What the records read of robot i's env (`env.unwrapped` of a single env; robot i of a vector env): the
+    condition, dt, the action scale and the door to its true robot."""
+
+    def __init__(self, env: Any, i: int | None = None):
+        self._env, self._i = env, i
+        tpl = env if i is None else getattr(env, "_template", env)
+        self.dt = float(tpl.dt)
+        self.action_scale = np.asarray(tpl.action_scale, dtype=float)
+        self.n_arm = len(self.action_scale) - 2
+        for name in ("dynamics", "model_error", "obs_noise", "control_freq", "robot"):
+            setattr(self, name, getattr(tpl, name, None))
+
+    @property
+    def true_params(self) -> Any:
+        return self._env.true_params if self._i is None else self._env.true_params(self._i)
+
+    @property
+    def limits(self) -> tuple[Any, Any] | None:
+        """The arm's joint limits (lower, upper) of this episode's robot (the nominal one's: wear leaves limits
+        alone), rad; None for an env without mobman's `nominal_params`."""
+        of = getattr(self._env, "nominal_params_of", None)
+        p = of(self._i) if (of is not None and self._i is not None) else getattr(self._env, "nominal_params", None)
+        return None if p is None else (p.joint_lower, p.joint_upper)
+
+
+class _OneEnv:
+    """A single env seen as a batch of one by the loop: the batched observation and info are views of the env's
+    own (the policy gets the env's observation dict itself, unbatched)."""
+
+    num_envs = 1
+
+    def __init__(self, env: Any):
+        self.env = env
+        self.obs: dict = {}
+        self.info: dict = {}
+
+    def reset(self, seed: list[int]) -> tuple[dict, dict]:
+        self.obs, self.info = self.env.reset(seed=seed[0])
+        return _batch1(self.obs), _batch_info(self.info)
+
+    def step(self, actions: np.ndarray) -> tuple[dict, Any, np.ndarray, np.ndarray, dict]:
+        self.obs, reward, terminated, truncated, info = self.env.step(actions[0])
+        return _batch1(self.obs), reward, np.array([terminated]), np.array([truncated]), _batch_info(info)
+
+
+def _batch1(obs: dict) -> dict:
+    return {k: v[None] for k, v in obs.items()}
+
+
+def _batch_info(info: dict) -> dict:
+    """A single env's info as the loop reads a vector env's: each entry an array of one row."""
+    out: dict[str, Any] = {k: np.array([info.get(k, 0)]) for k in ("n_clipped", "joint_limit_hits")}
+    out["ee_pos_true"] = np.asarray(info["ee_pos_true"], dtype=float)[None]
+    out["tracking_error"] = np.array([info["tracking_error"]])
+    out["tipped_over"] = np.array([bool(info.get("tipped_over", False))])
+    if "task" in info:
+        task = info["task"]
+        out["task"] = {"n_steps": np.array([task["n_steps"]]), "start": [task["start"]], "path": [task["path"]]}
+        out["true_params_hash"] = [info["true_params_hash"]]
+    return out
+
+
+class _OnePolicy:
+    """The user's (or SB3's, or a built-in's) single-env policy object driven by the loop: it gets the env's own
+    observation dict and may keep a recurrent `state`; its action comes back as a row of a batch of one."""
+
+    def __init__(self, policy: Any, env: _OneEnv):
+        self.policy, self._env = policy, env
+        self.rows = [policy]
+        self._state: Any = None
+
+    def reset(self, obs: dict, info: dict, seed: list[int]) -> None:
+        reset = getattr(self.policy, "reset", None)
+        self._state = None
+        if reset is not None:
+            reset(self._env.obs, self._env.info, seed=seed[0])
+
+    def predict(self, obs: dict, episode_start: Any = None, deterministic: bool = True) -> tuple[np.ndarray, Any]:
+        action, self._state = self.policy.predict(
+            self._env.obs, state=self._state, episode_start=None, deterministic=True
+        )
+        a = np.asarray(action, dtype=np.float32)
+        return (a if a.ndim == 2 else a[None]), self._state
+
+
+def rollout(
+    env: Any,
+    policy: Any,
+    seed: int,
+    *,
+    tolerance: float = M.DEFAULT_TOLERANCE,
+    settle_time: float = M.DEFAULT_SETTLE_TIME,
+    meta: dict | None = None,
+    on_step: Callable[[int], None] | None = None,
+) -> tuple[dict, dict | None]:
+    """Run one episode of `policy` (any object with SB3's `predict`; `reset` if it has one) on `env` from
+    `env.reset(seed=seed)`: the loop's batch of one.
+
+    Returns (record, arrays): the episode record of the `results.json` schema (without the fields only the
+    caller knows, which it passes in `meta`: env, policy, episode) and the per-step arrays (None if the episode
+    failed before its first step). `on_step(k)` is called after the reset (k = 0) and after each step k (used
+    to grab video frames). `settle_time` (s) starts the window of the steady-state errors."""
+    envs = _OneEnv(env)
+    one = _OnePolicy(policy, envs)
+    base = _RobotBase(env.unwrapped)
+    return run_episodes(envs, one, [int(seed)], [base], [policy_seed(seed)], tolerance, settle_time, [meta], on_step)[0]
+
+
+def rollout_batch(
+    venv: Any,
+    policy: Any,
+    seed: int | Sequence[int],
+    *,
+    tolerance: float = M.DEFAULT_TOLERANCE,
+    settle_time: float = M.DEFAULT_SETTLE_TIME,
+    meta: dict | Sequence[dict] | None = None,
+) -> list[tuple[dict, dict | None]]:
+    """Run the N episodes of seeds `seed` .. `seed + N - 1` (or the N seeds of the list `seed`, in any order) of
+    `policy` (a `policies.batched.BatchedPolicy` for `venv`) on the vector env `venv`; returns each robot's (record,
+    arrays) as `rollout` returns them for that seed and the same policy spec. `meta`: the caller's record fields,
+    one dict for all or one per robot."""
+    n = venv.num_envs
+    if isinstance(seed, (int, np.integer)):
+        seeds = [int(seed) + i for i in range(n)]
+        policy_seeds: Any = int(seed)  # the batched policy derives policy_seed(S + i) itself
+    else:
+        seeds = [int(s) for s in seed]
+        policy_seeds = [policy_seed(s) for s in seeds]
+    metas = list(meta) if isinstance(meta, Sequence) else [meta] * n
+    if len(seeds) != n or len(metas) != n:
+        raise ValueError(
+            f"rollout_batch on {n} robots needs one seed (or a list of {n}) and one meta dict (or a list of {n}), "
+            f"got {len(seeds)} seeds and {len(metas)} meta dicts"
+        )
+    bases = [_RobotBase(venv.unwrapped, i) for i in range(n)]
+    return run_episodes(_VectorEnv(venv), policy, seeds, bases, policy_seeds, tolerance, settle_time, metas, None)
+
+
+class _VectorEnv:
+    """A vector env as the loop drives it: reset with a list of seeds."""
+
+    def __init__(self, venv: Any):
+        self.venv, self.num_envs = venv, venv.num_envs
+
+    def reset(self, seed: list[int]) -> tuple[dict, dict]:
+        return self.venv.reset(seed=seed)
+
+    def step(self, actions: np.ndarray) -> tuple:
+        return self.venv.step(actions)
+
+
+def run_episodes(
+    envs: Any,
+    policy: Any,
+    seeds: list[int],
+    bases: list[_RobotBase],
+    policy_seeds: Any,
+    tolerance: float,
+    settle_time: float,
+    metas: Sequence[dict | None],
+    on_step: Callable[[int], None] | None,
+) -> list[tuple[dict, dict | None]]:
+    """The loop (see the module docstring): N episodes of `envs` (N = `envs.num_envs`, a vector env or `_OneEnv`)
+    under `policy` (batched; `_OnePolicy` for one env), robot i from seed `seeds[i]`; returns each robot's
+    (record, arrays). `policy_seeds` is what `policy.reset` gets (the vector reset seed, or the list of the
+    robots' policy seeds)."""
+    n = envs.num_envs
+    recs = [_empty_record(bases[i], seeds[i], metas[i]) for i in range(n)]
+    wall0 = time.perf_counter()
+    steps_run = np.zeros(n, dtype=int)
+    arr: dict[str, np.ndarray] = {}
+    k = 0
+    try:
+        obs, info = envs.reset(seed=seeds)
+        n_steps = np.asarray(info["task"]["n_steps"], dtype=int)
+        m = int(n_steps.max())
+        n_act = len(bases[0].action_scale)
+        # the per-step arrays of all robots, step-major
+        arr = {
+            "r_d": np.empty((m + 1, n, 3)),
+            "r_a": np.empty((m + 1, n, 3)),
+            "p_c": np.empty((m + 1, n, 2)),
+            "error": np.empty((m + 1, n)),
+            "action": np.empty((m, n, n_act)),
+            "predict_us": np.empty((m, n)),
+            "q": np.empty((m + 1, n, n_act - 2)),
+        }
+        _observe(arr, 0, obs, info)
+        task = info["task"]
+        for i, rec in enumerate(recs):
+            rec.update(
+                path=_path(task["path"], i), start=list(task["start"][i]), true_params_hash=info["true_params_hash"][i]
+            )
+        reset = getattr(policy, "reset", None)
+        if reset is not None:
+            reset(obs, info, seed=policy_seeds)
+        rows = getattr(policy, "rows", [policy] * n)
+        _describe_policies(recs, rows)
+        jacs = [
+            _JacobianRecorder(rows[i], bases[i], int(n_steps[i]))
+            if getattr(rows[i], "jacobian_kind", None) is not None
+            else None
+            for i in range(n)
+        ]
+        watched = [(i, jac) for i, jac in enumerate(jacs) if jac is not None]
+        if on_step is not None:
+            on_step(0)
+        running = np.ones(n, dtype=bool)
+        clock = time.perf_counter
+        while running.any():
+            t0 = clock()
+            actions, _ = policy.predict(obs, episode_start=None, deterministic=True)
+            row_us = getattr(policy, "row_us", None)  # a StackedPolicy times each of its parts
+            arr["predict_us"][k] = (clock() - t0) * 1e6 / running.sum() if row_us is None else row_us
+            act = np.asarray(actions, dtype=np.float32)
+            for i, jac in watched:
+                if running[i]:
+                    jac.record(k, obs["joint_pos"][i], obs["base_yaw"][i])
+            obs, _, term, trunc, info = envs.step(act)
+            arr["action"][k] = np.clip(act, -1.0, 1.0)
+            k += 1
+            _observe(arr, k, obs, info)
+            if on_step is not None:
+                on_step(k)
+            ended = running & (term | trunc | (k >= n_steps))
+            for i in np.flatnonzero(ended).tolist():
+                running[i] = False
+                steps_run[i] = k
+                arrays = _arrays(arr, i, k, bases[i].dt)
+                recs[i]["_arrays"] = _finish(
+                    recs[i], arrays, _row_info(info, i), k, bases[i], tolerance, settle_time, jacs[i]
+                )
+                recs[i]["terminated"] = bool(term[i])
+        out = [(rec, rec.pop("_arrays")) for rec in recs]
+    except KeyboardInterrupt:
+        raise
+    except BaseException:  # SystemExit from a user's policy too: a failed episode, not a stopped evaluation
+        tb = traceback.format_exc()
+        out = []
+        for i, rec in enumerate(recs):
+            rec.pop("_arrays", None)
+            done = int(steps_run[i]) or k
+            rec.update(status="failed", error=tb, n_steps=done, **_metrics_none())
+            out.append((rec, _arrays(arr, i, done, bases[i].dt) if arr else None))
+    wall = (time.perf_counter() - wall0) / n
+    for rec, _ in out:
+        rec["wall_s"] = wall
+        rec["pid"] = os.getpid()
+    return out
+
+
+def _describe_policies(recs: list[dict], rows: Sequence[Any]) -> None:
+    """Each record's `knowledge` (`policies.knowledge_of` its row's policy: none, structure, nominal, true or
+    unknown) and `artefacts` (the files the policy loaded, with their SHA-256: an SB3 agent's; None for a
+    controller)."""
+    from policies import knowledge_of
+
+    known: dict[Any, str] = {}
+    for rec, row in zip(recs, rows):
+        spec = getattr(row, "spec", None)
+        key = spec if isinstance(spec, str) and getattr(row, "knowledge", None) is None else id(row)
+        if key not in known:
+            try:
+                known[key] = knowledge_of(row)
+            except Exception:  # a user's object that declares a value knowledge_of refuses: say so in the record
+                known[key] = "unknown"
+        rec["knowledge"] = known[key]
+        artefacts = getattr(row, "artefacts", None)
+        rec["artefacts"] = None if artefacts is None else [dict(a) for a in artefacts]
+
+
+def _path(spec: Any, i: int) -> dict:
+    """Row i of the batched `task["path"]` info (a nested dict of arrays, or a list of spec dicts for one env)
+    as the single env's spec dict."""
+    if isinstance(spec, list):
+        return spec[i]
+    row = {}
+    for key, value in spec.items():
+        if key.startswith("_") or not spec["_" + key][i]:
+            continue
+        v = value[i]
+        row[key] = v.item() if isinstance(v, np.generic) else v
+    return row
+
+
+def _observe(arr: dict, k: int, obs: dict, info: dict) -> None:
+    """The state after step k of every robot (k = 0: after the reset)."""
+    arr["r_d"][k], arr["r_a"][k] = obs["target_pos"], info["ee_pos_true"]
+    arr["p_c"][k], arr["error"][k] = obs["arm_base_pos"], info["tracking_error"]
+    arr["q"][k] = obs["joint_pos"][:, : arr["q"].shape[2]]
+
+
+def _row_info(info: dict, i: int) -> dict:
+    return {
+        "ee_pos_true": info["ee_pos_true"][i],
+        "tracking_error": float(info["tracking_error"][i]),
+        "joint_limit_hits": int(info["joint_limit_hits"][i]),
+        "n_clipped": int(info["n_clipped"][i]),
+        "tipped_over": bool(info["tipped_over"][i]) if "tipped_over" in info else False,
+    }
+
+
+def _arrays(arr: dict, i: int, k: int, dt: float) -> dict[str, np.ndarray]:
+    """Robot i's arrays of its first k steps, contiguous (so the metrics reduce them in the same order whatever
+    the batch)."""
+    out = {"t": np.arange(k + 1) * dt}
+    for key, value in arr.items():
+        out[key] = np.ascontiguousarray(value[: k + (0 if key in ("action", "predict_us") else 1), i])
+    return out

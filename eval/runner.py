@@ -7,7 +7,9 @@ Order of work, so that mistakes cost nothing:
    checked before the first rollout; problems raise `EvalError` listing what is available;
 2. the episodes run; a crash inside one is recorded as `status: "failed"` with its traceback and the rest go on;
 3. results.json, results.csv, summary.md, config.json, episodes.npz, plots and videos are written, each to a
-   temporary name and renamed.
+   temporary name and renamed. Meanwhile every record was appended to `episodes.jsonl` as its episode ended
+   (`eval.output.journal`, as a sweep's), so a crash or a full disk keeps the finished episodes; a file that
+   cannot be written is an EvalError naming it ("free space and run again").
 
 Batches: kinematic episodes of one env, condition and built-in policy spec run up to `batch_size` at a time
 through one vector env and one batched policy (`eval.execution.batches`), with the records of the single path
@@ -20,7 +22,6 @@ timing fields (`wall_s`, `predict_us_*`) and `pid`.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,10 +30,10 @@ from eval import metrics as M
 from eval.checks import check_all, check_user_policies
 from eval.config import EvalConfig
 from eval.errors import EvalError, RunInterrupted
-from eval.execution.dispatch import execute
-from eval.execution.tasks import ExecutionInterrupted, interrupted_record, make_tasks
-from eval.output.files import check_out, make_out, remove_stale, resolve_out, sigint_deferred
-from eval.output.progress import progress_bar
+from eval.execution.tasks import interrupted_record, make_tasks
+from eval.grid import run_tasks
+from eval.output.files import check_out, interrupts_deferred, make_out, remove_stale, resolve_out
+from eval.output.journal import JOURNAL, Journal
 from eval.output.results import RUN_OUTPUTS, ResultsView, arrays_key, build_results, print_results, write_run
 from eval.output.video import video_format, write_videos
 from eval.rollout import RECORD_KEYS, _known_policies_text
@@ -74,10 +75,22 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     if config.video:
         video_format()  # the encoder is there (or a clear message) before any episode runs
     out = make_out(out, exclusive=not config.out)
+    journal = Journal(out / JOURNAL, command="run")
+    journal.open(fresh=True)  # locked: a second run into this --out stops here, before anything is written
+    try:
+        return _run(config, user, user_bytes, out, journal)
+    finally:
+        journal.close()
 
+
+def _run(config: EvalConfig, user: dict, user_bytes: bytes | None, out: Path, journal: Journal) -> RunResult:
+    """The episodes (the grid engine: each record journaled as it ends) and the report of `run`, once everything
+    is checked."""
     names = list(config.policies) + list(user)
     tasks = make_tasks(config, names)
-    rec_by_index, arrays, wall, interrupted = _execute_with_progress(config, user, tasks, user_bytes)
+    grid = run_tasks(config, user, tasks, user_bytes, journal, progress=config.progress, desc="episodes")
+    arrays, wall, interrupted = grid.arrays, grid.wall_s, grid.interrupted
+    rec_by_index = {**grid.lost, **grid.records}
     records = [rec_by_index.get(t.index) or interrupted_record(t) for t in tasks]
     for t, rec in zip(tasks, records):
         for key in RECORD_KEYS:  # records of episodes that never ran (dead worker) get every field too
@@ -98,8 +111,11 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     finished = [r for r in records if r["status"] != "interrupted"]
     results = build_results(cfg, records, M.aggregate(finished), wall_s=wall)
     result = RunResult(out=out, results=results, arrays=arrays)
-    with sigint_deferred(reraise=not interrupted):  # a Ctrl-C now does not cut the report short
-        written = write_run(result, config)
+    with interrupts_deferred(reraise=not interrupted):  # a Ctrl-C or SIGTERM now does not cut the report short
+        try:
+            written = write_run(result, config) + [journal.path]
+        except EvalError as exc:  # a full disk: what finished is in the journal
+            raise EvalError(f"{exc}; the {len(finished)} finished episodes are in {journal.path}") from None
     if interrupted:
         raise RunInterrupted(
             f"interrupted: {len(finished)} of {len(records)} episodes finished; results written to {out} "
@@ -112,30 +128,3 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
     if config.progress:
         print_results(results, out, config.stdout_format)
     return result
-
-
-def _execute_with_progress(
-    config: EvalConfig, user: dict, tasks: list, user_bytes: bytes | None
-) -> tuple[dict[int, dict], dict[int, dict], float, bool]:
-    """Run the tasks with a progress bar: (records by index, arrays by index, wall time in s, interrupted)."""
-    bar = progress_bar(len(tasks), "episodes", "ep", config.progress)
-
-    def on_result(rec):
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix_str(
-                f"{rec['policy']} seed {rec['seed']}: "
-                + (f"max {rec['max_error_m'] * 1e3:.2f} mm" if rec.get("max_error_m") is not None else rec["status"]),
-                refresh=False,
-            )
-
-    t0 = time.perf_counter()
-    interrupted = False
-    try:
-        rec_by_index, arrays = execute(config, user, tasks, user_bytes, on_result)
-    except ExecutionInterrupted as exc:
-        rec_by_index, arrays, interrupted = exc.records, exc.arrays, True
-    finally:
-        if bar is not None:
-            bar.close()
-    return rec_by_index, arrays, time.perf_counter() - t0, interrupted

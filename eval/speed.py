@@ -1,4 +1,4 @@
-"""The speed benchmark: `mobman-eval speed` or `python -m eval.speed` (measures; asserts nothing).
+"""The speed benchmark: `mobman-eval speed` (`SpeedConfig`, `measure`; measures, asserts nothing).
 
 What it measures, all in the same run so that the ratios compare like with like on a shared machine:
 
@@ -12,7 +12,7 @@ What it measures, all in the same run so that the ratios compare like with like 
 | episodes/s | `eval.run` of 20 s kinematic `nnbc` episodes with `workers` 1 and 2, one episode at a time (`batch_size` 1) and batched (`EvalConfig`'s default `batch_size`: `eval.execution.batches`), worker start-up included |
 | vector env robot-steps/s | `gym.make_vec(..., vectorization_mode="vector_entry_point", dynamics="kinematic")` at N = 1, 64, 1024 (`mobman_env.vector`), random actions, no autoreset inside the timed block |
 | batched predict | the whole batched `predict` of `policies.make(spec, vector_env)` at N = 64, per robot-step |
-| batched episodes/s | `eval.batch_rollout.rollout_batch` of `--batch` 20 s kinematic `nnbc` and `clik` episodes in one process (one vector env, one batched policy) |
+| batched episodes/s | `eval.rollout.rollout_batch` of `--batch-size` 20 s kinematic `nnbc` and `clik` episodes in one process (one vector env, one batched policy) |
 | paper, kinematic half (`--paper`) | CPU seconds of `mobman-eval paper --dynamics kinematic --workers 1` in this process (its 7 controllers x 20 reported seeds, batched, with its figures and files) |
 | peers (`--peers`) | steps/s of panda-gym `PandaReach-v3` and MuJoCo `Reacher-v5` (installed with the `[bench]` extra), timed interleaved with the kinematic env in the same process; ratios mobman / peer |
 
@@ -20,7 +20,7 @@ Timed blocks in this process count its CPU time (`CLOCK`: per CPU-second, so oth
 change the figures less); the `eval.run` episodes/s and the predict table are wall time. Each timed block is repeated (`--repeats`, interleaving env and bare runs) and the best repeat is reported: on
 a machine shared with other jobs the best repeat is the least disturbed one. The load average at the start is
 recorded beside the figures. Writes `speed.json` and `speed.md` (its figures as Markdown, the source of the
-README's Performance block) into `--out` and prints a table.
+blocks of docs/performance.md) into `--out` and prints a table.
 """
 
 from __future__ import annotations
@@ -30,7 +30,9 @@ import os
 import platform
 import tempfile
 import time
+from dataclasses import dataclass
 from datetime import datetime, timezone
+from typing import Any
 
 import numpy as np
 
@@ -153,7 +155,7 @@ def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
     """Median and p99 of the whole predict call of each policy over one kinematic episode (the eval loop)."""
     from eval.rollout import make_policy, rollout
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     env = _env("kinematic")
     try:
         for spec in specs:
@@ -166,6 +168,7 @@ def predict_times(specs: list[str], seed: int = 0) -> list[dict]:
             if rec["status"] != "ok":
                 rows.append({"policy": spec, "status": "failed: " + rec["error"].strip().splitlines()[-1]})
                 continue
+            assert arrays is not None  # an episode that ran has its arrays
             rows.append(
                 {
                     "policy": spec,
@@ -290,9 +293,9 @@ def batched_predict_times(specs: list[str], steps: int, n: int = PREDICT_BATCH, 
 
 
 def batch_episodes_per_second(n: int, policy: str, seed: int = 0) -> dict:
-    """Episodes/s of `n` 20 s kinematic episodes run as one batch (`eval.batch_rollout.rollout_batch`)."""
+    """Episodes/s of `n` 20 s kinematic episodes run as one batch (`eval.rollout.rollout_batch`)."""
     import policies
-    from eval.batch_rollout import rollout_batch
+    from eval.rollout import rollout_batch
 
     venv = _vector_env(n)
     try:
@@ -340,7 +343,7 @@ def peer_steps(steps: int, repeats: int, seed: int = 0) -> list[dict]:
 
     import gymnasium as gym
 
-    rows = []
+    rows: list[dict[str, Any]] = []
     for label, env_id, module in PEERS:
         try:
             if module:
@@ -388,17 +391,49 @@ def default_policies() -> list[str]:
     return names + ["sb3:sac-circle"]
 
 
-def measure(
-    steps: int = 4000,
-    repeats: int = 3,
-    episodes: int = 8,
-    specs: list[str] | None = None,
-    progress=print,
-    batch: int = 64,
-    peers: bool = False,
-    paper: bool = False,
-) -> dict:
+@dataclass(frozen=True)
+class SpeedConfig:
+    """What one `mobman-eval speed` measures, and where it writes speed.json and speed.md."""
+
+    steps: int = 4000
+    """Control steps per timed block."""
+    repeats: int = 3
+    """Repeats per timed block; the best is reported (the least disturbed one on a shared machine)."""
+    episodes: int = 8
+    """20 s episodes per workers setting of the `eval.run` episodes/s rows."""
+    policies: tuple[str, ...] | None = None
+    """Policies whose predict is timed; None: every built-in name and sb3:sac-circle. Each is built first: an
+    unknown one stops the benchmark before it starts."""
+    batch_size: int = 64
+    """Episodes of the batched-eval block (one vector env, one batched policy)."""
+    peers: bool = False
+    """Also race the installed peers (panda-gym PandaReach-v3, MuJoCo Reacher-v5; pip install "mobman[bench]")."""
+    paper: bool = False
+    """Also time the kinematic half of `mobman-eval paper` with 1 worker (about 20 s)."""
+    out: str | None = None
+    """Output directory; None: `runs/speed-<UTC timestamp>`."""
+    overwrite: bool = False
+    """Write into an existing non-empty `out` (files of the same name are replaced)."""
+    progress: bool = True
+    """Say what is being timed (stderr) and print the table (stdout)."""
+
+    def validate(self) -> None:
+        """Raise EvalError naming a count that is not an integer >= 1."""
+        from eval.errors import EvalError
+        from mobman_env.validation import integer
+
+        for name in ("steps", "repeats", "episodes", "batch_size"):
+            integer(f"--{name.replace('_', '-')}", getattr(self, name), low=1, error=EvalError)
+
+
+def measure(config: SpeedConfig | None = None, progress=print) -> dict:
+    """Every figure of the module docstring's table (and the peers' and the paper's when `config` asks), as the
+    dict speed.json holds; `progress(message)` says what is being timed."""
     from eval.output.provenance import git_rev, versions
+
+    c = config or SpeedConfig()
+    steps, repeats, episodes, batch = c.steps, c.repeats, c.episodes, c.batch_size
+    specs = list(c.policies) if c.policies else None
 
     load = os.getloadavg() if hasattr(os, "getloadavg") else None
     out: dict = {
@@ -433,17 +468,17 @@ def measure(
     out["batched_predict"] = batched_predict_times(specs or default_policies(), steps)
     progress(f"timing batched eval ({batch} episodes of nnbc and clik) ...")
     out["batch_episodes"] = [batch_episodes_per_second(batch, p) for p in ("nnbc", "clik")]
-    if paper:
+    if c.paper:
         progress("timing the kinematic half of mobman-eval paper (1 worker) ...")
         out["paper"] = paper_kinematic_seconds()
-    if peers:
+    if c.peers:
         progress("racing the peers (PandaReach-v3, Reacher-v5) ...")
         out["peers"] = peer_steps(steps, repeats)
     return out
 
 
 def markdown(res: dict) -> str:
-    """The figures of `measure` as Markdown: `## Conditions` and `## Figures` (the README's block)."""
+    """The figures of `measure` as Markdown: `## Conditions` and `## Figures` (docs/performance.md's block)."""
     m, st = res["machine"], res["settings"]
     load = m["loadavg_1_5_15_at_start"]
     lines = [
@@ -496,7 +531,7 @@ def markdown(res: dict) -> str:
         if e["status"] == "ok":
             lines.append(
                 f"| episodes/s, 20 s kinematic `{e['policy']}`, one batch of {e['episodes']} "
-                f"(`eval.batch_rollout`) | {e['episodes_per_s']:.2f} |"
+                f"(`eval.rollout.rollout_batch`) | {e['episodes_per_s']:.2f} |"
             )
     if "paper" in res:
         pp = res["paper"]
@@ -515,10 +550,11 @@ def markdown(res: dict) -> str:
 
 
 def print_table(res: dict) -> None:
-    from rich.console import Console
     from rich.table import Table
 
-    c = Console()
+    from eval.output.tables import console
+
+    c = console()
     t = Table(title=f"env steps/s ({res['settings']['env']}, 100 Hz control, best of {res['settings']['repeats']})")
     for h in ("dynamics", "substeps", "env steps/s", "bare PyBullet steps/s", "env / bare", "sim s per wall s"):
         t.add_column(h, justify="right")

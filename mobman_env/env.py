@@ -1,8 +1,10 @@
 """`WheeledPumaEnv`: end-effector path tracking with an arm (default the PUMA 560; also the UR5, the Panda and
 a random arm per episode) on a two-wheel differential-drive platform.
 
-Joins the robot (`params`, drawn by `robots.sources`), the simulation (`sim`), the task (`paths`) and the
-sensor model (`sensors`). Imports gymnasium, numpy and those `mobman_env` modules only. The class keeps its
+Joins the robot (`params`, drawn by `robots.sources`), the engine (`engine`: the kinematic step, the readings,
+the task's target, error, reward and observation, for N robots; this env is N = 1 of it, with the state in a
+`batch.RobotBatch`), PyBullet in physics mode (`sim`) and the task (`paths`). Imports gymnasium, numpy and those
+`mobman_env` modules only. The class keeps its
 release 0.1 name (users' scripts and pickles use it); the robot is its `robot` argument.
 """
 
@@ -17,10 +19,12 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from mobman_env import engine as E
+from mobman_env.batch import CONDITIONS, RobotBatch, RobotState
 from mobman_env.params import MAX_REL_STD, RobotParams
-from mobman_env.paths import Path, path_from_spec, validate_spec
+from mobman_env.paths import Path, validate_spec
 from mobman_env.robots.sources import ROBOT_NAMES, RobotSource, robot_source
-from mobman_env.sensors import SENSOR_KEYS, Sensors, sensor_count
+from mobman_env.sensors import SENSOR_KEYS
 from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
 from mobman_env.validation import integer, number, vector
 
@@ -31,16 +35,20 @@ PAPER_BASE_POSE = (0.0, 0.0, math.pi)
 #: The paper's circle (section IV): radius 0.4 m, tilted pi/6, 20 s, centre towards -x from the start.
 PAPER_CIRCLE = {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": math.pi, "duration": 20.0}
 DEFAULT_REWARD_WEIGHTS = {"tracking": 1.0, "effort": 1e-3}
-TIP_ANGLE = math.radians(30.0)  # rad, roll or pitch beyond which the platform counts as tipped over
+TIP_ANGLE = E.TIP_ANGLE  # rad, roll or pitch beyond which the platform counts as tipped over
 
 #: observation keys in order: the sensor readings (delayed by `obs_delay`) first, then the task's reference
 OBS_KEYS = (*SENSOR_KEYS, "target_pos", "target_vel", "time")
 MAX_CONTROL_FREQ = 10_000.0  # Hz
 MAX_SUBSTEPS = 1000
 MAX_OBS_DELAY = 10_000  # control steps (100 s at 100 Hz): the delay buffer holds this many observations
-MAX_WEAR_RATE = 0.1  # 1/s: 10% length change per second; each episode also needs |wear_rate| * duration < 1
-#: per-episode conditions: constructor arguments that a reset option of the same name overrides for one episode
-CONDITIONS = ("model_error", "obs_noise", "obs_noise_vel", "obs_noise_joint_vel", "obs_delay", "wear_rate")
+MAX_WEAR_RATE = 0.1  # 1/s: 10% length change per second; each episode also needs |wear_rate| * duration <= MAX_WEAR
+#: the largest relative length change over an episode: a drifting length stays at least a tenth of the episode's
+#: (as `RobotParams.perturbed` keeps a worn one at least a tenth of the catalogue's)
+MAX_WEAR = 0.9
+MAX_ACTUATOR_TAU = 10.0  # s: a lag beyond this is a broken actuator, not a slow one
+# per-episode conditions (`batch.CONDITIONS`): constructor arguments that a reset option of the same name overrides
+# for one episode
 RESET_OPTIONS = ("path", "arm_joint_pos", "base_pose", *CONDITIONS)
 __all__ = ["OBS_KEYS", "PAPER_ARM_JOINT_POS", "PAPER_BASE_POSE", "PAPER_CIRCLE", "ROBOT_NAMES", "WheeledPumaEnv"]
 _CLOSED = "the env is closed; make a new one with gym.make(...) (or WheeledPumaEnv(...))"
@@ -49,13 +57,18 @@ _CLOSED = "the env is closed; make a new one with gym.make(...) (or WheeledPumaE
 def _condition(name: str, value: Any) -> float | int:
     """Validate one per-episode condition (constructor argument or reset option)."""
     if name == "model_error":
-        hint = "the worn robot's lengths are multiplied by factors in [1 - 3 model_error, 1 + 3 model_error]"
-        return number(name, value, low=0.0, high=MAX_REL_STD, open_high=True, hint=hint + "; at 1/3 one can reach 0")
+        hint = (
+            "the worn robot's lengths are multiplied by factors in [max(0.1, 1 - 3 model_error), 1 + 3 model_error]: "
+            "a worn length is at least a tenth of its nominal one; at 1/3 the spread would reach 0"
+        )
+        return number(name, value, low=0.0, high=MAX_REL_STD, open_high=True, hint=hint)
     if name == "obs_delay":
         return integer(name, value, low=0, high=MAX_OBS_DELAY, hint="control steps")
     if name == "wear_rate":
         return number(name, value, low=-MAX_WEAR_RATE, high=MAX_WEAR_RATE, hint="relative length change per second")
-    unit = {"obs_noise": "m", "obs_noise_vel": "m/s", "obs_noise_joint_vel": "rad/s"}[name]
+    if name == "actuator_tau":
+        return number(name, value, low=0.0, high=MAX_ACTUATOR_TAU, hint="time constant of the actuators' lag, s")
+    unit = {"obs_noise": "m", "obs_noise_vel": "m/s", "obs_noise_joint_vel": "rad/s", "obs_noise_yaw": "rad"}[name]
     return number(name, value, low=0.0, hint=f"standard deviation, {unit}")
 
 
@@ -64,8 +77,20 @@ def _duration(spec: dict) -> float:
     return float(spec.get("duration", 20.0))
 
 
+#: the platform's start: x and y of P_0 within this many metres of the origin (the observation bounds are 1000 m,
+#: and beyond a few km float64 positions lose the sub-micrometre precision the metrics need), yaw in [-2 pi, 2 pi]
+MAX_BASE_XY = 100.0
+
+
 def _base_pose(value: Any) -> np.ndarray:
-    return vector("base_pose", value, sizes=(3,), hint="x, y of P_0 in m and yaw in rad, e.g. [0, 0, 3.1416]")
+    pose = vector("base_pose", value, sizes=(3,), hint="x, y of P_0 in m and yaw in rad, e.g. [0, 0, 3.1416]")
+    x, y, yaw = pose.tolist()
+    if max(abs(x), abs(y)) > MAX_BASE_XY or abs(yaw) > 2 * math.pi:
+        raise ValueError(
+            f"base_pose {pose.tolist()} is out of range: x and y of P_0 in [-{MAX_BASE_XY:g}, {MAX_BASE_XY:g}] m, yaw "
+            f"in [-2 pi, 2 pi] rad; e.g. [0, 0, 3.1416] (move the path instead of the world's origin)"
+        )
+    return pose
 
 
 class WheeledPumaEnv(gym.Env):
@@ -111,7 +136,7 @@ class WheeledPumaEnv(gym.Env):
     | ee_vel | (3,) | end-effector velocity (+ `obs_noise_vel`) | m/s |
     | arm_base_pos | (2,) | p_c, x-y of the arm mount (+ `obs_noise`) | m |
     | arm_base_vel | (2,) | p_c velocity (+ `obs_noise_vel`) | m/s |
-    | base_yaw | (1,) | platform heading phi, continuous (not wrapped) | rad |
+    | base_yaw | (1,) | platform heading phi, continuous (not wrapped) (+ `obs_noise_yaw`) | rad |
     | joint_pos | (n + 2,) | n arm joint angles, left and right wheel angles | rad |
     | joint_vel | (n + 2,) | their speeds (+ `obs_noise_joint_vel`) | rad/s |
     | target_pos | (3,) | desired position r_d(t) | m |
@@ -119,11 +144,27 @@ class WheeledPumaEnv(gym.Env):
     | time | (1,) | time since reset t | s |
 
     Sensor model (`mobman_env.sensors`): independent Gaussian noise of the stds above, drawn from the env's
-    `np_random` each step (nothing is drawn for a std of 0). With `obs_delay` = k the seven sensor keys (ee_pos
+    `np_random` each step (nothing is drawn for a std of 0). Typical magnitudes of real mobile manipulators:
+    heading from wheel odometry fused with an IMU gyro drifts and jitters by about 1-5 mrad (1 sigma) over seconds
+    (e.g. Borenstein & Feng, "Measurement and correction of systematic odometry errors in mobile robots", IEEE
+    TRA 12(6), 1996; MEMS gyros' angle random walk of 0.1-0.5 deg/sqrt(h) integrated over a control period), so
+    `obs_noise_yaw` 1e-3 rad is a good sensor and 5e-3 rad a poor one. With `obs_delay` = k the seven sensor keys (ee_pos
     to joint_vel) are the noisy readings of k control steps ago (the reset reading until k steps have passed);
     target_pos, target_vel and time are the task's reference at the current time (a controller knows its own
     clock; delaying it too would only shift the task in time). `info["ee_pos_true"]` and
     `info["tracking_error"]` are always noise-free, undelayed and of the current (worn) robot.
+
+    ## Actuators
+    Each actuator's realised speed follows its command through a first-order lag of time constant
+    `actuator_tau` (s; 0: instantly), u(t_k+1) = u_c + (u(t_k) - u_c) e^{-dt/tau}, discretised exactly: the joint
+    and wheel angles move by the exact integral of u over the step (kinematic mode; the platform's arc uses the
+    wheels' mean speeds over the step), and in physics mode the velocity motors are given that mean speed.
+    `joint_vel` reports the realised speed. Typical magnitudes: a joint or wheel velocity loop of bandwidth f_c
+    lags like tau = 1 / (2 pi f_c); electric drives' velocity loops close at roughly 5-30 Hz, i.e. tau of 5-30 ms
+    (Siciliano, Sciavicco, Villani, Oriolo, *Robotics: Modelling, Planning and Control*, Springer 2009, ch. 8 on
+    the drives' velocity loops), and a heavy base with its wheel drives behaves slower still. The joint-limit rule acts on the
+    command (a joint at its limit whose command pushes further gets 0) and on the motion (a joint that reaches
+    its limit inside a step stops there, its realised speed 0).
 
     ## Robot wear
     Each reset draws the episode's true robot (`model_error`). With `wear_rate` = w != 0 its lengths (the
@@ -134,9 +175,9 @@ class WheeledPumaEnv(gym.Env):
     PyBullet body cannot change its link lengths. Re-creating it mid-episode costs about 8.5 ms (a fresh world
     and URDF load, CPU time measured) against 0.24 ms per physics step, i.e. 35x slower if done every step; done
     every second instead, the lengths would jump by w per reload (5 mm at 1 m for w = 0.005 1/s) and contacts
-    would be teleported. So physics mode refuses w != 0. An episode needs |w| * duration < 1 (no length reaches
-    zero). `true_params` is the robot of the current time; `info["true_params_hash"]` stays that of the
-    episode's robot at t = 0. Cost in kinematic mode: about 20 us per step (88 -> 108 us, measured).
+    would be teleported. So physics mode refuses w != 0. An episode needs |w| * duration <= 0.9 (a length stays at
+    least a tenth of the episode's). `true_params` is the robot of the current time; `info["true_params_hash"]` stays that of the
+    episode's robot at t = 0. The engine scales the lengths inside its step (2n + 4 products: no measurable cost).
 
     ## Rewards
     Named terms, reported in `info["reward_terms"]` and summed exactly:
@@ -149,8 +190,8 @@ class WheeledPumaEnv(gym.Env):
     platform at `base_pose` (x, y of P_0 in m, yaw in rad; default [0, 0, pi]), at rest. The path starts at the
     end-effector. Reset options override the constructor argument of the same name for one episode: `"path"`
     (spec dict), `"arm_joint_pos"` (n or n + 2 numbers; not with `robot="random"`), `"base_pose"` (3 numbers) and the conditions
-    `"model_error"`, `"obs_noise"`, `"obs_noise_vel"`, `"obs_noise_joint_vel"`, `"obs_delay"`, `"wear_rate"`
-    (validated as in the constructor). `info["task"]` echoes the path spec, its start, the joint vector and the
+    `"model_error"`, `"obs_noise"`, `"obs_noise_vel"`, `"obs_noise_joint_vel"`, `"obs_noise_yaw"`, `"obs_delay"`,
+    `"wear_rate"`, `"actuator_tau"` (validated as in the constructor). `info["task"]` echoes the path spec, its start, the joint vector and the
     base pose; `info["true_params_hash"]` identifies the true robot.
 
     ## Episode End
@@ -171,8 +212,10 @@ class WheeledPumaEnv(gym.Env):
     | obs_noise | 0.0 | std of the Gaussian noise on ee_pos and arm_base_pos, m |
     | obs_noise_vel | 0.0 | std of the Gaussian noise on ee_vel and arm_base_vel, m/s |
     | obs_noise_joint_vel | 0.0 | std of the Gaussian noise on joint_vel, rad/s |
+    | obs_noise_yaw | 0.0 | std of the Gaussian noise on base_yaw, rad |
     | obs_delay | 0 | age of the sensor readings in the observation, control steps, in [0, 10000] |
     | wear_rate | 0.0 | relative change per second of the true robot's lengths, 1/s, in [-0.1, 0.1]; kinematic mode |
+    | actuator_tau | 0.0 | time constant of every actuator's first-order lag, s, in [0, 10]; both modes |
     | reward_weights | None | dict with keys "tracking", "effort"; None: {"tracking": 1.0, "effort": 1e-3} |
     | error_bound | None | terminate when the tracking error exceeds this, m; None: never |
     | render_mode | None | None, "rgb_array" (headless TinyRenderer) or "human" (window; see Rendering) |
@@ -204,6 +247,11 @@ class WheeledPumaEnv(gym.Env):
       `obs_delay`, `wear_rate`; conditions as reset options; `model_error` < 1/3; path ranges; render_fps =
       control frequency; headless "human" warns instead of raising; step/reset after close() raise; `robot`
       (UR5, Panda, random arms: ids `Wheeled{UR5,Panda,RandomArm}-*-v0`; the PUMA ids unchanged).
+    * v0, release 0.3 (same ids): the step is `mobman_env.engine`'s kernel (written once, compiled, BLAS-free), so
+      the bits of every result changed once (last-bit changes; chaotic closed loops differ beyond that; the
+      CHANGELOG lists what moved); `actuator_tau` and `obs_noise_yaw`; physics mode computes the end-effector from
+      the joint states and base pose (PyBullet's own within 1e-9 m); kinematic mode opens no PyBullet client
+      unless it renders; `state()`.
     """
 
     # render_fps: the default control frequency; each instance assigns its own dict (its control frequency), the
@@ -222,8 +270,10 @@ class WheeledPumaEnv(gym.Env):
         obs_noise: float = 0.0,
         obs_noise_vel: float = 0.0,
         obs_noise_joint_vel: float = 0.0,
+        obs_noise_yaw: float = 0.0,
         obs_delay: int = 0,
         wear_rate: float = 0.0,
+        actuator_tau: float = 0.0,
         reward_weights: dict | None = None,
         error_bound: float | None = None,
         render_mode: str | None = None,
@@ -237,21 +287,25 @@ class WheeledPumaEnv(gym.Env):
             raise ValueError(f"unknown render_mode {render_mode!r}; accepted: None, 'rgb_array', 'human'")
         control_freq = number("control_freq", control_freq, low=0.0, high=MAX_CONTROL_FREQ, open_low=True, hint="Hz")
         n_substeps = integer("n_substeps", n_substeps, low=1, high=MAX_SUBSTEPS)
-        conditions = {
+        given = {
             "model_error": model_error,
             "obs_noise": obs_noise,
             "obs_noise_vel": obs_noise_vel,
             "obs_noise_joint_vel": obs_noise_joint_vel,
+            "obs_noise_yaw": obs_noise_yaw,
             "obs_delay": obs_delay,
             "wear_rate": wear_rate,
+            "actuator_tau": actuator_tau,
         }
-        self._conditions = {k: _condition(k, v) for k, v in conditions.items()}
+        self._conditions = {k: _condition(k, given[k]) for k in CONDITIONS}
         self.model_error = self._conditions["model_error"]
         self.obs_noise = self._conditions["obs_noise"]
         self.obs_noise_vel = self._conditions["obs_noise_vel"]
         self.obs_noise_joint_vel = self._conditions["obs_noise_joint_vel"]
+        self.obs_noise_yaw = self._conditions["obs_noise_yaw"]
         self.obs_delay = self._conditions["obs_delay"]
         self.wear_rate = self._conditions["wear_rate"]
+        self.actuator_tau = self._conditions["actuator_tau"]
         if error_bound is not None:
             error_bound = number("error_bound", error_bound, low=0.0, hint="m; None: never terminate on the error")
         self.reward_weights = _reward_weights(reward_weights)
@@ -275,27 +329,26 @@ class WheeledPumaEnv(gym.Env):
         # per instance, the class dict untouched: one frame per control step plays in real time
         self.metadata = {**type(self).metadata, "render_fps": control_freq}
 
-        self._true_params = self._nominal_params
-        self._params0 = self._true_params  # the episode's true robot at t = 0 (wear drifts from it)
         self.action_scale = self._nominal_params.action_scale
         self.n_actuators = self._nominal_params.n_actuators
         self.action_space = spaces.Box(-1.0, 1.0, (self.n_actuators,), np.float32)
         self.observation_space = self._make_observation_space(self.n_actuators)
-        # one flat float32 vector per step, clipped once and handed out as views, in OBS_KEYS order
-        self._obs_slices, self._obs_low, self._obs_high = _flat_layout(self.observation_space)
+        # one flat float32 vector per step, handed out as views, in OBS_KEYS order
+        self._obs_slices = _flat_layout(self.observation_space)
         window = _gui_window(render_mode)
         # the path is drawn (as markers) only where it can be seen
         self._draws = render_mode == "rgb_array" or window
-        self._sim = Sim(dynamics, self.dt, self.n_substeps, gui=window)
-        self._sensors = Sensors()
+        # the engine's state of this one robot (N = 1); PyBullet steps it in physics mode and renders it in both
+        self._batch = RobotBatch(1, self.n_actuators - 2, self.dt, self.reward_weights, error_bound)
+        self._rows = self._batch.rows
+        self._rngs: list[np.random.Generator] = []
+        self._physics = dynamics == "physics"
+        self._sim: Sim | None = Sim(self.dt, n_substeps, gui=window) if (self._physics or render_mode) else None
         self._closed = False
         self._path: Path | None = None
-        self._wear = 0.0
-        self._step_count = 0
-        self._n_steps = 0
-        self._n_clipped = 0
-        self._limit_hits = 0
+        self._started = False
         self._task: dict = {}
+        self._params_hash = ""
 
     # --- construction helpers --------------------------------------------------------------------------
     @staticmethod
@@ -305,10 +358,11 @@ class WheeledPumaEnv(gym.Env):
                 f"wear_rate={wear_rate!r} needs dynamics='kinematic': a loaded PyBullet body cannot change its link "
                 "lengths (use wear_rate=0.0 in physics mode)"
             )
-        if abs(wear_rate) * duration >= 1.0:
+        if abs(wear_rate) * duration > MAX_WEAR:
             raise ValueError(
-                f"wear_rate={wear_rate!r} over a {duration:g} s path would take a length to zero or below: "
-                f"|wear_rate| * duration must stay below 1 (here |wear_rate| < {1.0 / duration:.4g} 1/s)"
+                f"wear_rate={wear_rate!r} over a {duration:g} s path would take a length below a tenth of the "
+                f"episode's: |wear_rate| * duration must stay <= {MAX_WEAR} (here |wear_rate| <= "
+                f"{MAX_WEAR / duration:.4g} 1/s)"
             )
 
     def _joint_vector(self, value: Any, nominal: RobotParams) -> np.ndarray:
@@ -338,7 +392,8 @@ class WheeledPumaEnv(gym.Env):
     @staticmethod
     def _make_observation_space(n_act: int = 8) -> spaces.Dict:
         f32 = np.float32
-        big_pos, big_vel = 1000.0, 100.0  # m and m/s: wide enough for any physics overshoot or drive-away
+        # the engine clips every entry into these bounds (m and m/s: wide enough for any physics overshoot)
+        big_pos, big_vel = E.BIG_POS, E.BIG_VEL
 
         def box(n, lim):
             return spaces.Box(-lim, lim, (n,), f32)
@@ -349,12 +404,12 @@ class WheeledPumaEnv(gym.Env):
                 "ee_vel": box(3, big_vel),
                 "arm_base_pos": box(2, big_pos),
                 "arm_base_vel": box(2, big_vel),
-                "base_yaw": box(1, 1e5),
-                "joint_pos": box(n_act, 1e5),
-                "joint_vel": box(n_act, 1e3),
+                "base_yaw": box(1, E.BIG_ANGLE),
+                "joint_pos": box(n_act, E.BIG_ANGLE),
+                "joint_vel": box(n_act, E.BIG_JOINT_VEL),
                 "target_pos": box(3, big_pos),
                 "target_vel": box(3, big_vel),
-                "time": spaces.Box(0.0, 1e5, (1,), f32),
+                "time": spaces.Box(0.0, E.BIG_TIME, (1,), f32),
             }
         )
 
@@ -395,131 +450,104 @@ class WheeledPumaEnv(gym.Env):
             raise ValueError(f"seed must be None or an integer >= 0, got {seed!r}")
         super().reset(seed=seed)
         spec, q0, pose, cond = self._episode_settings(options, self._nominal_params, self.dynamics)
-        self._sensors = Sensors(
-            cond["obs_noise"],
-            cond["obs_noise_vel"],
-            cond["obs_noise_joint_vel"],
-            int(cond["obs_delay"]),
-            n_sensor=sensor_count(len(self.action_scale)),
-        )
-        self._wear = cond["wear_rate"]
+        rng = self.np_random
+        self._rngs = [rng]
+        b, rows = self._batch, self._rows
         # one RNG stream, in a fixed order: the arm and its start (random family only), the true robot, then the
         # path's own seed, then sensor noise
-        drawn = self._source.draw(self.np_random)
-        if drawn is not None:
-            self._nominal_params, start = drawn
-            q0 = np.concatenate([start, [0.0, 0.0]])
-        assert q0 is not None  # a fixed robot has its start (constructor); a drawn one got it just above
-        self._params0 = self._true_params = self._nominal_params.perturbed(self.np_random, cond["model_error"])
-        self._sim.reset(self._true_params, q0, pose)
-        values, _ = self._sim.readings()
-        ee_pos = np.array(values[0:3])
-        self._path = path = path_from_spec(spec, ee_pos, self.np_random)
-        self._n_steps = max(1, int(round(path.duration * self.control_freq)))
-        self._step_count = 0
-        self._n_clipped = 0
-        self._limit_hits = 0
-        self._task = {
-            "path": path.to_spec(),
-            "start": values[0:3],
-            "arm_joint_pos": [float(v) for v in q0],
-            "base_pose": [float(v) for v in pose],
-            "duration": float(path.duration),
-            "n_steps": self._n_steps,
-        }
-        self._params_hash = self._true_params.hash()
+        self._nominal_params, q0 = b.begin_episode(0, rng, self._source, self._nominal_params, q0, pose, cond)
+        if self._physics:
+            assert self._sim is not None
+            self._sim.reset(b.params0[0], q0, pose)
+            b.io[0, E.io_phys(b.m) : E.io_out(b.m)] = self._sim.read()
+            ee = b.ee_physics(rows)
+        else:
+            ee = b.ee_kinematic(rows)
+        self._path = path = b.set_path(0, spec, ee[0], rng, self.control_freq)
+        self._started = True
+        self._params_hash = b.hashes[0]
+        self._task = b.task(0, ee[0], q0, pose)
         if self._draws:
+            assert self._sim is not None
             ts = np.linspace(0.0, path.duration, 60)
             self._path_points = np.array([path.position(t) for t in ts])
             self._sim.draw_path(self._path_points)
-        r_d, v_d = path.position_velocity(0.0)
-        obs = self._observation(values, 0.0, r_d, v_d, start=True)
+        b.draw_noise(rows, self._rngs)
+        flat = b.new_obs()
+        if self._physics:
+            b.observe_physics(rows, flat, False)
+        else:
+            b.observe_kinematic(rows, flat)
         info = {
             "task": self._task,
             "true_params_hash": self._params_hash,
-            "ee_pos_true": ee_pos.copy(),
+            "ee_pos_true": ee[0].copy(),
             "tracking_error": 0.0,
             "n_clipped": 0,
             "joint_limit_hits": 0,
         }
-        return obs, info
+        return self._obs_dict(flat[0]), info
 
     def step(self, action):
         self._check_open()
-        path = self._path
-        if path is None:
+        if not self._started:
             raise RuntimeError("call reset() before step()")
-        a = np.asarray(action)
-        if a.dtype.kind not in "fiu":
-            raise ValueError(
-                f"action must be real numbers (a float array of shape ({self.n_actuators},)), got dtype {a.dtype} "
-                f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
-            )
-        a = a.astype(np.float64, copy=False)
-        if a.shape != (self.n_actuators,):
-            raise ValueError(
-                f"action must have shape ({self.n_actuators},) ({self.n_actuators - 2} arm joints, left wheel, "
-                f"right wheel), got shape {a.shape}"
-            )
-        clipped = False
-        al = a.tolist()
-        # the common case in floats: all in [-1, 1] (a NaN skipped by min and max makes the sum NaN)
-        if not (min(al) >= -1.0 and max(al) <= 1.0 and math.isfinite(sum(al))):
-            if not np.all(np.isfinite(a)):
+        b, rows, m = self._batch, self._rows, self.n_actuators
+        io = b.io
+        if type(action) is not np.ndarray or action.shape != (m,) or action.dtype.kind != "f":
+            a = np.asarray(action)
+            if a.dtype.kind not in "fiu":
                 raise ValueError(
-                    f"action must be finite, got {al} (NaN or inf at {np.flatnonzero(~np.isfinite(a)).tolist()})"
+                    f"action must be real numbers (a float array of shape ({m},)), got dtype {a.dtype} "
+                    f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
                 )
-            clipped = bool(np.any(np.abs(a) > 1.0))
-            if clipped:
-                a = np.clip(a, -1.0, 1.0)
-                self._n_clipped += 1
-        self._limit_hits += self._sim.step(a * self.action_scale)
-        self._step_count += 1
-        t = self._step_count * self.dt
-        if self._wear != 0.0:
-            # the robot of time t: its lengths drift linearly from the episode's robot at t = 0
-            self._true_params = self._params0.scaled(1.0 + self._wear * t)
-            self._sim.set_params(self._true_params)
-        values, (roll, pitch) = self._sim.readings()
-        r_d, v_d = path.position_velocity(t)
-        ee_pos = values[0:3]
-        d = r_d - ee_pos
-        err = math.sqrt(d @ d)  # np.linalg.norm's own formula, without its checks
-        terms = {
-            "tracking": -self.reward_weights["tracking"] * err,
-            "effort": -self.reward_weights["effort"] * float(a @ a),
-        }
-        reward = float(sum(terms.values()))
-        tipped = max(abs(roll), abs(pitch)) > TIP_ANGLE
-        terminated = tipped or (self.error_bound is not None and err > self.error_bound)
-        truncated = self._step_count >= self._n_steps
-        obs = self._observation(values, t, r_d, v_d)
+            if a.shape != (m,):
+                raise ValueError(
+                    f"action must have shape ({m},) ({m - 2} arm joints, left wheel, right wheel), got shape {a.shape}"
+                )
+            action = a
+        io[0, :m] = action
+        b.draw_noise(rows, self._rngs)
+        flat = b.new_obs()
+        if self._physics:
+            bad = E.command_physics(b.arm, b.prm, b.st, io, b.dt, rows)
+            if bad < 0:
+                sim = self._sim
+                assert sim is not None
+                out = b.out + E.O_U
+                sim.command(io[0, out : out + m].tolist())
+                io[0, E.io_phys(m) : b.out] = sim.read()
+                b.observe_physics(rows, flat, True)
+        else:
+            bad = b.step_kinematic(rows, flat)
+        if bad >= 0:
+            al = np.asarray(action, dtype=float)
+            raise ValueError(
+                f"action must be finite, got {al.tolist()} (NaN or inf at {np.flatnonzero(~np.isfinite(al)).tolist()})"
+            )
+        reward, track, effort, err, e0, e1, e2, clipped, term, trunc, n_clipped, hits, tipped = b.outputs(0)
         info = {
-            "ee_pos_true": np.array(ee_pos),
+            "ee_pos_true": np.array((e0, e1, e2)),
             "tracking_error": err,
-            "reward_terms": terms,
-            "action_clipped": clipped,
-            "n_clipped": self._n_clipped,
-            "joint_limit_hits": self._limit_hits,
-            "tipped_over": tipped,
+            "reward_terms": {"tracking": track, "effort": effort},
+            "action_clipped": clipped != 0.0,
+            "n_clipped": int(n_clipped),
+            "joint_limit_hits": int(hits),
+            "tipped_over": tipped != 0.0,
             "true_params_hash": self._params_hash,
         }
-        return obs, reward, terminated, truncated, info
+        return self._obs_dict(flat[0]), reward, term != 0.0, trunc != 0.0, info
 
-    def _observation(
-        self, values: list[float], t: float, r_d: np.ndarray, v_d: np.ndarray, start: bool = False
-    ) -> dict:
-        """The observation dict from the sensor `values` (`Sim.readings()` order): noise, float32, clipped into
-        the bounds (maximum then minimum: `np.clip`'s law, without its wrapper), delayed; views of one array."""
-        flat = np.array(
-            [*self._sensors.read(values, self.np_random), *r_d.tolist(), *v_d.tolist(), t], dtype=np.float32
-        )
-        np.minimum(np.maximum(flat, self._obs_low, out=flat), self._obs_high, out=flat)
-        if start:
-            self._sensors.start(flat)
-        else:
-            self._sensors.delay(flat)
+    def _obs_dict(self, flat: np.ndarray) -> dict:
+        """The observation dict: views of one flat float32 vector, in OBS_KEYS order."""
         return {k: flat[sl] for k, sl in self._obs_slices}
+
+    def state(self) -> RobotState:
+        """The noise-free state after the last reset or step (what the sensors saw before noise and delay). It
+        holds the true robot's end-effector, so it is reached through `true_params` (a guard on it covers this
+        door); for tests and diagnostics."""
+        self.true_params  # noqa: B018 - the one door to the true robot, so that a guard on it sees this access
+        return self._batch.state(0)
 
     def render(self):
         self._check_open()
@@ -530,14 +558,19 @@ class WheeledPumaEnv(gym.Env):
             raise RuntimeError("call reset() before render()")
         if not self._draws:  # "human" without a display: nothing to draw into
             return None
+        sim = self._sim
+        assert sim is not None
+        b = self._batch
+        st = b.st[0]
+        if not self._physics:  # the body where the engine's state is (the robot of the current time)
+            sim.show(b.true_params(0), st[: self.n_actuators], st[E.s_pose(b.m) : E.s_pose(b.m) + 3])
         # look at the middle of the box holding the path and the platform
-        base = self._sim.state().base_pose
+        base = st[E.s_pose(b.m) : E.s_pose(b.m) + 2]
         pts = np.vstack([self._path_points, [base[0], base[1], 0.3], [base[0], base[1], 1.0]])
         target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
         distance = 1.2 + 1.2 * float(np.ptp(pts[:, :2], axis=0).max())
         if self.render_mode == "rgb_array":
-            return self._sim.render(target, distance)
-        self._sim.sync_bodies()
+            return sim.render(target, distance)
         return None
 
     def close(self):
@@ -559,7 +592,9 @@ class WheeledPumaEnv(gym.Env):
     def true_params(self) -> RobotParams:
         """The true robot at the current time of the episode (the one drawn at reset, drifted by `wear_rate`;
         the nominal robot before the first reset). For oracles and tests only; it never appears in `info`."""
-        return self._true_params
+        if not self._started:
+            return self._nominal_params
+        return self._batch.true_params(0)
 
     # --- read-only conveniences ------------------------------------------------------------------------
     @property
@@ -568,9 +603,10 @@ class WheeledPumaEnv(gym.Env):
         return self._path
 
     @property
-    def sim(self) -> Sim:
-        """The simulation (PyBullet client and body, kinematic state). It holds the true robot, so it is reached
-        through `true_params`: a guard on `true_params` covers it. For tests and the speed benchmark."""
+    def sim(self) -> Sim | None:
+        """The PyBullet world (physics mode; kinematic mode: only with a render_mode, else None). It holds the true
+        robot, so it is reached through `true_params`: a guard on `true_params` covers it. For tests and the speed
+        benchmark."""
         self.true_params  # noqa: B018 - the one door to the true robot, so that a guard on it sees this access
         return self._sim
 
@@ -587,13 +623,11 @@ def _reward_weights(reward_weights: dict | None) -> dict[str, float]:
     return weights
 
 
-def _flat_layout(space: spaces.Dict) -> tuple[list[tuple[str, slice]], np.ndarray, np.ndarray]:
-    """Where each observation key sits in the flat float32 vector (OBS_KEYS order), and the vector's bounds."""
-    boxes = [cast(spaces.Box, space[k]) for k in OBS_KEYS]
-    sizes = [b.shape[0] for b in boxes]
+def _flat_layout(space: spaces.Dict) -> list[tuple[str, slice]]:
+    """Where each observation key sits in the flat float32 vector (OBS_KEYS order; the engine's layout)."""
+    sizes = [cast(spaces.Box, space[k]).shape[0] for k in OBS_KEYS]
     ends = np.cumsum(sizes)
-    slices = [(k, slice(e - n, e)) for k, n, e in zip(OBS_KEYS, sizes, ends)]
-    return slices, np.concatenate([b.low for b in boxes]), np.concatenate([b.high for b in boxes])
+    return [(k, slice(int(e) - n, int(e))) for k, n, e in zip(OBS_KEYS, sizes, ends)]
 
 
 def _gui_window(render_mode: str | None) -> bool:

@@ -16,7 +16,8 @@ as it was (`float(length * (1 + rel_std z))`), so the PUMA's worn robots are bit
 
 A length is read by its slot name too: `params.a2`, `params.d4` (DH a or d of row k, 1-based), `params.tool`.
 
-Imports numpy, `mobman_env.validation` and `mobman_env.robots` (description and catalogue) only.
+Imports numpy, `mobman_env.validation`, `mobman_env.engine` (to pack a robot into its rows) and
+`mobman_env.robots` (description and catalogue) only.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from mobman_env import engine
 from mobman_env.robots.catalogue import PUMA560
 from mobman_env.robots.description import ArmDescription
 from mobman_env.validation import number
@@ -45,6 +47,10 @@ CLIP = 3.0
 #: rel_std must stay below this (1 / CLIP = 1/3): at 1/3 a factor 1 - CLIP * rel_std reaches 0, i.e. a length
 #: (a link, the wheel radius, the half track) could become zero or, beyond, negative.
 MAX_REL_STD = 1.0 / CLIP
+#: The smallest factor of a worn length: a true length is at least this fraction of its nominal one. The clip
+#: 1 - CLIP * rel_std reaches it at rel_std = 0.3; from there to 1/3 the lower bound stays here (a link of 1e-18 m
+#: would otherwise load silently in PyBullet and make the arm singular). No robot with rel_std <= 0.3 changes.
+MIN_LENGTH_FACTOR = 0.1
 _SLOT_NAME = re.compile(r"^([ad])([1-9][0-9]*)$")
 
 
@@ -152,12 +158,13 @@ class RobotParams:
 
     def perturbed(self, rng: np.random.Generator, rel_std: float) -> RobotParams:
         """A "worn" robot: each of `perturbed_fields` (the arm's non-zero a and d, the tool, r, b and d)
-        multiplied by (1 + rel_std N(0, 1)), the factor clipped to 1 +- 3 rel_std, independently. Masses and
+        multiplied by (1 + rel_std N(0, 1)), the factor clipped to 1 +- 3 rel_std, independently, and never
+        below `MIN_LENGTH_FACTOR` (0.1: a worn length is at least a tenth of its nominal one). Masses and
         limits are unchanged.
 
-        `rel_std` must be in [0, 1/3): the smallest factor, 1 - 3 rel_std, must stay above 0 so that no length
-        can reach zero (0.3 is allowed: factors in [0.1, 1.9]). `rel_std = 0` returns an equal copy and draws
-        nothing from `rng`.
+        `rel_std` must be in [0, 1/3) (factors in [max(0.1, 1 - 3 rel_std), 1 + 3 rel_std]; at rel_std = 0.3
+        exactly [0.1, 1.9], and up to 1/3 the lower bound stays 0.1). `rel_std = 0` returns an equal copy and
+        draws nothing from `rng`.
         """
         rel_std = number(
             "rel_std",
@@ -165,12 +172,12 @@ class RobotParams:
             low=0.0,
             high=MAX_REL_STD,
             open_high=True,
-            hint="lengths are multiplied by factors in [1 - 3 rel_std, 1 + 3 rel_std]; at 1/3 a length can reach 0",
+            hint="lengths are multiplied by factors in [max(0.1, 1 - 3 rel_std), 1 + 3 rel_std]",
         )
         if rel_std == 0.0:
             return dataclasses.replace(self)
         z = np.clip(rng.standard_normal(len(self.perturbed_fields)), -CLIP, CLIP)
-        return self._with_factors([1.0 + rel_std * zi for zi in z])
+        return self._with_factors([max(1.0 + rel_std * zi, MIN_LENGTH_FACTOR) for zi in z])
 
     def scaled(self, factor: float) -> RobotParams:
         """This robot with each of `perturbed_fields` multiplied by `factor` (> 0), e.g. the linear wear drift
@@ -195,16 +202,10 @@ class RobotParams:
         return np.array(self.arm.alpha)
 
     @functools.cached_property
-    def dh_constants(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(a, d, cos alpha, sin alpha) of the DH table, computed once per robot (kinematics' hot path)."""
-        alpha = self.dh_alpha
-        return self.dh_a, self.dh_d, np.cos(alpha), np.sin(alpha)
-
-    @functools.cached_property
-    def dh_floats(self) -> tuple[list[float], list[float], list[float], list[float]]:
-        """`dh_constants` as lists of Python floats (the same numbers), for the kinematics' float arithmetic."""
-        a, d, ca, sa = self.dh_constants
-        return a.tolist(), d.tolist(), ca.tolist(), sa.tolist()
+    def engine_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """This robot packed as one row of `mobman_env.engine`'s (`arm`, `prm`) arrays (computed once per robot;
+        `mobman_env.kinematics` evaluates its kernels on them)."""
+        return engine.packed([self])
 
     @functools.cached_property
     def theta_offset(self) -> np.ndarray | None:

@@ -22,7 +22,7 @@ Specs (all lengths m, angles rad, durations s):
 
 Every field has an accepted range (`FIELD_RANGES`, listed in `validate_spec`): sizes up to 20 m, a line up to
 50 m, durations from 0.01 s to one hour, at most 20 sinusoids per axis. Imports numpy and
-`mobman_env.validation` only.
+`mobman_env.validation` and `mobman_env.engine` (whose `path_eval` evaluates every path) only.
 """
 
 from __future__ import annotations
@@ -33,6 +33,7 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from mobman_env import engine
 from mobman_env.validation import integer, number, vector
 
 PATH_TYPES = ("circle", "line", "lemniscate", "random")
@@ -49,14 +50,6 @@ class Path(Protocol):
     def to_spec(self) -> dict: ...
 
 
-def _timing(t: float, T: float) -> tuple[float, float, float]:
-    """s, s_dot, s_ddot of s(t) = sin^2(0.5 pi t / T), held at the ends outside [0, T]."""
-    t = min(max(t, 0.0), T)
-    w = math.pi / T
-    # sin^2(w t / 2) = (1 - cos(w t)) / 2
-    return 0.5 * (1.0 - math.cos(w * t)), 0.5 * w * math.sin(w * t), 0.5 * w * w * math.cos(w * t)
-
-
 def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
     """e1: horizontal unit vector at `yaw`; e2: perpendicular to e1, tilted up by `tilt` from the horizontal
     e1 x z (for yaw = pi: e1 = -x, e2 = [0, cos tilt, sin tilt], the paper's circle plane)."""
@@ -66,55 +59,78 @@ def _plane_axes(yaw: float, tilt: float) -> tuple[np.ndarray, np.ndarray]:
     return e1, e2
 
 
-def _floats(v: np.ndarray) -> tuple[float, float, float]:
-    x, y, z = v.tolist()
-    return x, y, z
+#: one sinusoid term of a path: (k, amplitude per axis (m), phase per axis (rad)), see `_CoefficientPath`
+Term = tuple[float, Any, Any]
 
 
-class _PhasePath:
-    """A path p(t) = start + sum_k c_k(phase) v_k with phase = 2 pi s(t); subclasses give the phase
-    functions and their derivatives. The chain rule lives here once. The 3-vector arithmetic is written out in
-    floats (numpy's per-call overhead would dominate), in the order of the array expressions in the comments,
-    so the values are those of the arrays."""
+class _CoefficientPath:
+    """A path in the engine's form: per axis, r_d(t) = start + lin ph + sum_j amp_j (sin(k_j ph + phase_j) -
+    sin(phase_j)), with the phase ph = 2 pi s(t) of the rest-to-rest timing s(t) = sin^2(0.5 pi t / T) (held at
+    the ends). Every path type is this form (a circle is one harmonic, a figure eight two, a line the linear term).
+    `coef` holds it in the layout of `mobman_env.engine` (`PATH_LEN` floats), each term as
+    amp (sin(k ph) cos(phase) + cos(k ph) sin(phase)) - amp sin(phase) = S sin(k ph) + C (cos(k ph) - 1) with
+    S = amp cos(phase), C = amp sin(phase) (terms of one harmonic k merged), so the engine takes one sine and one
+    cosine per harmonic; position, velocity and acceleration are `engine.path_eval` of it, the very function the
+    env's step evaluates."""
 
     start: np.ndarray
     duration: float
+    coef: np.ndarray
 
-    def _shape(self, ph: float) -> tuple[Vec3, Vec3, Vec3]:
-        """Offset from start, d/dphase and d2/dphase2 at the phase `ph`, each 3 floats."""
+    def _terms(self) -> tuple[Any, list[Term]]:
+        """The linear term (3, m per unit of phase) and the sinusoid terms."""
         raise NotImplementedError
 
-    def _phase(self, t: float) -> tuple[float, float, float]:
-        s, sd, sdd = _timing(t, self.duration)
-        return 2 * math.pi * s, 2 * math.pi * sd, 2 * math.pi * sdd
+    def __post_init__(self) -> None:
+        lin, terms = self._terms()
+        harmonics: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        for k, amp, phase in terms:
+            amp, phase = np.broadcast_to(np.asarray(amp, float), (3,)), np.broadcast_to(np.asarray(phase, float), (3,))
+            S, C = harmonics.get(float(k), (np.zeros(3), np.zeros(3)))
+            harmonics[float(k)] = (S + amp * np.cos(phase), C + amp * np.sin(phase))
+        c = np.zeros(engine.PATH_LEN)
+        c[0:3] = self.start
+        c[3] = self.duration
+        c[4:7] = lin
+        c[7] = len(harmonics)
+        for j, (k, (S, C)) in enumerate(harmonics.items()):
+            base = engine.PATH_HEAD + engine.PATH_TERM * j
+            c[base] = k
+            c[base + 1 : base + 4] = S
+            c[base + 4 : base + 7] = C
+        object.__setattr__(self, "coef", c)
+
+    def _eval(self, t: float) -> np.ndarray:
+        out = np.empty((3, 3))
+        engine.path_eval(self.coef, float(t), out)
+        return out
 
     def position(self, t: float) -> np.ndarray:
-        ph, _, _ = self._phase(t)
-        return self.start + self._shape(ph)[0]
+        return self._eval(t)[0]
 
     def position_velocity(self, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """position(t) and velocity(t) from one evaluation (the env's hot path)."""
-        ph, phd, _ = self._phase(t)
-        p, d1, _ = self._shape(ph)
-        return self.start + p, np.array([d1[0] * phd, d1[1] * phd, d1[2] * phd])  # d1 * phd
+        """position(t) and velocity(t) from one evaluation."""
+        out = self._eval(t)
+        return out[0], out[1]
 
     def velocity(self, t: float) -> np.ndarray:
-        ph, phd, _ = self._phase(t)
-        return np.array(self._shape(ph)[1]) * phd
+        return self._eval(t)[1]
 
     def acceleration(self, t: float) -> np.ndarray:
-        ph, phd, phdd = self._phase(t)
-        _, d1, d2 = self._shape(ph)
-        return np.array(d2) * phd * phd + np.array(d1) * phdd
+        return self._eval(t)[2]
 
 
 def _vec3(value: Any, name: str) -> np.ndarray:
     return vector(name, value, sizes=(3,))
 
 
+_ZERO3 = (0.0, 0.0, 0.0)
+
+
 @dataclass(frozen=True, eq=False)
-class CirclePath(_PhasePath):
-    """The paper's circle: starts at `start` and goes once round, the centre at `radius` towards `yaw`."""
+class CirclePath(_CoefficientPath):
+    """The paper's circle: starts at `start` and goes once round, the centre at `radius` towards `yaw`:
+    l (cos ph - 1) u + l sin ph e2 with u = -e1 (from the centre to the start)."""
 
     start: np.ndarray
     radius: float = 0.4
@@ -122,30 +138,21 @@ class CirclePath(_PhasePath):
     yaw: float = math.pi
     duration: float = 20.0
     type: ClassVar[str] = "circle"
-    _axes: tuple[Vec3, Vec3] = field(init=False, repr=False)
+    coef: np.ndarray = field(init=False, repr=False)
 
-    def __post_init__(self):
+    def _terms(self) -> tuple[Any, list[Term]]:
         e1, e2 = _plane_axes(self.yaw, self.tilt)
-        object.__setattr__(self, "_axes", (_floats(-e1), _floats(e2)))  # u = -e1: from the centre to the start
-
-    def _shape(self, ph):
-        (u0, u1, u2), (f0, f1, f2) = self._axes
-        c, s = math.cos(ph), math.sin(ph)
         l = self.radius
-        a, b, ms, mc = l * (c - 1.0), l * s, -s, -c
-        return (
-            (a * u0 + b * f0, a * u1 + b * f1, a * u2 + b * f2),  # l (c - 1) u + l s e2
-            (l * (ms * u0 + c * f0), l * (ms * u1 + c * f1), l * (ms * u2 + c * f2)),  # l (-s u + c e2)
-            (l * (mc * u0 - s * f0), l * (mc * u1 - s * f1), l * (mc * u2 - s * f2)),  # l (-c u - s e2)
-        )
+        # l (cos ph - 1) u + l sin(ph) e2 with u = -e1: S = l e2, C = -l e1
+        return _ZERO3, [(1.0, l * e2, np.zeros(3)), (1.0, -l * e1, np.full(3, 0.5 * math.pi))]
 
     def to_spec(self) -> dict:
         return {"type": "circle", "radius": self.radius, "tilt": self.tilt, "yaw": self.yaw, "duration": self.duration}
 
 
 @dataclass(frozen=True, eq=False)
-class LemniscatePath(_PhasePath):
-    """A figure eight (lemniscate of Gerono): x' = W/2 sin(ph), y' = H/2 sin(2 ph) in the tilted plane."""
+class LemniscatePath(_CoefficientPath):
+    """A figure eight (lemniscate of Gerono): W/2 sin(ph) e1 + H/2 sin(2 ph) e2 in the tilted plane."""
 
     start: np.ndarray
     width: float = 0.6
@@ -154,23 +161,11 @@ class LemniscatePath(_PhasePath):
     yaw: float = math.pi
     duration: float = 20.0
     type: ClassVar[str] = "lemniscate"
-    _axes: tuple[Vec3, Vec3] = field(init=False, repr=False)
+    coef: np.ndarray = field(init=False, repr=False)
 
-    def __post_init__(self):
+    def _terms(self) -> tuple[Any, list[Term]]:
         e1, e2 = _plane_axes(self.yaw, self.tilt)
-        object.__setattr__(self, "_axes", (_floats(e1), _floats(e2)))
-
-    def _shape(self, ph):
-        e1, e2 = self._axes
-        A, B = 0.5 * self.width, 0.5 * self.height
-        s1, c1, s2, c2 = math.sin(ph), math.cos(ph), math.sin(2 * ph), math.cos(2 * ph)
-        # A s1 e1 + B s2 e2, A c1 e1 + 2 B c2 e2, -A s1 e1 - 4 B s2 e2 (left to right: (A * s1) * e1, ...)
-        p1, p2, v1, v2, a1, a2 = A * s1, B * s2, A * c1, 2 * B * c2, -A * s1, 4 * B * s2
-        return (
-            tuple(p1 * x + p2 * y for x, y in zip(e1, e2)),
-            tuple(v1 * x + v2 * y for x, y in zip(e1, e2)),
-            tuple(a1 * x - a2 * y for x, y in zip(e1, e2)),
-        )
+        return _ZERO3, [(1.0, 0.5 * self.width * e1, np.zeros(3)), (2.0, 0.5 * self.height * e2, np.zeros(3))]
 
     def to_spec(self) -> dict:
         return {
@@ -184,33 +179,20 @@ class LemniscatePath(_PhasePath):
 
 
 @dataclass(frozen=True, eq=False)
-class LinePath:
-    """A straight segment of `length` along `direction` (normalised), rest to rest."""
+class LinePath(_CoefficientPath):
+    """A straight segment of `length` along `direction` (normalised), rest to rest: length s(t) unit, i.e.
+    the linear term length unit / (2 pi) of the phase."""
 
     start: np.ndarray
     length: float = 3.0
     direction: tuple[float, float, float] = (-1.0, 0.0, 0.0)
     duration: float = 20.0
     type: ClassVar[str] = "line"
+    coef: np.ndarray = field(init=False, repr=False)
 
-    _unit: np.ndarray = field(init=False, repr=False)
-
-    def __post_init__(self):
+    def _terms(self) -> tuple[Any, list[Term]]:
         d = np.asarray(self.direction, dtype=float)
-        object.__setattr__(self, "_unit", d / np.linalg.norm(d))
-
-    def position(self, t):
-        return self.start + self.length * _timing(t, self.duration)[0] * self._unit
-
-    def velocity(self, t):
-        return self.length * _timing(t, self.duration)[1] * self._unit
-
-    def position_velocity(self, t):
-        s, sd, _ = _timing(t, self.duration)
-        return self.start + self.length * s * self._unit, self.length * sd * self._unit
-
-    def acceleration(self, t):
-        return self.length * _timing(t, self.duration)[2] * self._unit
+        return self.length * (d / np.linalg.norm(d)) / (2.0 * math.pi), []
 
     def to_spec(self) -> dict:
         return {
@@ -222,8 +204,9 @@ class LinePath:
 
 
 @dataclass(frozen=True, eq=False)
-class RandomPath(_PhasePath):
-    """Per axis a sum of sinusoids of the phase, zero at the start; each axis spans at most `size`."""
+class RandomPath(_CoefficientPath):
+    """Per axis a sum of `n_terms` sinusoids of the phase (harmonics 1..n_terms, random amplitudes falling as 1/k
+    and random phases from `seed`), zero at the start; each axis spans at most `size`."""
 
     start: np.ndarray
     seed: int = 0
@@ -231,9 +214,9 @@ class RandomPath(_PhasePath):
     n_terms: int = 3
     duration: float = 20.0
     type: ClassVar[str] = "random"
-    _coef: np.ndarray = field(init=False, repr=False)
+    coef: np.ndarray = field(init=False, repr=False)
 
-    def __post_init__(self):
+    def _terms(self) -> tuple[Any, list[Term]]:
         rng = np.random.default_rng(self.seed)
         k = np.arange(1, self.n_terms + 1)
         amp = rng.uniform(-1.0, 1.0, (3, self.n_terms)) / k  # smoother: higher harmonics smaller
@@ -243,14 +226,7 @@ class RandomPath(_PhasePath):
         vals = np.einsum("ak,akg->ag", amp, np.sin(k[None, :, None] * grid + phase[..., None]))
         span = vals.max(axis=1) - vals.min(axis=1)
         amp = amp * (0.999 * self.size / np.maximum(span, 1e-12))[:, None]  # 0.1% margin for the grid
-        object.__setattr__(self, "_coef", np.stack([amp, phase, np.broadcast_to(k, amp.shape)]))
-
-    def _shape(self, ph):
-        amp, phase, k = self._coef
-        arg = k * ph + phase
-        sin, cos = np.sin(arg), np.cos(arg)
-        p, d1, d2 = (amp * (sin - np.sin(phase))).sum(1), (amp * k * cos).sum(1), (-amp * k * k * sin).sum(1)
-        return _floats(p), _floats(d1), _floats(d2)
+        return _ZERO3, [(float(k[j]), amp[:, j], phase[:, j]) for j in range(self.n_terms)]
 
     def to_spec(self) -> dict:
         return {

@@ -1,22 +1,15 @@
-"""The simulation behind one env: one PyBullet client, the robot body, and the two dynamics modes.
+"""The PyBullet world behind one env: one client, the robot body, the motors and the readings.
 
-* `"physics"`: velocity-controlled motors with torque limits (`RobotParams.*_torque_limit`); the platform moves
-  by wheel contact and friction, the casters are frictionless. One control step = `n_substeps` PyBullet steps.
-* `"kinematic"`: the paper's idealised model. Joint and wheel angles are integrated exactly from the commanded
-  speeds and the platform pose from the no-slip unicycle model (`kinematics.integrate_unicycle`). No PyBullet
-  call is made per step; the bodies are synced only to render.
+* Physics mode (`WheeledPumaEnv(dynamics="physics")`): velocity-controlled motors with torque limits
+  (`RobotParams.*_torque_limit`); the platform moves by wheel contact and friction, the casters are frictionless.
+  One control step = `n_substeps` PyBullet steps (`command`). `read` copies the raw state (joint angles and speeds,
+  base position, orientation and velocity) into the engine's `io` row; the end-effector, p_c and everything else
+  the sensors report are computed from it by `mobman_env.engine.physics`, the same chain as kinematic mode.
+* Kinematic mode makes no PyBullet call per step (the engine integrates the state); a `Sim` exists there only to
+  render, and `show` puts the body where the engine's state is.
 
-Joint limits are enforced in both modes: a command that would push a joint past its limit is replaced by 0 for
-that joint (kinematic mode also clamps the angle to the limit), and each such event is counted.
-
-Every PyBullet call goes to this sim's own client (`self.client`, or pybullet's functions with its
-`client_id`); `close()` is safe to call twice. The body moves only through `Sim`'s methods.
-
-Per physics step (the env's hot path): one motor command, `n_substeps` x `stepSimulation`, and one read of the
-body (`readings()`: joint states, end-effector link state with velocity, base pose and velocity) into plain
-floats; the arm angles the limit check needs are the last read's (the env reads after every step; a reset or a
-step without a read in between reads them afresh). Small fixed-size math (limits, p_c, yaw) is written out in
-floats; `state()` builds the `RobotState` arrays from the same read.
+Every PyBullet call goes to this sim's own client (`self.client`, or pybullet's functions with its `client_id`,
+bound once); `close()` is safe to call twice.
 
 Bodies and files. The robot body changes only when the robot does (a new true robot per seed): the world is
 then rebuilt with `resetSimulation()` (removing a body alone leaves about 8 KiB of PyBullet memory behind per
@@ -33,19 +26,16 @@ The true robot is kept under the private name `_params`; the env's `true_params`
 from __future__ import annotations
 
 import contextlib
-import math
 import os
 import re
 import shutil
 import sys
 import tempfile
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from mobman_env import kinematics as K
 from mobman_env import urdf
 from mobman_env.params import RobotParams
 
@@ -129,36 +119,19 @@ def remove_stale_urdf_dirs(tmp: str | None = None) -> list[str]:
     return removed
 
 
-@dataclass
-class RobotState:
-    """What the sensors see (noise-free), world frame, SI units."""
-
-    ee_pos: np.ndarray  # (3,) m
-    ee_vel: np.ndarray  # (3,) m/s
-    arm_base_pos: np.ndarray  # (2,) m, p_c
-    arm_base_vel: np.ndarray  # (2,) m/s
-    base_pose: np.ndarray  # (3,) x, y of P_0 (m), yaw (rad, continuous)
-    joint_pos: np.ndarray  # (n + 2,) rad: n arm joints, left wheel, right wheel
-    joint_vel: np.ndarray  # (n + 2,) rad/s
-    roll_pitch: tuple[float, float]  # rad, of the platform
-
-
 def display_available() -> bool:
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
 
 
 class Sim:
-    """One PyBullet client and the robot in it."""
+    """One PyBullet client and the robot in it (see the module docstring)."""
 
-    def __init__(self, dynamics: str, dt: float, n_substeps: int, gui: bool = False):
-        if dynamics not in DYNAMICS_MODES:
-            raise ValueError(f"unknown dynamics mode {dynamics!r}; accepted: {', '.join(DYNAMICS_MODES)}")
+    def __init__(self, dt: float, n_substeps: int, gui: bool = False):
         if gui and not display_available():
             raise RuntimeError(
                 "render_mode='human' needs a display (DISPLAY is not set) and PyBullet's GUI would kill the "
                 "process without one; use render_mode='rgb_array' for headless rendering"
             )
-        self.dynamics = dynamics
         self.dt = float(dt)
         self.n_substeps = int(n_substeps)
         self.gui = bool(gui)
@@ -167,10 +140,9 @@ class Sim:
         with _quiet_stdout():
             self.client = bullet_client.BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
         self.client_id = self.client._client
-        # the per-step calls of physics mode skip BulletClient.__getattr__, which builds a new partial per call
-        # (0.7 us each, measured): the motor command is the client's partial, bound once; the reads and
-        # stepSimulation are pybullet's functions called with this client's id as a positional argument
-        # (0.3-0.5 us less per call than a partial with keywords, measured)
+        # the per-step calls skip BulletClient.__getattr__, which builds a new partial per call (0.7 us each,
+        # measured): the motor command is the client's partial, bound once; the reads and stepSimulation are
+        # pybullet's functions called with this client's id as a positional argument
         self._motor_array = self.client.setJointMotorControlArray
         self.client.setAdditionalSearchPath(pybullet_data.getDataPath())
         self.body: int | None = None
@@ -179,19 +151,9 @@ class Sim:
         self._marker_points = np.empty((0, 3))
         self._marker_shape: int | None = None
         self._params = RobotParams.nominal()  # replaced by reset(); no body exists before it
-        self._has_robot = False
         #: torque limits of the n + 2 actuators (n arm joints, left, right wheel), N m (set by reset)
         self.torque_limits: list[float] = []
         self._build_world()
-        # kinematic-mode state (sized by reset for the robot's n + 2 actuators)
-        self._n = self._params.n_joints
-        self._q = np.zeros(self._n + 2)
-        self._pose = np.zeros(3)
-        self._u = np.zeros(self._n + 2)
-        self._yaw = 0.0  # continuous yaw tracked in physics mode
-        #: physics mode: the arm angles of the last read, None once anything may have moved the body since
-        self._q_arm: list[float] | None = None
-        self._synced = False
 
     @property
     def params(self) -> RobotParams:
@@ -234,7 +196,6 @@ class Sim:
         h = params.hash()
         if self.body is not None and self._body_hash == h:
             return
-        self._q_arm = None
         if self.body is not None:
             # a fresh world instead of removeBody(): nothing of the old body stays in PyBullet's memory
             self.client.resetSimulation()
@@ -283,7 +244,6 @@ class Sim:
     def set_state(self, q: np.ndarray, base_pose: np.ndarray) -> None:
         """Put the body at joint angles `q` (n + 2) and platform pose (x, y, yaw) at rest (no PyBullet step)."""
         p = self._params
-        self._q_arm = None
         quat = self.client.getQuaternionFromEuler([0.0, 0.0, float(base_pose[2])])
         self.client.resetBasePositionAndOrientation(
             self.body, [float(base_pose[0]), float(base_pose[1]), p.wheel_radius], quat
@@ -293,150 +253,36 @@ class Sim:
             self.client.resetJointState(self.body, j, float(angle), 0.0)
 
     def reset(self, params: RobotParams, q0: np.ndarray, base_pose: np.ndarray) -> None:
-        """Start an episode with the robot `params` at joint angles `q0` (n + 2) and platform pose (3)."""
+        """Put the robot `params` (its body loaded if it changed) at joint angles `q0` (n + 2) and platform pose
+        (x, y, yaw of P_0), at rest."""
         self._params = params
-        self._n = params.n_joints
-        self._has_robot = True
         self.torque_limits = [*params.arm_torque_limit, params.wheel_torque_limit, params.wheel_torque_limit]
-        self._lower = np.array(params.joint_lower)
-        self._upper = np.array(params.joint_upper)
-        self._lower_f, self._upper_f = [float(v) for v in params.joint_lower], [float(v) for v in params.joint_upper]
-        self._q = np.asarray(q0, dtype=float).copy()
-        self._pose = np.asarray(base_pose, dtype=float).copy()
-        self._u = np.zeros(self._n + 2)
-        self._yaw = float(base_pose[2])
-        self._synced = False
-        if self.dynamics == "physics":
-            self._load_body(params)
-            self.set_state(self._q, self._pose)
-            self._synced = True
+        self._load_body(params)
+        self.set_state(q0, base_pose)
 
-    def set_params(self, params: RobotParams) -> None:
-        """Kinematic mode: change the robot's lengths mid-episode (the env's `wear_rate`); the state is kept and
-        the next `state()` is the FK of the new robot. Physics mode cannot: a loaded body's links are fixed."""
-        if self.dynamics != "kinematic":
-            raise RuntimeError("set_params needs dynamics='kinematic': a loaded PyBullet body's lengths are fixed")
-        self._params = params
-        self._synced = False
+    show = reset  # kinematic mode: put the body where the engine's state is (only to render)
 
     # --- stepping --------------------------------------------------------------------------------------
-    def _limit(self, q_arm: list[float], u: list[float]) -> int:
-        """Zero (in place) the arm speeds of `u` that would push a joint past its limit; returns how many.
-        Written out in floats: n comparisons, where numpy's per-call overhead would dominate."""
-        hits = 0
-        for i, (q, lo, hi) in enumerate(zip(q_arm, self._lower_f, self._upper_f)):
-            v = u[i]
-            if (v > 0.0 and q >= hi) or (v < 0.0 and q <= lo):
-                u[i] = 0.0
-                hits += 1
-        return hits
-
-    def step(self, u: np.ndarray) -> int:
-        """Apply the joint/wheel speeds `u` (n + 2, rad/s) for one control step; returns joint-limit hits."""
-        if self.dynamics == "kinematic":
-            return self._step_kinematic(u)
-        return self._step_physics(u)
-
-    def _step_kinematic(self, u: np.ndarray) -> int:
-        """`_limit`, the exact integration and the clamp at the limits, in Python floats over the n + 2 entries
-        (the same IEEE operations as the array code they replaced, without its ~15 numpy calls on arrays of 8)."""
-        n, dt = self._n, self.dt
-        uu = u.tolist()
-        q = self._q.tolist()
-        hits = self._limit(q, uu)
-        for i, (lo, hi) in enumerate(zip(self._lower_f, self._upper_f)):
-            qi = q[i] + uu[i] * dt
-            if qi > hi or qi < lo:
-                qi = min(max(qi, lo), hi)  # the joint reached its limit inside the step: it stops there
-                uu[i] = 0.0
-                hits += 1
-            q[i] = qi
-        q[n] = q[n] + uu[n] * dt
-        q[n + 1] = q[n + 1] + uu[n + 1] * dt
-        self._pose = K.integrate_unicycle(self._params, self._pose, uu[n:], dt)
-        self._q = np.array(q)
-        self._u = np.array(uu)
-        self._synced = False
-        return hits
-
-    def _step_physics(self, u: np.ndarray) -> int:
-        targets = u.tolist()
-        q_arm = self._q_arm  # the last read's, if nothing has moved the body since
-        if q_arm is None:
-            q_arm = [s[0] for s in pybullet.getJointStates(self.body, self.arm_ids, self.client_id)]
-        self._q_arm = None
-        hits = self._limit(q_arm, targets)
+    def command(self, targets: list[float]) -> None:
+        """One control step: the motors' target speeds (n + 2, rad/s) under their torque limits, then
+        `n_substeps` PyBullet steps."""
         self._motor_array(
             self.body, self.act_ids, pybullet.VELOCITY_CONTROL, targetVelocities=targets, forces=self.torque_limits
         )
         step, cid = pybullet.stepSimulation, self.client_id
         for _ in range(self.n_substeps):
             step(cid)
-        return hits
 
-    # --- state -----------------------------------------------------------------------------------------
-    def state(self) -> RobotState:
-        """The noise-free state as arrays (from the same read as `readings`)."""
-        values, xy, roll_pitch = self._read()
-        m = self._n + 2
-        return RobotState(
-            ee_pos=np.array(values[0:3]),
-            ee_vel=np.array(values[3:6]),
-            arm_base_pos=np.array(values[6:8]),
-            arm_base_vel=np.array(values[8:10]),
-            base_pose=np.array([xy[0], xy[1], values[10]]),
-            joint_pos=np.array(values[11 : 11 + m]),
-            joint_vel=np.array(values[11 + m :]),
-            roll_pitch=roll_pitch,
-        )
-
-    def readings(self) -> tuple[list[float], tuple[float, float]]:
-        """What `state()` holds for the sensors, as floats in `sensors.SENSOR_KEYS` order (ee_pos, ee_vel,
-        arm_base_pos, arm_base_vel, base yaw, joint_pos, joint_vel: 11 + 2 (n + 2) values), and the platform's
-        (roll, pitch): the env's per-step read (no arrays are built for it)."""
-        values, _, roll_pitch = self._read()
-        return values, roll_pitch
-
-    def _read(self) -> tuple[list[float], tuple[float, float], tuple[float, float]]:
-        """One read of the robot, in floats: (the `readings` values, x and y of P_0, (roll, pitch))."""
-        if self.dynamics == "physics":
-            return self._read_physics()
-        # kinematic: the FK of the integrated state; the velocities are the BLAS products J u
-        p, q, pose, u = self._params, self._q, self._pose, self._u
-        ee_pos, J, J_pc, pc = K.ee_jacobian_and_arm_base(p, q[: self._n], pose)
-        x, y, yaw = pose.tolist()
-        values = [*ee_pos, *(J @ u).tolist(), *pc, *(J_pc @ u).tolist(), yaw]
-        return values + q.tolist() + u.tolist(), (x, y), (0.0, 0.0)
-
-    def _read_physics(self) -> tuple[list[float], tuple[float, float], tuple[float, float]]:
-        """One read of the PyBullet body, in floats: (the `readings` values, x and y of P_0, (roll, pitch))."""
+    def read(self) -> tuple[float, ...]:
+        """The raw state, in the engine's `io_phys` order: the n + 2 joint angles, their speeds, the base's
+        position (P_0 at wheel-axle height), orientation quaternion (x, y, z, w), linear and angular velocity."""
         body, cid, pb = self.body, self.client_id, pybullet
-        js = pb.getJointStates(body, self.act_ids, cid)
-        ls = pb.getLinkState(body, self.ee_id, 1, 1, cid)  # with the link velocity, forward kinematics updated
+        q, qd, _, _ = zip(*pb.getJointStates(body, self.act_ids, cid))
         pos, orn = pb.getBasePositionAndOrientation(body, cid)
         lin, ang = pb.getBaseVelocity(body, cid)
-        roll, pitch, yaw_wrapped = pb.getEulerFromQuaternion(orn, cid)
-        # continuous yaw: the wrapped angle's nearest representative to the last one
-        self._yaw += (yaw_wrapped - self._yaw + math.pi) % (2 * math.pi) - math.pi
-        yaw = self._yaw
-        d, w = self._params.mount_offset, ang[2]
-        cy, sy = math.cos(yaw), math.sin(yaw)
-        x, y = pos[0], pos[1]
-        values = [*ls[0], *ls[6], x + d * cy, y + d * sy, lin[0] - d * w * sy, lin[1] + d * w * cy, yaw]
-        q = [s[0] for s in js]
-        self._q_arm = q[: self._n]
-        values += q
-        values += [s[1] for s in js]
-        return values, (x, y), (roll, pitch)
+        return q + qd + pos + orn + lin + ang
 
     # --- rendering -------------------------------------------------------------------------------------
-    def sync_bodies(self) -> None:
-        """Kinematic mode: put the PyBullet body where the integrated state is (only needed to render)."""
-        if self.dynamics == "kinematic" and not self._synced and self._has_robot:
-            self._load_body(self._params)
-            self.set_state(self._q, self._pose)
-            self._synced = True
-
     def draw_path(self, points: np.ndarray) -> None:
         """Show the desired path as small visual-only spheres (debug lines do not show headless); kept across
         a rebuilt world. One visual shape per world, shared by all markers."""
@@ -456,15 +302,23 @@ class Sim:
                 self.client.createMultiBody(baseMass=0, baseVisualShapeIndex=shape, basePosition=[float(v) for v in pt])
             )
 
-    def render(self, target: np.ndarray, distance: float = 2.6, width: int = 480, height: int = 360) -> np.ndarray:
-        """An RGB image (height, width, 3) uint8 from TinyRenderer, looking at `target` from `distance` m."""
-        self.sync_bodies()
+    def render(
+        self,
+        target: np.ndarray,
+        distance: float = 2.6,
+        width: int = 480,
+        height: int = 360,
+        yaw: float = 40.0,
+        pitch: float = -20.0,
+    ) -> np.ndarray:
+        """An RGB image (height, width, 3) uint8 from TinyRenderer, looking at `target` from `distance` m, the
+        camera `yaw` degrees about the vertical and `pitch` degrees above the horizon (negative: from above)."""
         c = self.client
         view = c.computeViewMatrixFromYawPitchRoll(
             cameraTargetPosition=[float(v) for v in target],
             distance=distance,
-            yaw=40.0,
-            pitch=-20.0,
+            yaw=yaw,
+            pitch=pitch,
             roll=0.0,
             upAxisIndex=2,
         )

@@ -1,4 +1,5 @@
-"""One home for checking user-given numbers: every package validates scalars through these two functions.
+"""One home for checking user-given numbers (every package validates scalars through these functions) and the
+names of folders it creates from user-given text (`folder_name`).
 
 Rules (the same everywhere, so the messages read alike):
 
@@ -9,7 +10,8 @@ Rules (the same everywhere, so the messages read alike):
   range and, where given, how to fix it.
 
 `number()` returns a `float`, `integer()` an `int`, `vector()` a float64 array of real numbers under the same
-rules. All raise `ValueError` (or the `error` class given, which must accept one message argument: eval passes
+rules. `folder_name()` returns a name that is one plain path component (no separator, not `.` or `..`, no NUL),
+so that `parent / name` stays inside `parent`. All raise `ValueError` (or the `error` class given, which must accept one message argument: eval passes
 its `EvalError`).
 """
 
@@ -22,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["integer", "number", "vector"]
+__all__ = ["folder_name", "integer", "number", "vector"]
 
 
 def _range_text(low: float | None, high: float | None, open_low: bool, open_high: bool) -> str:
@@ -132,3 +134,18 @@ def vector(
     if items is None or len(items) not in sizes or not all(_in_range(v, low, high) for v in items):
         raise _fail(error, name, what, value, hint)
     return np.array(items, dtype=float)
+
+
+def folder_name(name: str, value: Any, *, hint: str = "", error: type[Exception] = ValueError) -> str:
+    """`value` if it is a plain folder name (one path component: not empty, not `.` or `..`, without `/`, `\\`
+    or NUL), else `error` naming it, what is accepted and `hint`."""
+    if (
+        not isinstance(value, str)
+        or value in ("", ".", "..")
+        or any(c in value for c in "/\\\0")
+        or value != value.strip()
+    ):
+        raise _fail(
+            error, name, "a plain name (one path component: no '/', '\\', '..' or surrounding spaces)", value, hint
+        )
+    return value

@@ -12,26 +12,31 @@ action, _ = policy.predict(obs)
 | name | what |
 |---|---|
 | `nnbc`, `nnbc-full` | the paper's model-free controller (`policies.nnbc`) |
-| `nnbc-plus` | the improved model-free controller: a Kalman-filtered J (`policies.nnbc_plus`) |
+| `nnbc-plus` | the improved controller: a Kalman-filtered, structured J (`policies.nnbc_plus`) |
 | `broyden`, `rls` | `nnbc-plus`'s scaffolding with Broyden's update / recursive least squares (`policies.broyden_rls`) |
 | `jmpi`, `jmpi-full` | open-loop pseudo-inverse of the nominal model (`policies.jmpi`) |
 | `clik`, `clik-full` | eq. (10), closed loop, on the nominal model: the practitioner's baseline (`policies.jmpi`) |
 | `oracle`, `oracle-full` | eq. (10) with the true model (`policies.jmpi`) |
 | `qp`, `qp-oracle` | whole-body QP with joint-limit dampers, nominal / true model; `qp-oracle` is the ceiling (`policies.qp`) |
+| `calib-qp` | `qp`'s QP on a model calibrated online from the catalogue: the structure-aware adaptive baseline (`policies.calib_qp`) |
 | `zero`, `random` | floor references (`policies.simple`) |
 | `sb3:PATH` | a Stable-Baselines3 agent (`policies.sb3`) |
 | `module:attr` | your own policy object, class or factory |
+
+What each policy knows about the robot, its knowledge class (`none`, `structure`, `nominal`, `true`), is
+`policies.knowledge_of(policy_or_spec)` (`policies.knowledge`).
 
 Every closed-loop law defaults to the task-space gain gamma = 20 1/s; the paper-exact `nnbc` keeps the paper's
 gamma = mu = 10 (for the paper's oracle use `oracle:gamma=10`). Eval seeds a policy with
 `policies.base.policy_seed(episode_seed)`, never with the env's own seed.
 
 Importing this package loads neither torch nor Stable-Baselines3 (`SB3Policy` imports them when built), nor
-qpsolvers (`QP` imports it when built).
+qpsolvers (`QP` and `CalibQP` import it when built).
 """
 
 from policies.base import ControllerPolicy, EnvFacts, Policy, policy_seed, unwrap_env
 from policies.jmpi import CLIK, JMPI, CLIKConfig, JMPIConfig, Oracle, OracleConfig
+from policies.knowledge import KNOWLEDGE_CLASSES, knowledge_of
 from policies.nnbc import NNBC, NNBCConfig
 from policies.registry import KNOWN_POLICIES, SPEC_FORMS, make, parse_spec, true_params_provider
 from policies.sb3 import SB3Policy, resolve_model_path
@@ -40,6 +45,7 @@ from policies.simple import Random, RandomConfig, Zero, ZeroConfig
 __all__ = [
     "CLIK",
     "JMPI",
+    "KNOWLEDGE_CLASSES",
     "KNOWN_POLICIES",
     "NNBC",
     "SPEC_FORMS",
@@ -56,6 +62,7 @@ __all__ = [
     "SB3Policy",
     "Zero",
     "ZeroConfig",
+    "knowledge_of",
     "make",
     "parse_spec",
     "policy_seed",

@@ -14,7 +14,8 @@ actions, _ = policy.predict(obs, episode_start=mask)   # re-initialise the rows 
 Two kinds behind one interface (`BatchedPolicy`):
 
 * Vectorised laws (`BatchedController`): `zero`, `random`, `jmpi`, `jmpi-full`, `clik`, `clik-full`, `oracle`,
-  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle` (batched up to the QP, which is solved row by row). The
+  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle`, `calib-qp` (batched up to the QP, which is solved row by
+  row; `calib-qp`'s calibration is one per-row kernel). The
   law's state is (N, ...) arrays and one `predict` advances every row with whole-array numpy operations
   (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal or true robots' Jacobians batched by
   `mobman_env.vector_kinematics`). The single-env class of the spec (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`:
@@ -91,6 +92,12 @@ class _RobotView(_VectorEnvPart):
         """Robot i's current true robot (the oracle's provider reads it at each episode start)."""
         return self._venv.true_params(self._i)
 
+    @property
+    def nominal_params(self) -> Any:
+        """Robot i's nominal robot (for the random arm family its episode's drawn design)."""
+        of = getattr(self._venv, "nominal_params_of", None)
+        return self._venv.nominal_params if of is None else of(self._i)
+
 
 class BatchedPolicy:
     """One policy for the N robots of a vector env (see the module docstring). This class is the interface and
@@ -103,11 +110,14 @@ class BatchedPolicy:
 
     @classmethod
     def for_vector_env(cls, spec: str, venv: Any, build: Callable[[str, Any], Any]) -> BatchedPolicy:
-        """Build row i with `build(spec, view of robot i)` (`policies.make` passes itself)."""
+        """Build row i with `build(spec, robot i)` (`policies.make` passes itself): robot i is a view of the
+        native vector env (`_RobotView`), or the i-th single env of a `SyncVectorEnv` (`sync_envs`)."""
         check_vector_env(venv)
-        return cls(spec, [build(spec, _RobotView(venv, i)) for i in range(venv.num_envs)])
+        robots = sync_envs(venv) or [_RobotView(venv, i) for i in range(venv.num_envs)]
+        return cls(spec, [build(spec, robot) for robot in robots])
 
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
+        self._check(obs, "reset")
         seeds = self._seeds(seed)
         for i, row in enumerate(self.rows):
             row.reset(_row(obs, i), None, seed=seeds[i])
@@ -117,14 +127,25 @@ class BatchedPolicy:
         starts = self._starts(episode_start)
         if starts is None:
             starts = np.zeros(self.num_envs, dtype=bool)
-        out = np.empty((self.num_envs, len(self.rows[0]._scale)), dtype=np.float32)
-        for i, row in enumerate(self.rows):
-            out[i] = row.predict(_row(observation, i), None, starts[i : i + 1], deterministic)[0]
-        return out, state
+        actions = [
+            row.predict(_row(observation, i), None, starts[i : i + 1], deterministic)[0]
+            for i, row in enumerate(self.rows)
+        ]
+        return np.stack([np.asarray(a, dtype=np.float32).reshape(-1) for a in actions]), state
 
     def jacobian_estimates(self) -> list[np.ndarray | None]:
         """Each row's current `jacobian_estimate` (None where a row has none)."""
         return [getattr(row, "jacobian_estimate", None) for row in self.rows]
+
+    @property
+    def artefacts(self) -> list[dict]:
+        """The files the rows loaded (an `sb3:` agent's `SB3Policy.artefacts`), each once, in row order; []
+        for policies that load none."""
+        seen: dict[tuple, dict] = {}
+        for row in self.rows:
+            for item in getattr(row, "artefacts", None) or []:
+                seen.setdefault((item["path"], item["sha256"]), item)
+        return list(seen.values())
 
     # --- shared by the loop and the vectorised laws -------------------------------------------------------
     def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
@@ -139,12 +160,19 @@ class BatchedPolicy:
             raise ValueError(f"reset(seed=...) needs the vector reset seed S or a list of {n} seeds, got {len(seeds)}")
         return seeds
 
-    def _check(self, observation: dict) -> None:
+    def _check(self, observation: dict, call: str = "predict") -> None:
+        """Refuse an observation that is not a dict of (N, k) arrays, naming the shapes."""
         n = self.num_envs
-        first = np.asarray(next(iter(observation.values())))
-        if first.ndim != 2 or first.shape[0] != n:
+        if not isinstance(observation, dict) or not observation:
             raise ValueError(
-                f"a batched policy of {n} rows needs observations with a leading axis of {n}, got shape {first.shape}"
+                f"{call} of a batched policy of {n} rows needs the vector env's observation, a dict of ({n}, k) "
+                f"arrays; got {type(observation).__name__}"
+            )
+        shapes = {k: np.shape(v) for k, v in observation.items()}
+        if any(len(shape) != 2 or shape[0] != n for shape in shapes.values()):
+            raise ValueError(
+                f"{call} of a batched policy of {n} rows needs observations with a leading axis of {n} (one row "
+                f"per robot), got shapes {shapes}; pass the vector env's whole observation"
             )
 
     def _starts(self, episode_start: Any) -> np.ndarray | None:
@@ -189,6 +217,7 @@ class BatchedController(BatchedPolicy):
         return [_Row(self, i) for i in range(self.num_envs)]
 
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
+        self._check(obs, "reset")
         for i, s in enumerate(self._seeds(seed)):
             if s is not None:
                 self.rngs[i] = np.random.default_rng(s)
@@ -231,16 +260,24 @@ class BatchedController(BatchedPolicy):
 
 
 class _Row:
-    """Row i of a `BatchedController`, as the loop's rows are read (eval's Jacobian recorder)."""
+    """Row i of a `BatchedController`, as the loop's rows are read (eval's Jacobian recorder; eval's records read
+    its knowledge class through `policies.knowledge_of`: the law's `knowledge` where it declares one, else its
+    spec's)."""
 
     def __init__(self, law: BatchedController, i: int):
         self._law, self._i = law, i
         self.name = law.name
+        self.knowledge = getattr(law, "knowledge", None)
         self.jacobian_kind = law.jacobian_kind
 
     @property
     def jacobian_estimate(self) -> np.ndarray | None:
         return self._law.jacobian_estimate_row(self._i)
+
+    @property
+    def spec(self) -> str | None:
+        """The law's spec (what `policies.knowledge_of` reads a row's class from)."""
+        return getattr(self._law, "spec", None)
 
 
 _ROW0 = np.zeros(1, dtype=np.intp)
@@ -319,9 +356,31 @@ def _single_rows(observation: dict, keys: tuple[str, ...]) -> tuple[dict[str, np
     return obs_rows(observation, keys), batched
 
 
+def is_native_vector_env(venv: Any) -> bool:
+    """Whether `venv` is mobman's native vector env (robot i's true robot is `venv.true_params(i)`)."""
+    return is_vector_env(venv) and callable(getattr(venv, "true_params", None)) and hasattr(venv, "dt")
+
+
+def sync_envs(venv: Any) -> list[Any] | None:
+    """The single envs of a `SyncVectorEnv` (mobman's physics-mode and random-arm vector envs), else None."""
+    if is_native_vector_env(venv):
+        return None
+    envs = getattr(venv, "envs", None)
+    return list(envs) if isinstance(envs, (list, tuple)) and len(envs) == venv.num_envs else None
+
+
 def check_vector_env(venv: Any) -> None:
+    """Refuse a vector env whose robots a batched policy cannot see: neither mobman's native vector env nor a
+    vector env holding its single envs (`SyncVectorEnv`); e.g. an `AsyncVectorEnv`, whose envs live in other
+    processes."""
     if not is_vector_env(venv):
         raise TypeError(f"expected a gymnasium vector env (num_envs, single_observation_space), got {venv!r}")
+    if not is_native_vector_env(venv) and sync_envs(venv) is None:
+        raise TypeError(
+            f"policies.make cannot build a batched policy for a {type(venv).__name__}: it needs mobman's native "
+            f"vector env or a SyncVectorEnv of mobman envs (whose robots it can read); make it with "
+            f'gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point") or vectorization_mode="sync"'
+        )
 
 
 def _row(observation: dict, i: int) -> dict:

@@ -146,6 +146,8 @@ class JMPI(_ModelPolicy):
 
     name = "jmpi"
     config_cls: type[JMPIConfig] = JMPIConfig
+    #: the knowledge class (`policies.knowledge`): the catalogue's parameters (CLIK inherits it)
+    knowledge = "nominal"
 
     def __init__(
         self,
@@ -190,6 +192,8 @@ class Oracle(_ModelPolicy):
     """
 
     name = "oracle"
+    #: the knowledge class (`policies.knowledge`): the worn robot's parameters
+    knowledge = "true"
 
     def __init__(
         self,

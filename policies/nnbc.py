@@ -101,6 +101,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
@@ -210,6 +211,7 @@ class NNBCLaw(BatchedController):
         self.residual = np.zeros((n, 3))
         self._y_plus = np.zeros((n, 3))
         self.steps = np.zeros(n, dtype=int)
+        self._all = np.arange(n)
         self._lo = 0  # the smallest step count of the rows (every row past the probe: the whole-array path)
 
     def jacobian_estimate_row(self, i: int) -> np.ndarray | None:
@@ -262,7 +264,9 @@ class NNBCLaw(BatchedController):
             rows = np.flatnonzero(k == n_probe)
             if rows.size:
                 self._set_probe_columns(rows, np.full(rows.size, len(self._scale) - 1), y)
-                self.residual[rows] = y[rows] - _bmv(self.J_hat[rows], u1[rows])  # eps_k0 with the measured J_hat(0)
+                eps0 = np.empty((rows.size, 3))
+                _residual_rows(self.J_hat, y, u1, rows, eps0)
+                self.residual[rows] = eps0  # eps_k0 with the measured J_hat(0)
         rows = np.flatnonzero(k > n_probe)
         if rows.size:
             self._znn_update(rows, y, u1)
@@ -293,20 +297,7 @@ class NNBCLaw(BatchedController):
         residual is eps_k = y_k - J_k u_{k-1} = a_k - rho b with rho = u^T u / (u^T u + eps_u): one 3 x 8
         product per step instead of three.
         """
-        J, u, eps = self.J_hat, u1, self.residual
-        if rows is not None:
-            J, u, eps, y = J[rows], u[rows], eps[rows], y[rows]
-        u_col, u_row = u[:, :, None], u[:, None, :]
-        a = y - np.matmul(J, u_col)[:, :, 0]
-        b = a - self._decay * eps
-        uu = np.matmul(u_row, u_col)  # (N, 1, 1)
-        inv = 1.0 / (uu + self.config.eps_u)
-        J += b[:, :, None] * (u_row * inv)  # in place for every row; a copy for a subset
-        eps = a - (uu * inv)[:, 0] * b
-        if rows is None:
-            self.residual = eps
-        else:
-            self.J_hat[rows], self.residual[rows] = J, eps
+        _znn_rows(self.J_hat, self.residual, y, u1, self._all if rows is None else rows, self._decay, self.config.eps_u)
 
     def _probe_step(self, rows: np.ndarray, k: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Steps 0..15 of the rows `rows` (at their steps k): +a_i at step 2i, -a_i at step 2i+1; the responses
@@ -327,9 +318,39 @@ class NNBCLaw(BatchedController):
         self.J_hat[rows, :, cols] = (self._y_plus[rows] - y_minus[rows]) / (2.0 * self._probe_u[cols])[:, None]
 
 
-def _bmv(J: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """J_i u_i for J (N, 3, m) and u (N, m), one BLAS product per row."""
-    return np.matmul(J, u[:, :, None])[:, :, 0]
+@njit(cache=True)
+def _znn_rows(J, eps, y, u, rows, decay, eps_u):
+    """`NNBCLaw._znn_update` for the rows `rows`, in place on J (N, 3, m) and eps (N, 3): per row
+    a = y - J u, b = a - decay eps, J += b u^T / (u^T u + eps_u), eps = a - (u^T u / (u^T u + eps_u)) b; the sums
+    written out (no BLAS)."""
+    m = J.shape[2]
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        uu = 0.0
+        for j in range(m):
+            uu += u[i, j] * u[i, j]
+        inv = 1.0 / (uu + eps_u)
+        for k in range(3):
+            a = y[i, k]
+            for j in range(m):
+                a -= J[i, k, j] * u[i, j]
+            b = a - decay * eps[i, k]
+            for j in range(m):
+                J[i, k, j] += b * (u[i, j] * inv)
+            eps[i, k] = a - (uu * inv) * b
+
+
+@njit(cache=True)
+def _residual_rows(J, y, u, rows, out):
+    """out[r] = y_i - J_i u_i for i = rows[r] (the sums written out)."""
+    m = J.shape[2]
+    for r in range(rows.shape[0]):
+        i = rows[r]
+        for k in range(3):
+            a = y[i, k]
+            for j in range(m):
+                a -= J[i, k, j] * u[i, j]
+            out[r, k] = a
 
 
 class NNBC(LawView):
@@ -369,6 +390,12 @@ class NNBC(LawView):
     def batched(cls, facts: EnvFacts, config: NNBCConfig, n: int, seed: int | None, **models: Any) -> NNBCLaw:
         """The batched law for n robots (`policies.make(spec, vector_env)`); `models`: row-indexed providers."""
         return NNBCLaw(facts, config, n, seed, **models)
+
+    @property
+    def knowledge(self) -> str:
+        """The knowledge class (`policies.knowledge`): "none" with the probe (`j0=probe`), "nominal" with the
+        nominal model's J_hat(0) (`j0=nominal`), "unknown" with a `J0=` matrix (its origin is the caller's)."""
+        return {"probe": "none", "nominal": "nominal"}.get(self.j0_source, "unknown")
 
     @property
     def J_hat(self) -> np.ndarray:

@@ -626,6 +626,13 @@ class EstimatingController(ControllerPolicy):
         raise NotImplementedError
 
     @property
+    def knowledge(self) -> str:
+        """The knowledge class (`policies.knowledge`): "structure" with the structured estimate (it knows which
+        actuators are the arm's and that the platform is a planar base with a sensed mount, no parameter value),
+        "none" with a whole-body or the paper's estimate."""
+        return "structure" if self.config.formulation == "structured" else "none"
+
+    @property
     def J_hat(self) -> np.ndarray:
         if self._body and self._J_world is not None:
             return self._J_world  # (world frame; the estimator's J is the platform frame's)

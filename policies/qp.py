@@ -136,7 +136,7 @@ class QPLaw(BatchedController):
     Diagnostics per row: `last_slack` (N, 3), s of the last step (m/s); `qp_failures` (N,), steps this episode on
     which the solver gave no solution and the fallback acted."""
 
-    uses_keys = ("joint_pos", "base_yaw", "ee_pos", "target_pos", "target_vel")
+    uses_keys: tuple[str, ...] = ("joint_pos", "base_yaw", "ee_pos", "target_pos", "target_vel")
 
     def __init__(
         self, facts: EnvFacts, config: QPConfig, n: int, seed: int | None, params: Callable[[int], Any], name: str
@@ -298,6 +298,12 @@ class QP(LawView):
         if params_provider is not None:
             return QPLaw(facts, config, n, seed, params_provider, "qp-oracle")
         return QPLaw(facts, config, n, seed, nominal_params, "qp")  # type: ignore[arg-type]
+
+    @property
+    def knowledge(self) -> str:
+        """The knowledge class (`policies.knowledge`): "true" for `qp-oracle` (the worn robot's parameters),
+        "nominal" for `qp` (the catalogue's)."""
+        return "true" if self.name == "qp-oracle" else "nominal"
 
     @property
     def params(self) -> Any:

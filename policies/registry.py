@@ -7,13 +7,20 @@ Spec grammar (one string, as the CLI takes it):
 * `sb3:PATH` - a Stable-Baselines3 agent; the whole rest of the string is the path (a `model.zip` or its run
   folder), or the alias of a shipped baseline (a folder name of `policies/models/`: `sb3:sac-circle`,
   `sb3:ppo-circle`, ...).
-* `module:attr` - your own policy: `attr` (dotted for nested attributes) in the importable `module` is a
+* `module:attr[:key=value,...]` - your own policy: `attr` (dotted for nested attributes) in `module` is a
   Policy object, or a class / factory that is called with the env if its signature accepts one positional
-  argument, else with no arguments. The result must have `reset` and `predict` (see `policies.base.Policy`).
+  argument, else with no arguments, and with the options as keyword arguments (parsed as for built-in specs:
+  `mymod:Ctrl:gain=5,horizon=3` calls `Ctrl(env, gain=5, horizon=3)`; options its signature does not take are
+  refused naming the ones it does). The result must have `reset` and `predict` (see `policies.base.Policy`).
+  `module` is imported from `sys.path`, else from the working directory (`import_user_module`: only that
+  module is loaded from there; the working directory is not put on `sys.path`). `mymod.py:Ctrl` is refused
+  with the fix (drop the .py).
 
 Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `broyden`, `rls`, `zero`, `random`) are built from
 `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
-`nominal_params`, read at each episode start (a random-arm env draws a new nominal robot per reset). The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
+`nominal_params`, read at each episode start (a random-arm env draws a new nominal robot per reset); so does
+`calib-qp`, for which the nominal robot is only the prior it calibrates from (its knowledge class is
+`structure`, `policies.knowledge`). The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
 package that touches `true_params`.
 """
 
@@ -22,14 +29,19 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import importlib
+import importlib.machinery
+import importlib.util
 import inspect
+import os
+import sys
+import types
 import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
-from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_vector_env
+from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_native_vector_env, is_vector_env
 
 
 @dataclass(frozen=True)
@@ -142,6 +154,14 @@ _REGISTRY: dict[str, _Entry] = {
         {},
         "true",
     ),
+    "calib-qp": _Entry(
+        "the whole-body QP on a model calibrated online: a Kalman filter on the worn lengths, from the catalogue",
+        "policies.calib_qp",
+        "CalibQP",
+        "CalibQPConfig",
+        {},
+        "nominal",
+    ),
     "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
     "random": _Entry(
         "uniform random actions from the policy's own seed", "policies.simple", "Random", "RandomConfig", {}, "none"
@@ -154,7 +174,8 @@ KNOWN_POLICIES: dict[str, str] = {name: e.description for name, e in _REGISTRY.i
 #: The two spec forms that are not names.
 SPEC_FORMS: dict[str, str] = {
     "sb3:PATH": "a Stable-Baselines3 agent: DIR/model.zip of a mobman-train run (or a shipped baseline, e.g. sb3:ppo-circle)",
-    "module:attr": "your own Policy object, class or factory, importable as module:attr",
+    "module:attr": "your own Policy object, class or factory, importable as module:attr (from the working "
+    "directory too); module:attr:key=value,... passes keyword arguments to the class or factory",
 }
 
 
@@ -165,6 +186,11 @@ def _known_text() -> str:
 def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
     """Split `name[:key=value,...]` into (name, {key: value}); values parsed as bool, int, float or str."""
     name, _, rest = spec.partition(":")
+    return name.strip(), parse_options(rest, spec)
+
+
+def parse_options(rest: str, spec: str) -> dict[str, Any]:
+    """`key=value,...` of a spec as {key: value} (bool, int, float or str), ValueError naming a bad item."""
     kwargs: dict[str, Any] = {}
     for item in filter(None, (s.strip() for s in rest.split(","))):
         key, eq, text = item.partition("=")
@@ -177,7 +203,7 @@ def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
         if key in kwargs:
             raise ValueError(f"option {key!r} given twice in policy spec {spec!r}")
         kwargs[key] = _parse_value(text)
-    return name.strip(), kwargs
+    return kwargs
 
 
 def _parse_value(text: str) -> Any:
@@ -235,9 +261,12 @@ def _load_entry(name: str, entry: _Entry) -> tuple[type, type]:
 def make(spec: str, env: Any, seed: int | None = None) -> Any:
     """Build the policy named by `spec` for `env` (a gym.Env, any wrappers, or an SB3 VecEnv with one env).
     For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
-    robots: the spec's vectorised law where its class has one (a `batched` constructor: `zero`, `random`,
-    `jmpi`, `clik`, `oracle`, `nnbc`, their `-full` forms, `qp`, `qp-oracle`), else a loop of this spec built
-    for each robot.
+    robots: on the native vector env the spec's vectorised law where its class has one (a `batched`
+    constructor: `zero`, `random`, `jmpi`, `clik`, `oracle`, `nnbc`, their `-full` forms, `qp`, `qp-oracle`,
+    `calib-qp`),
+    else (every other spec, `sb3:` and `module:attr` included, and every spec on a `SyncVectorEnv` of single
+    envs: mobman's physics mode and random arm) a loop of this spec built for each robot. Other vector envs
+    (e.g. `AsyncVectorEnv`) are refused naming the fix.
 
     `seed` seeds the policy's own Generator (controllers re-seed on `reset(seed=...)`). Returns an object with
     `reset(obs, info=None, *, seed=None)` and SB3's `predict` (see `policies.base.Policy`).
@@ -249,10 +278,12 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         )
     spec = spec.strip()
     if is_vector_env(env):  # one batched policy for the N robots of a gymnasium vector env (policies.batched)
+        check_vector_env(env)
         name = spec.partition(":")[0]
-        if name in _REGISTRY and hasattr(_load_entry(name, _REGISTRY[name])[0], "batched"):
+        native = is_native_vector_env(env)
+        if native and name in _REGISTRY and hasattr(_load_entry(name, _REGISTRY[name])[0], "batched"):
             return _make_builtin_batched(spec, env, seed)
-        return BatchedPolicy.for_vector_env(spec, env, lambda s, view: make(s, view, seed))
+        return BatchedPolicy.for_vector_env(spec, env, lambda s, robot: make(s, robot, seed))
     if spec.startswith("sb3:"):
         from policies.sb3 import SB3Policy
 
@@ -262,8 +293,9 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
     name, _, rest = spec.partition(":")
     if name in _REGISTRY:
         return _make_builtin(spec, env, seed)
-    if rest and "=" not in rest:
-        return _make_user(name, rest, env, spec)
+    attr, _, options = rest.partition(":")
+    if attr and "=" not in attr:  # module:attr[:key=value,...]
+        return _make_user(name, attr, parse_options(options, spec), env, spec)
     hint = difflib.get_close_matches(name, list(_REGISTRY), n=1)
     did = f" (did you mean {hint[0]!r}?)" if hint else ""
     raise ValueError(f"unknown policy {name!r} in spec {spec!r}{did}; known: {_known_text()}")
@@ -285,7 +317,8 @@ def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
 
 def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
     """The vectorised law of a built-in spec for the N robots of `venv` (its class's `batched`): the model-based
-    ones get row-indexed providers, nominal (`venv.nominal_params`) or true (`venv.true_params(i)`)."""
+    ones get row-indexed providers, nominal (`venv.nominal_params_of(i)`: robot i's, which for the random arm family
+    is its episode's drawn design) or true (`venv.true_params(i)`)."""
     check_vector_env(venv)
     name, options = parse_spec(spec)
     entry = _REGISTRY[name]
@@ -294,12 +327,19 @@ def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
     facts = EnvFacts.from_env(_RobotView(venv, 0))
     extra: dict[str, Any] = {}
     if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
-        extra["nominal_params"] = lambda i: venv.nominal_params
+        extra["nominal_params"] = lambda i: nominal_of(venv, i)
     elif entry.model == "true":
         extra["params_provider"] = venv.true_params
     law = getattr(cls, "batched")(facts, config, venv.num_envs, seed, **extra)  # noqa: B009  (not every class has it)
     law.spec = spec
     return law
+
+
+def nominal_of(venv: Any, i: int) -> Any:
+    """Robot i's nominal robot of a vector env: `nominal_params_of(i)` where the env has it (mobman's vector envs:
+    the random arm family draws one per robot and reset), else its one `nominal_params`."""
+    of = getattr(venv, "nominal_params_of", None)
+    return venv.nominal_params if of is None else of(i)
 
 
 def nominal_params_provider(env: Any) -> Callable[[], Any]:
@@ -326,9 +366,33 @@ def true_params_provider(env: Any) -> Callable[[], Any]:
     return provider
 
 
-def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
+def import_user_module(module_name: str) -> types.ModuleType:
+    """`module_name` as `import` finds it on `sys.path`, else from the working directory: the module (for a
+    dotted name, its top-level package) is loaded from there by name, and the working directory is never put
+    on `sys.path`, so no other import of the run can pick up a file there (a planted `defusedxml.py`).
+    ModuleNotFoundError when neither has it."""
+    top = module_name.partition(".")[0]
+    if top not in sys.modules and importlib.util.find_spec(top) is None:
+        spec = importlib.machinery.PathFinder.find_spec(top, [os.getcwd()])
+        if spec is not None and spec.loader is not None:
+            module = importlib.util.module_from_spec(spec)
+            sys.modules[top] = module
+            try:
+                spec.loader.exec_module(module)
+            except BaseException:
+                del sys.modules[top]
+                raise
+    return importlib.import_module(module_name)
+
+
+def _make_user(module_name: str, attr: str, options: dict[str, Any], env: Any, spec: str) -> Any:
+    if module_name.endswith(".py"):
+        raise ValueError(
+            f"policy spec {spec!r}: {module_name!r} is a file name; name the module, without .py: "
+            f"{module_name[:-3]}:{attr}"
+        )
     try:
-        module = importlib.import_module(module_name)
+        module = import_user_module(module_name)
     except ModuleNotFoundError as exc:
         # the module itself (or its package) is missing: an unknown spec. A missing import *inside* the user's
         # module is their error and propagates unchanged.
@@ -346,6 +410,11 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
         except AttributeError:
             raise ValueError(f"policy spec {spec!r}: module {module_name!r} has no attribute {attr!r}") from None
     if not inspect.isclass(obj) and _is_policy(obj):
+        if options:
+            raise ValueError(
+                f"policy spec {spec!r}: {attr} is a policy object, which takes no options {sorted(options)}; name "
+                f"a class or factory to pass options to it, or drop them"
+            )
         return obj
     if not callable(obj):
         raise TypeError(f"policy spec {spec!r}: {attr!r} is neither a policy (reset + predict) nor a class or factory")
@@ -353,10 +422,17 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
         sig = inspect.signature(obj)
     except (TypeError, ValueError):
         sig = None
-    if sig is not None and _binds(sig, env):
-        policy = obj(env)
-    elif sig is None or _binds(sig):
-        policy = obj()
+    if sig is not None and _binds(sig, env, **options):
+        policy = obj(env, **options)
+    elif sig is None or _binds(sig, **options):
+        policy = obj(**options)
+    elif options and (_binds(sig, env) or _binds(sig)):
+        params = list(sig.parameters.values())[1 if _binds(sig, env) else 0 :]  # not the env's parameter
+        accepted = [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+        raise ValueError(
+            f"policy spec {spec!r}: {attr}{sig} does not take the options {sorted(options)}; its keyword "
+            f"arguments are {accepted} (module:attr:key=value,... passes them)"
+        )
     else:
         raise TypeError(f"policy spec {spec!r}: {attr}{sig} can be called neither with (env) nor with no arguments")
     if not _is_policy(policy):
@@ -368,9 +444,9 @@ def _make_user(module_name: str, attr: str, env: Any, spec: str) -> Any:
     return policy
 
 
-def _binds(sig: inspect.Signature, *args: Any) -> bool:
+def _binds(sig: inspect.Signature, *args: Any, **kwargs: Any) -> bool:
     try:
-        sig.bind(*args)
+        sig.bind(*args, **kwargs)
     except TypeError:
         return False
     return True

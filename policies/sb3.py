@@ -15,6 +15,10 @@ written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zi
   exactly as `VecNormalize.normalize_obs` does: `clip((obs - mean) / sqrt(var + epsilon), -clip_obs,
   clip_obs)` cast to float32, with the saved `obs_rms`, `epsilon` and `clip_obs`, only for the keys in its
   `norm_obs_keys` (and only if `norm_obs` was on). The statistics are frozen: evaluation never updates them.
+  A file that does not unpickle to VecNormalize statistics is refused, as is a missing (or norm_obs-off)
+  statistics file when config.json says `"normalize_obs": true` (what mobman-train records), so an agent is
+  never evaluated silently unnormalised; any other `*.pkl` beside the agent (statistics saved under another
+  name) gives a `UserWarning` naming it, since it is not read.
 * `config.json` (optional) - `"algo"`, `"env_id"`, `"env_kwargs"`, `"obs_keys"` (the Dict keys the agent sees,
   in order) and `"wrappers"` (names of observation wrappers, applied in order to the raw observation before
   it is reduced to `obs_keys`, as `mobman-train` applies them per env before `VecNormalize`). Reproduced
@@ -69,14 +73,17 @@ from typing import Any
 import numpy as np
 
 from policies.sb3_files import (
+    STATS_NAMES,
     RunFiles,
     find_run,
     load_vecnormalize_stats,
     load_zoo_yaml,
     read_zip_data,
     safe_custom_objects,
+    unused_pickles,
     zoo_normalize,
 )
+from policies.untrusted import file_sha256
 
 #: Folder of the models shipped as package data (found through this file's own location, so a user's
 #: `train.py` or `policies.py` beside their script cannot hide it).
@@ -271,9 +278,13 @@ class SB3Policy:
 
     Attributes after loading: `path` (the model file), `run_dir`, `layout` ("mobman" or "zoo"), `stats_path`
     (the VecNormalize file or None), `config` (config.json's content, or for rl-zoo the keys derived from
-    config.yml), `trained_env` ({"env_id", "env_kwargs"} the run recorded, values None when unknown)."""
+    config.yml), `trained_env` ({"env_id", "env_kwargs"} the run recorded, values None when unknown),
+    `artefacts` (every file read: `[{"path": str, "sha256": hex}, ...]`, the model first, then the statistics
+    and the configuration files; the `policy` artefacts of results.json schema 3)."""
 
     name = "sb3"
+    #: the knowledge class (`policies.knowledge`): an agent learns from observations and rewards alone
+    knowledge = "none"
 
     def __init__(self, model_path: str | Path, *, device: str = "cpu", torch_threads: int | None = 1):
         require_sb3()
@@ -281,6 +292,15 @@ class SB3Policy:
         self.path, self.run_dir, self.layout, self.stats_path = run.model, run.model.parent, run.layout, run.stats
         if run.note:
             warnings.warn(f"sb3:{model_path}: {run.note}", UserWarning, stacklevel=2)
+        unused = unused_pickles(run)
+        if unused:
+            warnings.warn(
+                f"sb3:{model_path}: {', '.join(str(p) for p in unused)} not used: only "
+                f"{' or '.join(STATS_NAMES)} is read as the agent's VecNormalize statistics; if one of them holds "
+                f"the statistics, rename it to {STATS_NAMES[0]}, else move it out of the agent's folder",
+                UserWarning,
+                stacklevel=2,
+            )
         self._config_file = run.config_json or self.run_dir / "config.json"
         if run.zoo_dir is not None:
             self._config_file = run.zoo_dir / "config.yml"
@@ -296,8 +316,16 @@ class SB3Policy:
         self.wrappers = _wrapper_names(self.config.get("wrappers"), self._config_file)
         self.obs_keys = self._observation_keys()
         self._load_normalisation()
+        loaded = [self.path, self.stats_path, *self._config_files(run)]
+        self.artefacts = [{"path": str(p), "sha256": file_sha256(p)} for p in loaded if p is not None]
 
     # --- loading ---------------------------------------------------------------------------------------
+    def _config_files(self, run: RunFiles) -> list[Path]:
+        """The configuration files read: config.json, or rl-zoo's config.yml and args.yml."""
+        if run.zoo_dir is not None:
+            return [p for p in (run.zoo_dir / "config.yml", run.zoo_dir / "args.yml") if p.is_file()]
+        return [self._config_file] if self._config_file.is_file() else []
+
     def _zoo_config(self, run: RunFiles) -> dict:
         """mobman's config keys from rl-zoo's `<ENV>/config.yml` and `<ENV>/args.yml`."""
         assert run.zoo_dir is not None
@@ -367,9 +395,20 @@ class SB3Policy:
     def _load_normalisation(self) -> None:
         self._norm: Any = None
         pkl = self.stats_path
+        says = self.config.get("normalize_obs")  # mobman-train's config.json records it
         if pkl is None:
+            if says is True:
+                raise ValueError(
+                    f"{self._config_file}: normalize_obs is true (the agent saw normalised observations) but "
+                    f"{self.run_dir} holds no {STATS_NAMES[0]}; copy it from the training run"
+                )
             return
         stats = load_vecnormalize_stats(pkl)
+        if says is True and not stats["norm_obs"]:
+            raise ValueError(
+                f"{self._config_file}: normalize_obs is true but {pkl} holds statistics with norm_obs off; copy the "
+                f"statistics of this run from its training folder"
+            )
         if not stats["norm_obs"]:
             return
         rms = stats["obs_rms"]

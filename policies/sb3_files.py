@@ -1,9 +1,10 @@
 """Reading a Stable-Baselines3 run folder without running code it names (the files of `policies.sb3`).
 
 Both files of an SB3 agent hold pickles, and `pickle.load` runs whatever callable a pickle names: a crafted
-`vecnormalize.pkl` can call `os.system`. This module reads them with a restricted unpickler whose `find_class`
-resolves only the classes and data constructors those files legitimately contain; anything else is refused
-with `UnsafePickleError`, naming the module and attribute:
+`vecnormalize.pkl` can call `os.system`. This module reads them with `policies.untrusted`'s restricted
+unpickler, whose `find_class` resolves only an allow-list of exact (module, name) pairs those files
+legitimately contain and refuses every dotted name; anything else is refused with `UnsafePickleError`, naming
+the module and attribute:
 
 * `vecnormalize.pkl` (`load_vecnormalize_stats`): the `VecNormalize` object and its `RunningMeanStd`
   statistics are rebuilt as plain attribute holders (`_State`), the gymnasium spaces and numpy random state it
@@ -13,9 +14,11 @@ with `UnsafePickleError`, naming the module and attribute:
   and lets the loader replace any of them (`custom_objects`). Entries inference does not use (the last
   observation, episode buffers, schedules, buffer classes, action noise) are replaced by neutral values
   without being decoded; the others (`policy_class`, `observation_space`, `action_space`, `policy_kwargs`) are
-  decoded with the restricted unpickler, which allows SB3 policy and feature-extractor classes, gymnasium
-  spaces, torch activation and optimiser classes, and numpy data. The weights (`*.pth`) are read by SB3 with
-  `torch.load(..., weights_only=True)`.
+  decoded with the restricted unpickler (`ALLOWED_MODEL`: SB3 policy and feature-extractor classes,
+  gymnasium spaces, torch activation and optimiser classes, and numpy data). The weights (`*.pth`) are read
+  by SB3 with `torch.load(..., weights_only=True)`. The zip's `data` entry may inflate to at most
+  `MAX_MODEL_DATA_BYTES`, all entries together to `MAX_MODEL_ZIP_BYTES`; a statistics file must be a regular
+  file of at most `MAX_STATS_BYTES`.
 
 Where the files are (`find_run`): a mobman-train or plain SB3 folder holds `model.zip` and, optionally, the
 statistics under mobman's name `vecnormalize.pkl` or `VecNormalize.save`'s conventional `vec_normalize.pkl`
@@ -34,7 +37,6 @@ from __future__ import annotations
 import ast
 import base64
 import binascii
-import io
 import json
 import pickle
 import zipfile
@@ -44,6 +46,22 @@ from typing import Any
 
 import numpy as np
 
+from policies.untrusted import (
+    ALLOWED_MODEL,
+    CONTAINERS,
+    MAX_MODEL_DATA_BYTES,
+    MAX_MODEL_ZIP_BYTES,
+    NUMPY_DATA,
+    NUMPY_RANDOM,
+    SPACES,
+    VEC_NORMALIZE,
+    FileRefused,
+    UnsafePickleError,
+    check_zip_sizes,
+    load_pickle,
+    read_regular,
+)
+
 __all__ = [
     "RunFiles",
     "UnsafePickleError",
@@ -52,14 +70,11 @@ __all__ = [
     "load_zoo_yaml",
     "read_zip_data",
     "safe_custom_objects",
+    "unused_pickles",
 ]
 
 #: The file names of VecNormalize statistics: mobman-train's, and the one SB3's docs and examples use.
 STATS_NAMES = ("vecnormalize.pkl", "vec_normalize.pkl")
-
-
-class UnsafePickleError(pickle.UnpicklingError):
-    """A pickle names a callable outside the allowed list (it could run arbitrary code)."""
 
 
 class _State:
@@ -89,78 +104,33 @@ def _inert_factory(*args: Any, **kwargs: Any) -> _Inert:
     return _Inert()
 
 
-#: numpy's data constructors (arrays, scalars, dtypes), under the module names of numpy 1.x and 2.x.
-_NUMPY_DATA = {
-    (module, name)
-    for module in ("numpy.core.multiarray", "numpy._core.multiarray", "numpy.core.numeric", "numpy._core.numeric")
-    for name in ("_reconstruct", "scalar", "_frombuffer")
-} | {("numpy", "dtype"), ("numpy", "ndarray")}
-
-#: Plain containers.
-_CONTAINERS = {("collections", "OrderedDict"), ("collections", "deque"), ("builtins", "set"), ("builtins", "frozenset")}
+#: The spaces of SB3 1.x (gym) files, never imported.
+_GYM_SPACES = frozenset((m.replace("gymnasium.", "gym.", 1), n) for m, n in SPACES)
 
 
-def _is_numpy_random(module: str) -> bool:
-    return module == "numpy.random" or module.startswith("numpy.random.")
+#: vecnormalize.pkl: numpy data for real, the SB3 objects as `_State`, spaces and RNGs as `_Inert` (classes)
+#: or `_inert_factory` (numpy's `__..._ctor` functions); nothing of SB3 or gymnasium is imported.
+class _VecNormalizeState(_State):
+    """Stands in for the pickled VecNormalize object (the top of a statistics file)."""
 
 
-def _is_spaces(module: str) -> bool:
-    return module.startswith(("gymnasium.spaces", "gym.spaces"))
+_STATS_SUBSTITUTES: dict[tuple[str, str], Any] = {
+    **{pair: _VecNormalizeState if pair[1] == "VecNormalize" else _State for pair in VEC_NORMALIZE},
+    **{pair: _Inert for pair in SPACES | _GYM_SPACES},
+    **{pair: _inert_factory if pair[1].startswith("__") else _Inert for pair in NUMPY_RANDOM},
+}
+_STATS_WHAT = "VecNormalize statistics (numpy data, VecNormalize, RunningMeanStd, spaces, random states)"
+_MODEL_WHAT = (
+    "a model.zip entry (numpy data, gymnasium spaces, Stable-Baselines3 policy and feature-extractor classes, "
+    "torch activations and optimisers)"
+)
+_CHECKPOINT_WHAT = (
+    "a training checkpoint (a model.zip's classes and Stable-Baselines3's schedules, buffers, train frequency and "
+    "action noise)"
+)
 
-
-class _StatsUnpickler(pickle.Unpickler):
-    """vecnormalize.pkl: numpy data for real, the SB3 objects as `_State`, spaces and RNGs as `_Inert`."""
-
-    def find_class(self, module: str, name: str) -> Any:
-        if (module, name) in _NUMPY_DATA | _CONTAINERS:
-            return super().find_class(module, name)
-        if module.startswith("stable_baselines3.") and name in ("VecNormalize", "RunningMeanStd"):
-            return _State
-        if _is_spaces(module) or _is_numpy_random(module):
-            return _inert_factory if name.startswith("__") else _Inert
-        raise UnsafePickleError(f"refused to load {module}.{name} (not part of VecNormalize statistics)")
-
-
-def _allowed_model_class(module: str, name: str) -> Any | None:
-    """The class `module.name` if a model.zip may name it (a class of an allowed kind), else None."""
-    import importlib
-
-    if module.split(".")[0] not in ("stable_baselines3", "gymnasium", "torch"):
-        return None
-    try:
-        obj = getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError):
-        return None
-    if not isinstance(obj, type):
-        return None
-    import gymnasium
-    import torch
-    from stable_baselines3.common.policies import BasePolicy
-    from stable_baselines3.common.torch_layers import BaseFeaturesExtractor
-
-    if issubclass(obj, (BasePolicy, BaseFeaturesExtractor, gymnasium.spaces.Space)):
-        return obj
-    if module.startswith("torch.nn.modules.activation") and issubclass(obj, torch.nn.Module):
-        return obj
-    if module.startswith("torch.optim") and issubclass(obj, torch.optim.Optimizer):
-        return obj
-    return None
-
-
-class _ModelUnpickler(pickle.Unpickler):
-    """model.zip `data` entries: SB3 policies and extractors, spaces, torch activations/optimisers, numpy data."""
-
-    def find_class(self, module: str, name: str) -> Any:
-        if (module, name) in _NUMPY_DATA | _CONTAINERS:
-            return super().find_class(module, name)
-        if _is_numpy_random(module) and (name.startswith("__") or name in ("PCG64", "MT19937", "Philox", "SFC64")):
-            return super().find_class(module, name)  # the RNG state of a space: bit-generator constructors only
-        if module == "numpy.random.bit_generator" and name == "SeedSequence":
-            return super().find_class(module, name)
-        cls = _allowed_model_class(module, name)
-        if cls is None:
-            raise UnsafePickleError(f"refused to load {module}.{name} (not an SB3 policy, space, layer or numpy data)")
-        return cls
+#: Cap on a VecNormalize file (mobman's are about 5 kB).
+MAX_STATS_BYTES = 16 * 2**20
 
 
 def load_vecnormalize_stats(path: Path) -> dict[str, Any]:
@@ -168,9 +138,9 @@ def load_vecnormalize_stats(path: Path) -> dict[str, Any]:
 
     Returns {"norm_obs": bool, "obs_rms": {key: (mean, var)} or (mean, var), "norm_obs_keys": list or None,
     "epsilon": float, "clip_obs": float}. Raises ValueError naming the file when it cannot be read."""
+    raw = read_regular(path, MAX_STATS_BYTES, "VecNormalize file")
     try:
-        with open(path, "rb") as f:
-            vn = _StatsUnpickler(f).load()
+        vn = load_pickle(raw, NUMPY_DATA | CONTAINERS, _STATS_SUBSTITUTES, _STATS_WHAT)
     except UnsafePickleError as exc:
         raise ValueError(
             f"{path}: {exc}; a vecnormalize.pkl written by VecNormalize.save holds only statistics. "
@@ -181,10 +151,18 @@ def load_vecnormalize_stats(path: Path) -> dict[str, Any]:
             f"{path} is not a readable VecNormalize file ({type(exc).__name__}: {exc}); copy it again from "
             f"the training run (or delete it if the agent was trained without VecNormalize)"
         ) from None
-    state = getattr(vn, "__dict__", {}) if isinstance(vn, _State) else {}
+    if not isinstance(vn, _VecNormalizeState):
+        raise ValueError(
+            f"{path} does not hold VecNormalize statistics (it unpickles to a {type(vn).__name__}, not a "
+            f"VecNormalize); give the file VecNormalize.save wrote during training, or delete it if the agent was "
+            f"trained without VecNormalize"
+        )
+    state = vn.__dict__
     try:
         norm_obs = bool(state.get("norm_obs", False))
         rms = state.get("obs_rms")
+        if norm_obs and rms is None:
+            raise ValueError("norm_obs is on but there is no obs_rms")
         if isinstance(rms, dict):
             stats: Any = {str(k): _mean_var(v) for k, v in rms.items()}
         else:
@@ -214,7 +192,10 @@ def read_zip_data(path: Path) -> dict[str, Any]:
     """The JSON `data` entry of an SB3 model.zip; ValueError naming the file when it is not one."""
     try:
         with zipfile.ZipFile(path) as zf:
+            check_zip_sizes(zf, path, {"data": MAX_MODEL_DATA_BYTES}, MAX_MODEL_ZIP_BYTES)
             data = json.loads(zf.read("data"))
+    except FileRefused:
+        raise
     except (zipfile.BadZipFile, KeyError, ValueError, OSError) as exc:
         raise ValueError(
             f"{path} is not a Stable-Baselines3 model file (a zip with a 'data' entry): {type(exc).__name__}: "
@@ -244,19 +225,26 @@ NEUTRAL_ENTRIES: dict[str, Any] = {
 }
 
 
-def safe_custom_objects(data: dict[str, Any], path: Path) -> dict[str, Any]:
+def safe_custom_objects(
+    data: dict[str, Any], path: Path, allowed: frozenset[tuple[str, str]] | None = None
+) -> dict[str, Any]:
     """SB3 `custom_objects` for `Algo.load` so that it unpickles nothing: every serialized entry of `data`,
-    neutral for those inference does not use, decoded with the restricted unpickler for the others."""
+    neutral for those inference does not use, decoded with the restricted unpickler (`ALLOWED_MODEL`) for the
+    others. Given `allowed` (a training checkpoint: `ALLOWED_CHECKPOINT` and more), every entry is decoded
+    with it, none replaced."""
     objects: dict[str, Any] = {}
+    neutral = NEUTRAL_ENTRIES if allowed is None else {}
+    what = _MODEL_WHAT if allowed is None else _CHECKPOINT_WHAT
+    allowed = ALLOWED_MODEL if allowed is None else allowed
     for key, value in data.items():
         if not (isinstance(value, dict) and ":serialized:" in value):
             continue
-        if key in NEUTRAL_ENTRIES:
-            objects[key] = NEUTRAL_ENTRIES[key]
+        if key in neutral:
+            objects[key] = neutral[key]
             continue
         try:
             raw = base64.b64decode(value[":serialized:"].encode())
-            objects[key] = _ModelUnpickler(io.BytesIO(raw)).load()
+            objects[key] = load_pickle(raw, allowed, what=what)
         except UnsafePickleError as exc:
             raise ValueError(
                 f"{path}: entry {key!r}: {exc}. A model.zip saved by Stable-Baselines3 for a mobman env names only "
@@ -294,6 +282,13 @@ def _stats_file(folder: Path) -> Path | None:
             f"one the agent was trained with: delete or rename the other one"
         )
     return found[0] if found else None
+
+
+def unused_pickles(run: RunFiles) -> list[Path]:
+    """The `*.pkl` files beside the agent's files (the model's folder, rl-zoo's `<ENV>/`) that are not its
+    statistics file: statistics saved under another name are not read, so `SB3Policy` warns about them."""
+    folders = [run.model.parent] + ([run.zoo_dir] if run.zoo_dir is not None else [])
+    return sorted(p for folder in folders for p in folder.glob("*.pkl") if p.is_file() and p != run.stats)
 
 
 def _zoo_dirs(folder: Path) -> list[Path]:

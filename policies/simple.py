@@ -77,6 +77,8 @@ class _PlainView(LawView):
 
     law_cls: type[ZeroLaw] | type[RandomLaw]
     law: ZeroLaw | RandomLaw
+    #: the knowledge class (`policies.knowledge`): the floor references know nothing about the robot
+    knowledge = "none"
 
     def __init__(self, facts: EnvFacts, config: Any = None, seed: int | None = None, **extra: Any):
         reject_extra(self, extra)

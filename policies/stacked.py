@@ -46,6 +46,12 @@ class VectorEnvRows(_VectorEnvPart):
         """Row j's current true robot: robot rows.start + j of the underlying vector env."""
         return self._venv.true_params(self._start + j)
 
+    def nominal_params_of(self, j: int) -> Any:
+        """Row j's nominal robot: robot rows.start + j's of the underlying vector env."""
+        from policies.registry import nominal_of
+
+        return nominal_of(self._venv, self._start + j)
+
 
 class StackedPolicy(BatchedPolicy):
     """Several batched policies over consecutive blocks of rows of one vector env, as one batched policy: each

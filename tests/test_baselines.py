@@ -1,7 +1,7 @@
 """The baselines of benchmark protocol v1 (issue 12): `clik`, `clik-full`, `qp`, `qp-oracle`, `broyden`, `rls`.
 
 Accuracy claims are assertions on development seeds (0-999, as the brief of the work asked: these controllers
-were built and their defaults chosen on seeds 0-19); the figures for the README come from `mobman-eval` on
+were built and their defaults chosen on seeds 0-19); the figures of the docs come from `mobman-eval` on
 reported seeds. Kinematic mode, full 20 s episodes unless stated.
 """
 

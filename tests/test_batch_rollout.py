@@ -1,4 +1,4 @@
-"""`eval.batch_rollout.rollout_batch` gives each robot the record and arrays `eval.rollout.rollout` gives the
+"""`eval.rollout.rollout_batch` gives each robot the record and arrays `eval.rollout.rollout` gives the
 single-env episode of the same seed (all but the timings), for non-chaotic and chaotic controllers alike."""
 
 from __future__ import annotations
@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 import policies
-from eval.batch_rollout import rollout_batch
-from eval.rollout import make_env, rollout
+from eval.rollout import make_env, rollout, rollout_batch
 from mobman_env import TASKS
 
 TIMING = ("wall_s", "pid", "predict_us_median", "predict_us_p99")

@@ -21,14 +21,10 @@ SPECS = ("zero", "random", "jmpi", "clik", "clik-full", "oracle", "nnbc", "nnbc-
 ENV_ID = "WheeledPuma-Lemniscate-v0"
 
 
-@pytest.mark.parametrize("spec", SPECS)
-def test_rows_equal_single_policies(spec):
-    n, seed, steps = 3, 10_000, 60
-    path = dict(TASKS[ENV_ID], duration=0.4)  # 40 steps: the episodes end and autoreset
-    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", dynamics="kinematic", path=path)
+def _batched_and_singles(spec: str, venv, envs: list, seed: int):
+    """`spec` built for the vector env and for each single env, all reset with the vector seed S (single i:
+    env seed S + i, policy seed policy_seed(S + i)): (batched, singles, vector obs, single obs list)."""
     batched = policies.make(spec, venv)
-    assert isinstance(batched, BatchedPolicy) and batched.num_envs == n
-    envs = [WheeledPumaEnv(dynamics="kinematic", path=path) for _ in range(n)]
     singles = [policies.make(spec, env) for env in envs]
     obs, info = venv.reset(seed=seed)
     batched.reset(obs, info, seed=seed)
@@ -37,6 +33,17 @@ def test_rows_equal_single_policies(spec):
         o, inf = env.reset(seed=seed + i)
         pol.reset(o, inf, seed=policy_seed(seed + i))
         single_obs.append(o)
+    return batched, singles, obs, single_obs
+
+
+@pytest.mark.parametrize("spec", SPECS)
+def test_rows_equal_single_policies(spec):
+    n, seed, steps = 3, 10_000, 60
+    path = dict(TASKS[ENV_ID], duration=0.4)  # 40 steps: the episodes end and autoreset
+    venv = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", dynamics="kinematic", path=path)
+    envs = [WheeledPumaEnv(dynamics="kinematic", path=path) for _ in range(n)]
+    batched, singles, obs, single_obs = _batched_and_singles(spec, venv, envs, seed)
+    assert isinstance(batched, BatchedPolicy) and batched.num_envs == n
     starts = np.zeros(n, dtype=bool)
     for t in range(steps):
         if t == 25:
@@ -77,7 +84,7 @@ def test_bad_batches_raise():
 
 
 #: the specs with a vectorised law (`policies.batched.BatchedController`); the others loop their rows
-VECTORISED = ("zero", "random", "qp", "qp-oracle") + tuple(
+VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp") + tuple(
     f"{law}{form}" for law in ("jmpi", "clik", "oracle", "nnbc") for form in ("", "-full")
 )
 LOOPED = ("nnbc-plus", "broyden", "rls")
@@ -234,3 +241,83 @@ def test_stacked_policy_rows_equal_their_own_batched_policies():
     venv.close()
     for v, _ in own:
         v.close()
+
+
+# --- sb3:, module:attr and mobman's SyncVectorEnvs (physics mode, random arm) --------------------------------
+USER_POLICY = '''
+import numpy as np
+
+
+class Pol:
+    """A user's proportional law on the position error, with its own seeded dither."""
+
+    def __init__(self, env):
+        self.n = env.action_space.shape[0]
+        self.rng = np.random.default_rng(0)
+
+    def reset(self, obs, info=None, *, seed=None):
+        self.rng = np.random.default_rng(seed)
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        a = np.zeros(self.n, dtype=np.float32)
+        a[:3] = 5.0 * (obs["target_pos"] - obs["ee_pos"]) + 0.01 * self.rng.standard_normal(3)
+        return np.clip(a, -1, 1), state
+'''
+SHORT = {"type": "circle", "radius": 0.1, "duration": 1.0}
+
+
+@pytest.mark.parametrize(
+    "env_id, dynamics",
+    [
+        ("WheeledPuma-Circle-v0", "kinematic"),  # the native vector env
+        ("WheeledPuma-Circle-v0", "physics"),  # a SyncVectorEnv of single envs
+        ("WheeledRandomArm-Circle-v0", "kinematic"),  # a SyncVectorEnv of single envs
+    ],
+)
+@pytest.mark.parametrize("spec", ["sb3:sac-circle", "userpol_batched:Pol", "clik", "nnbc"])
+@pytest.mark.filterwarnings("ignore:the agent .* was trained on:UserWarning")  # the PUMA agent on the random arm
+def test_every_spec_on_every_mobman_vector_env_equals_its_single_policies(
+    tmp_path, monkeypatch, spec, env_id, dynamics
+):
+    if spec.startswith("sb3:"):
+        pytest.importorskip("stable_baselines3")
+    (tmp_path / "userpol_batched.py").write_text(USER_POLICY)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    n, seed, steps = 2, 10_500, 12
+    venv = gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", dynamics=dynamics, path=SHORT)
+    envs = [gym.make(env_id, dynamics=dynamics, path=SHORT) for _ in range(n)]
+    try:
+        batched, singles, obs, single_obs = _batched_and_singles(spec, venv, envs, seed)
+        for t in range(steps):
+            actions, _ = batched.predict(obs)
+            assert actions.shape == (n, 8) and actions.dtype == np.float32
+            for i, pol in enumerate(singles):
+                a, _ = pol.predict(single_obs[i])
+                assert np.array_equal(actions[i], a), (spec, t, i)
+                single_obs[i], *_ = envs[i].step(actions[i])
+            obs, *_ = venv.step(actions)
+    finally:
+        venv.close()
+        for env in envs:
+            env.close()
+
+
+def test_async_vector_env_is_refused_with_the_fix():
+    venv = gym.make_vec("WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="async", dynamics="kinematic")
+    try:
+        with pytest.raises(
+            TypeError, match=r"AsyncVectorEnv.*native vector env or a SyncVectorEnv.*vector_entry_point"
+        ):
+            policies.make("clik", venv)
+    finally:
+        venv.close()
+
+
+@pytest.mark.parametrize("spec", ["clik", "nnbc", "nnbc-plus", "zero"])
+def test_reset_with_fewer_rows_than_robots_is_refused_with_the_shapes(spec):
+    venv = _venv(ENV_ID, 3)
+    pol = policies.make(spec, venv)
+    obs, info = venv.reset(seed=10_600)
+    with pytest.raises(ValueError, match=r"reset of a batched policy of 3 rows .*leading axis of 3.*\(2, 3\)"):
+        pol.reset({k: v[:2] for k, v in obs.items()}, info, seed=10_600)
+    venv.close()

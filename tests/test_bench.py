@@ -28,6 +28,7 @@ SEED = 10_000
 
 def _small(**kw) -> BC.BenchConfig:
     base = {
+        "robots": ("puma",),
         "tasks": ("circle", "line"),
         "conditions": ("default", "wear20"),
         "policies": ("zero", "jmpi"),
@@ -48,14 +49,18 @@ def test_default_controllers_are_the_registry():
     assert not [p for p in BC.default_policies() if ":" in p]  # no sb3:/module: forms
 
 
-def test_default_conditions_are_those_this_env_can_build():
-    cfg, notes = BC.BenchConfig().resolved()
+@pytest.mark.parametrize("track", ["dev", "heldout", "all"])
+def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
+    cfg, notes = BC.BenchConfig(track=track).resolved()
     env_args = BC.env_arguments("WheeledPuma-Circle-v0")
-    for name in BC.DEFAULT_CONDITIONS:
+    for name in BC.DEFAULT_CONDITIONS[track]:
         can = all(k in env_args for k in BC.CONDITIONS[name].env_kwargs)
         assert (name in cfg.conditions) is can
         assert any(f"condition {name!r} left out" in n for n in notes) is not can
-    assert cfg.policies == BC.default_policies() and cfg.seed_list == tuple(range(SEED, SEED + 20))
+    assert cfg.policies == BC.default_policies()
+    assert cfg.seed_list("default") == tuple(range(SEED, SEED + BC.DEFAULT_SEEDS))
+    assert cfg.seed_list("physics") == tuple(range(SEED, SEED + BC.DEFAULT_PHYSICS_SEEDS))
+    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == ({"dev", "heldout"} if track == "all" else {track})
     assert BC.CONDITIONS["noise"].obs_noise == 0.001 and BC.CONDITIONS["noise"].env_kwargs == {"obs_noise_vel": 0.01}
     assert BC.CONDITIONS["wear20"].model_error == 0.2 and BC.CONDITIONS["physics"].dynamics == "physics"
 
@@ -63,7 +68,9 @@ def test_default_conditions_are_those_this_env_can_build():
 def test_a_condition_the_env_cannot_build_is_refused_by_name(monkeypatch):
     ghost = BC.Condition("ghost", "needs an env argument no env has", env_kwargs={"no_such_argument": 1.0})
     monkeypatch.setitem(BC.CONDITIONS, "ghost", ghost)
-    with pytest.raises(EvalError, match="condition 'ghost' needs the env argument.*no_such_argument"):
+    with pytest.raises(
+        EvalError, match="condition 'ghost' cannot run: this mobman_env has no env argument no_such_argument"
+    ):
         _small(conditions=("default", "ghost")).resolved()
 
 
@@ -72,7 +79,9 @@ def test_a_condition_the_env_cannot_build_is_refused_by_name(monkeypatch):
     [
         ({"tasks": ("circel",)}, "unknown task 'circel' \\(did you mean 'circle'\\?\\); known: circle, line"),
         ({"conditions": ("wear21",)}, "unknown condition 'wear21'.*known: default, wear20"),
-        ({"robots": ("kuka",)}, "unknown robot 'kuka'; known: puma"),
+        ({"robots": ("kuka",)}, "unknown robot 'kuka'; known: puma, ur5, panda, random-arm, scaled-arm"),
+        ({"track": "test"}, "unknown track 'test'; accepted: dev, heldout, all"),
+        ({"physics_seeds": 0}, "physics_seeds must be an integer >= 1"),
         ({"tasks": ()}, "tasks is empty"),
         ({"tasks": ("line", "line")}, "tasks lists line more than once"),
         ({"policies": ("jmpi", "jmpi")}, "policies lists jmpi more than once"),
@@ -129,8 +138,9 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
         assert (out / name).is_file(), name
     assert (out / "plots" / "error_vs_wear.png").is_file()  # two wear levels: 0.05 and 0.2
     for cond in ("default", "wear20"):
-        assert json.loads((out / "conditions" / cond / "results.json").read_text())["schema"] == 2
-    assert sc["schema"] == 2 and sc["protocol"]["seeds"] == [SEED, SEED + 1]
+        assert json.loads((out / "conditions" / cond / "results.json").read_text())["schema"] == 3
+    assert sc["schema"] == 3 and sc["protocol"]["seeds"] == [SEED, SEED + 1] and sc["protocol"]["version"] == 2
+    assert sc["protocol"]["heldout_commit"] == BC.HELDOUT_COMMIT and sc["protocol"]["track"] == "dev"
     assert len(sc["rows"]) == 2 * 2 * 2 and len(sc["pooled"]) == 2 * 2
     assert {(r["condition"], r["env"], r["policy"]) for r in sc["rows"]} == {
         (c, e, p)
@@ -144,6 +154,15 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
     assert zero["max_error_m"]["iqm"] == pytest.approx(0.2, abs=1e-6)  # zero stays: the 0.1 m circle's diameter
     assert len(zero["success_curve"]) == len(SUCCESS_CURVE_TOLERANCES)
     assert sc["provenance"]["blas"] is not None and sc["statistics"]["bootstrap_resamples"] == 2000
+    # schema 3: knowledge classes, the track pooled, the leaderboard entries, a sample per (condition, controller)
+    assert {r["policy"]: r["knowledge"] for r in sc["rows"]} == {"zero": "none", "jmpi": "nominal"}
+    assert {(r["track"], r["policy"]) for r in sc["tracks"]} == {("dev", "zero"), ("dev", "jmpi")}
+    assert next(r for r in sc["tracks"] if r["policy"] == "zero")["n"] == 8
+    assert [e["spec"] for e in sc["entries"]] == ["zero", "jmpi"] and sc["entries"][1]["knowledge"] == "nominal"
+    assert {(x["condition"], x["policy"]) for x in sc["samples"]} == {
+        (c, p) for c in ("default", "wear20") for p in ("zero", "jmpi")
+    }
+    assert "## The dev track" in (out / "scorecard.md").read_text()
 
     again = run_bench(_small(), out, progress=False, plots=False)  # nothing left: the same scorecard
     assert again.n_run == 0 and _comparable(again.scorecard) == _comparable(sc)
@@ -163,13 +182,15 @@ def test_bench_refuses_a_directory_that_is_not_a_bench(tmp_path):
 
 def test_cli_bench_list_markdown_and_readme(tmp_path, capsys):
     out = tmp_path / "b"
-    args = ["bench", "--tasks", "circle", "--conditions", "default", "--policies", "zero,jmpi", "--seeds", "1"]
+    args = ["bench", "--robots", "puma", "--tasks", "circle", "--conditions", "default", "--policy", "zero,jmpi"]
+    args += ["--seeds", "1"]
     assert main([*args, "--env-kwargs", json.dumps(SHORT), "--out", str(out), "--quiet", "--no-plots"]) == 0
     capsys.readouterr()
     assert main(["bench", "--markdown", str(out / "scorecard.json")]) == 0
     block = capsys.readouterr().out
     assert block == readme_markdown(load_scorecard(out / "scorecard.json"))
     assert "| zero | 0% [0-79] |" in block and "| jmpi |" in block  # one episode: Wilson [0, 0.79]
+    assert "| zero | none | 0% [0-79] | 0% [0-79] |" in block  # the track's table: knowledge, success, clean
 
     readme = tmp_path / "README.md"
     readme.write_text("# x\n\n<!-- bench:begin b/scorecard.json -->\nstale\n<!-- bench:end -->\n\nafter\n")
@@ -205,10 +226,17 @@ def test_scorecard_markdown_prints_chaotic_policies_with_one_digit():
     }
     sc = {
         "protocol": {
-            "version": 1,
+            "version": 2,
+            "track": "dev",
+            "heldout_commit": BC.HELDOUT_COMMIT,
+            "heldout_sha256": BC.HELDOUT_SHA256,
+            "robots": ["puma"],
             "tasks": ["circle"],
             "envs": ["WheeledPuma-Circle-v0"],
             "seeds": [10000],
+            "seed_start": 10000,
+            "kinematic_seeds": 1,
+            "physics_seeds": 1,
             "tolerance": 0.006,
             "settle_time": 0.5,
             "conditions": {"default": BC.CONDITIONS["default"].to_dict()},
@@ -219,12 +247,13 @@ def test_scorecard_markdown_prints_chaotic_policies_with_one_digit():
         "n_episodes": 4,
         "n_expected": 4,
         "n_failed": 0,
-        "rows": [{**row, "env": "WheeledPuma-Circle-v0"}],
-        "pooled": [row, {**row, "policy": "jmpi"}],
+        "rows": [{**row, "track": "dev", "env": "WheeledPuma-Circle-v0"}],
+        "pooled": [{**row, "track": "dev"}, {**row, "track": "dev", "policy": "jmpi"}],
+        "tracks": [{**row, "track": "dev"}, {**row, "track": "dev", "policy": "jmpi"}],
     }
     md = scorecard_markdown(sc)
-    assert "| nnbc | ~200 [30-400] |" in md  # one significant digit, with its interval
-    assert "| jmpi | 161.40 [31.20-432.10] |" in md
+    assert "| nnbc | unknown | 0% [0-49] | - | ~200 [30-400] |" in md  # one significant digit, with its interval
+    assert "| jmpi | unknown | 0% [0-49] | - | 161.40 [31.20-432.10] |" in md
     assert "~ chaotic controller" in md
 
 
@@ -258,7 +287,7 @@ def test_success_curve_and_wear_plots_take_rows():
 
 
 def test_policy_lists_keep_specs_with_several_keys():
-    from eval.cli.bench import policy_list
+    from eval.cli.options import policy_list
 
     assert policy_list("nnbc:gamma=20,mu=20,jmpi, oracle:gamma=10") == [
         "nnbc:gamma=20,mu=20",
@@ -268,13 +297,13 @@ def test_policy_lists_keep_specs_with_several_keys():
     assert policy_list("zero,random") == ["zero", "random"]
 
 
-def test_robots_all_and_the_portability_rows():
-    """`--robots all` is every robot of the protocol; a bench of several robots gets one `by_robot` row per
-    (condition, robot, controller), pooled over that robot's tasks, and its README block is the portability table."""
-    from eval.bench.scorecard import build_scorecard, readme_markdown, robot_of
+def test_robots_all_and_the_per_robot_rows():
+    """`--robots all` is every robot of the protocol; a condition of several robots gets one `by_robot` row per
+    (robot, controller), pooled over that robot's tasks, shown in its condition table."""
+    from eval.bench.scorecard import build_scorecard, condition_table, robot_of
 
-    assert BC.BenchConfig(robots="all").robots == tuple(BC.ROBOTS) == ("puma", "ur5", "panda", "random-arm")
-    assert BC.BenchConfig(robots=("all",)).env_ids()[4] == "WheeledUR5-Circle-v0"
+    assert BC.BenchConfig(robots="all").robots == tuple(BC.ROBOTS)
+    assert BC.BenchConfig(robots=("all",)).env_ids("default")[4] == "WheeledUR5-Circle-v0"
     assert [robot_of(f"{p}-Line-v0") for p in BC.ROBOTS.values()] == list(BC.ROBOTS)
 
     def ep(env, seed, err):
@@ -286,15 +315,145 @@ def test_robots_all_and_the_portability_rows():
         ep("WheeledPuma-Line-v0", 0, 0.003),
         ep("WheeledUR5-Circle-v0", 0, 0.5),
     ]
-    protocol = {"version": 1, "robots": ["puma", "ur5"], "tasks": ["circle", "line"], "envs": [], "seeds": [0],
-                "tolerance": 0.006}  # fmt: skip
+    protocol = {"version": 2, "robots": ["puma", "ur5"], "tasks": ["circle", "line"], "envs": [], "seeds": [0],
+                "tolerance": 0.006, "policies": ["zero"],
+                "conditions": {"default": BC.CONDITIONS["default"].to_dict()}}  # fmt: skip
     sc = build_scorecard(protocol, [], {"default": {"episodes": eps, "aggregate": []}}, n_expected=3)
     rows = {(r["robot"], r["policy"]): r for r in sc["by_robot"]}
     assert rows[("puma", "zero")]["n"] == 2 and rows[("puma", "zero")]["max_error_m"]["median"] == 0.002
     assert rows[("ur5", "zero")]["success_rate"] == 0.0
-    text = readme_markdown(sc)
-    assert "2 robots (puma, ur5) x 2 tasks" in text and "| puma | zero | 100% [34-100] | 2.00 |" in text
-    single = build_scorecard(
-        {**protocol, "robots": ["puma"]}, [], {"default": {"episodes": eps[:2], "aggregate": []}}, n_expected=2
+    table = condition_table(sc, "default")
+    assert "| controller | puma | ur5 |" in table and "| zero | 100% · 2.00 | 0% · 500.00 |" in table
+    single = build_scorecard(protocol, [], {"default": {"episodes": eps[:2], "aggregate": []}}, n_expected=2)
+    assert single["by_robot"] == []
+
+
+def test_the_held_out_track_is_the_one_committed_before_tuning():
+    """The held-out conditions hash to HELDOUT_SHA256: changing one is a new protocol version, not an edit."""
+    assert BC.heldout_digest() == BC.HELDOUT_SHA256
+    assert BC.DEFAULT_CONDITIONS["heldout"] == tuple(n for n, c in BC.CONDITIONS.items() if c.track == "heldout")
+    assert not set(BC.DEFAULT_CONDITIONS["dev"]) & set(BC.DEFAULT_CONDITIONS["heldout"])
+
+
+def test_the_ladder_reads_the_fastest_rung_tracked():
+    from eval.bench.scorecard import ladder
+
+    conds = {n: BC.CONDITIONS[n].to_dict() for n in ("ladder-20s", "ladder-10s", "ladder-5s", "ladder-2.5s")}
+    rates = {"a": (1.0, 0.95, 0.9, 0.2), "b": (1.0, 0.5, 0.95, 0.0), "c": (0.8, 0.0, 0.0, 0.0)}
+    pooled = [
+        {"condition": n, "policy": p, "success_rate": r[i], "success_rate_ci95": None, "knowledge": "none"}
+        for p, r in rates.items()
+        for i, n in enumerate(conds)
+    ]
+    got = {e["policy"]: e["fastest"] for e in ladder(pooled, {"conditions": conds, "policies": list(rates)})}
+    assert got == {"a": 5.0, "b": 5.0, "c": None}  # b fails 10 s but tracks 5 s: the fastest rung tracked
+
+
+# --- a refused bench changes nothing ---------------------------------------------------------------------------
+BENCH_ARGS = ["bench", "--tasks", "circle", "--conditions", "default", "--seeds", "1", "--quiet", "--no-plots"]
+
+
+@pytest.mark.parametrize("refusal", ["unknown policy", "another bench", "changed condition folder"])
+def test_a_refused_bench_leaves_bench_json_as_it_was(tmp_path, capsys, refusal):
+    from eval.output.journal import FolderLock
+
+    out = tmp_path / "bench"
+    args = [*BENCH_ARGS, "--env-kwargs", json.dumps(SHORT), "--out", str(out)]
+    assert main([*args, "--policy", "zero"]) == 0
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    if refusal == "unknown policy":
+        code, match = main([*args, "--policy", "zero,nosuch"]), "unknown policy 'nosuch'"
+    elif refusal == "another bench":
+        with FolderLock(out, "bench"):
+            code, match = main([*args, "--policy", "zero,jmpi"]), f"another bench is writing to {out}"
+    else:  # the condition's sweep folder was made with other settings: refused by the sweep check, up front
+        cfg = out / "conditions" / "default" / "config.json"
+        cfg.write_text(cfg.read_text().replace('"tolerance": 0.006', '"tolerance": 0.01'))
+        before[cfg] = cfg.read_bytes()
+        code, match = main([*args, "--policy", "zero,jmpi"]), "holds a sweep with other settings"
+    err = capsys.readouterr().err
+    assert code == 2 and match in err and "Traceback" not in err, err
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+@pytest.mark.parametrize("command", ["bench", "sweep"])
+def test_a_corrupt_record_is_named_as_corrupt_not_missing(tmp_path, capsys, command):
+    import yaml
+
+    out = tmp_path / command
+    if command == "bench":
+        args = [*BENCH_ARGS, "--env-kwargs", json.dumps(SHORT), "--out", str(out), "--policy", "zero"]
+        record = out / "bench.json"
+    else:
+        spec = {"envs": ["WheeledPuma-Circle-v0"], "policies": ["zero"], "seeds": {"start": SEED, "count": 1}}
+        (tmp_path / "s.yaml").write_text(yaml.safe_dump({**spec, "dynamics": ["kinematic"], "env_kwargs": SHORT}))
+        args = ["sweep", "--config", str(tmp_path / "s.yaml"), "--out", str(out), "--quiet", "--no-plots"]
+        record = out / "config.json"
+    assert main(args) == 0
+    record.write_text(record.read_text()[:-20])  # torn
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"{record} is not readable (JSONDecodeError" in err and "restore it" in err and "no " + record.name not in err
     )
-    assert "by_robot" not in single
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
+
+
+def test_against_reuses_the_committed_baselines_after_a_bit_for_bit_sample(tmp_path):
+    """`--against DIR`: the committed baselines' sample episodes are run again and equal bit for bit, so only the
+    new controller runs and its rows join the committed ones (and its probability of improvement against the
+    committed reference's episodes); a sample that differs makes the bench run the baselines too, and say why."""
+    base = _small(conditions=("default",), policies=("qp", "clik"), tasks=("circle",))
+    committed = run_bench(base, tmp_path / "committed", progress=False, plots=False).scorecard
+    mine = run_bench(
+        _small(conditions=("default",), policies=("jmpi",), tasks=("circle",)),
+        tmp_path / "mine",
+        progress=False,
+        plots=False,
+        against=tmp_path / "committed",
+    )
+    bench = json.loads((tmp_path / "mine" / "bench.json").read_text())
+    assert bench["against"]["samples_equal"] is True and len(bench["against"]["samples"]) == 2
+    assert mine.n_run == 2  # jmpi's 2 episodes only
+    sc = mine.scorecard
+    assert [e["spec"] for e in sc["entries"]] == ["qp", "clik", "jmpi"]
+    kept = [r for r in sc["pooled"] if r["policy"] in ("qp", "clik")]
+    assert kept == [r for r in committed["pooled"] if r["policy"] in ("qp", "clik")]
+    assert {(r["policy"], r["reference"]) for r in sc["prob_improvement"]} >= {("jmpi", "qp"), ("clik", "qp")}
+
+    data = json.loads((tmp_path / "committed" / "scorecard.json").read_text())
+    data["samples"][0]["fields"]["max_error_m"] += 1e-12  # a machine that does not reproduce it
+    (tmp_path / "committed" / "scorecard.json").write_text(json.dumps(data))
+    again = run_bench(
+        _small(conditions=("default",), policies=("jmpi",), tasks=("circle",)),
+        tmp_path / "again",
+        progress=False,
+        plots=False,
+        against=tmp_path / "committed",
+    )
+    bench = json.loads((tmp_path / "again" / "bench.json").read_text())
+    assert bench["against"]["samples_equal"] is False and any(
+        "differs in max_error_m" in x for x in bench["against"]["samples"]
+    )
+    assert again.n_run == 6 and any("baselines were run again" in n for n in again.scorecard["notes"])
+
+
+def test_against_refuses_another_protocol(tmp_path):
+    run_bench(
+        _small(conditions=("default",), policies=("zero",), tasks=("circle",)),
+        tmp_path / "c",
+        progress=False,
+        plots=False,
+    )
+    with pytest.raises(EvalError, match="not the committed scorecard's protocol.*kinematic_seeds: 2 there, 3 here"):
+        run_bench(
+            _small(conditions=("default",), policies=("jmpi",), tasks=("circle",), seeds=3),
+            tmp_path / "m",
+            progress=False,
+            against=tmp_path / "c",
+        )
+    with pytest.raises(EvalError, match="name them with --policy"):
+        run_bench(BC.BenchConfig(), tmp_path / "n", progress=False, against=tmp_path / "c")

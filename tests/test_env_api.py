@@ -198,8 +198,8 @@ def test_reset_options_override_for_one_episode(make_env):
         ({"reward_weights": {"effort": True}}, r"reward_weights\['effort'\] must be a finite number >= 0, got True"),
         ({"base_pose": [0, 0, "3"]}, r"base_pose must be 3 finite numbers, got \[0, 0, '3'\]"),
         ({"arm_joint_pos": [0, True, 0, 0, 0, 0]}, "arm_joint_pos must be 6 or 8 finite numbers"),
-        # model_error: lengths are scaled by factors in [1 - 3 model_error, 1 + 3 model_error]
-        ({"model_error": 1 / 3}, r"model_error must be a finite number >= 0 and < 0.333333, got 0.333.*at 1/3"),
+        # model_error: lengths are scaled by factors in [max(0.1, 1 - 3 model_error), 1 + 3 model_error]
+        ({"model_error": 1 / 3}, r"model_error must be a finite number >= 0 and < 0.333333, got 0.333.*a tenth.*1/3"),
         ({"model_error": 5.0}, "model_error must be a finite number >= 0 and < 0.333333, got 5.0"),
         # the release-0.2 options
         ({"obs_delay": -1}, r"obs_delay must be an integer >= 0 and <= 10000, got -1 \(control steps\)"),
@@ -209,7 +209,11 @@ def test_reset_options_override_for_one_episode(make_env):
         ({"wear_rate": 0.01}, "wear_rate=0.01 needs dynamics='kinematic': a loaded PyBullet body cannot change"),
         (
             {"wear_rate": -0.05, "dynamics": "kinematic"},
-            r"over a 20 s path .*\|wear_rate\| \* duration must stay below 1",
+            r"over a 20 s path .*a tenth.*\|wear_rate\| \* duration must stay <= 0.9 \(here \|wear_rate\| <= 0.045",
+        ),
+        (  # 0.9 of the lengths in 20 s would leave a tenth: still accepted; beyond, refused
+            {"wear_rate": -0.046, "dynamics": "kinematic"},
+            r"must stay <= 0.9",
         ),
     ],
 )

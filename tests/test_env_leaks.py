@@ -97,8 +97,9 @@ def test_every_public_path_to_the_true_robot_goes_through_the_guard(guard, dynam
         env.close()
 
 
-def test_the_sim_keeps_the_robot_private():
-    env = WheeledPumaEnv(dynamics="kinematic", path=SHORT_CIRCLE)
+@pytest.mark.parametrize("kwargs", [{"dynamics": "physics"}, {"dynamics": "kinematic", "render_mode": "rgb_array"}])
+def test_the_sim_keeps_the_robot_private(kwargs):
+    env = WheeledPumaEnv(path=SHORT_CIRCLE, **kwargs)
     try:
         env.reset(seed=0)
         with pytest.raises(AttributeError, match=r"env.unwrapped.true_params"):

@@ -106,8 +106,8 @@ def test_wear_moves_the_platform_with_the_worn_wheels(make_env):
     r0, dt, v_wheel = new.true_params.wheel_radius, worn.dt, 0.5 * worn.action_scale[6]
     expected = sum(r0 * (1 + w * k * dt) * v_wheel * dt for k in range(100))
     start = new.base_pose[:2]
-    assert np.linalg.norm(worn.sim.state().base_pose[:2] - start) == pytest.approx(expected, rel=1e-12)
-    assert np.linalg.norm(new.sim.state().base_pose[:2] - start) == pytest.approx(r0 * v_wheel * 1.0, rel=1e-12)
+    assert np.linalg.norm(worn.state().base_pose[:2] - start) == pytest.approx(expected, rel=1e-12)
+    assert np.linalg.norm(new.state().base_pose[:2] - start) == pytest.approx(r0 * v_wheel * 1.0, rel=1e-12)
 
 
 def test_conditions_as_reset_options_last_one_episode(make_env):

@@ -94,9 +94,9 @@ def _run_args(out, *extra):
 # --- the CLI end to end -----------------------------------------------------------------------------------
 
 
-def test_main_run_writes_every_output_with_schema_2(tmp_path):
+def test_main_run_writes_every_output_with_schema_3(tmp_path):
     out = tmp_path / "run"
-    rc = main(_run_args(out, "--policy", "zero", "--policy", "random", "--episodes", "2"))
+    rc = main(_run_args(out, "--policy", "zero", "--policy", "random", "--seeds", "2"))
     assert rc == 0
     for name in ("results.json", "results.csv", "summary.md", "config.json", "episodes.npz"):
         assert (out / name).is_file(), name
@@ -105,7 +105,7 @@ def test_main_run_writes_every_output_with_schema_2(tmp_path):
     assert not [p for p in out.rglob("*.tmp")]  # no temporary file left behind
 
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 2
+    assert res["schema"] == 3
     assert {"config", "versions", "git", "provenance", "statistics", "episodes", "aggregate"} <= set(res)
     prov = res["provenance"]
     assert prov["cpu"] and prov["numpy"] == np.__version__ and "OPENBLAS_CORETYPE" in prov["env"]
@@ -185,17 +185,16 @@ def test_workers_2_equal_workers_1_and_use_2_processes(tmp_path):
 def test_user_policy_through_module_attr_matches_zero(tmp_path):
     out = tmp_path / "user"
     rc = main(
-        _run_args(out, "--policy", "test_eval_helpers:HoldStill", "--policy", "zero", "--episodes", "1", "--no-plots")
+        _run_args(out, "--policy", "test_eval_helpers:HoldStill", "--policy", "zero", "--seeds", "1", "--no-plots")
     )
     assert rc == 0
     recs = json.loads((out / "results.json").read_text())["episodes"]
     assert [r["policy"] for r in recs] == ["test_eval_helpers:HoldStill", "zero"]
     assert recs[0]["status"] == "ok"
-    assert stable(recs[0]) | {"policy": "", "index": 0, "arrays_key": None} == stable(recs[1]) | {
-        "policy": "",
-        "index": 0,
-        "arrays_key": None,
-    }
+    # the user's class declares no knowledge class; the rest of the records is the zero policy's
+    assert (recs[0]["knowledge"], recs[1]["knowledge"]) == ("unknown", "none")
+    same = {"policy": "", "index": 0, "arrays_key": None, "knowledge": None}
+    assert stable(recs[0]) | same == stable(recs[1]) | same
 
 
 def test_user_policy_objects_through_run(tmp_path):
@@ -243,7 +242,7 @@ def test_a_crashing_policy_is_recorded_and_the_others_finish(tmp_path, workers):
             ["--policy", "zero", "--env-kwargs", '{"path": {"type": "spiral"}}'],
             ["unknown path type 'spiral'", "circle"],
         ),
-        (["--policy", "zero", "--episodes", "0"], ["episodes must be an integer >= 1"]),
+        (["--policy", "zero", "--seeds", "0"], ["episodes must be an integer >= 1"]),
     ],
 )
 def test_bad_arguments_stop_before_any_rollout(tmp_path, capsys, extra, needles):
@@ -278,10 +277,10 @@ def test_existing_out_is_refused_unless_overwrite(tmp_path, capsys):
     out = tmp_path / "taken"
     out.mkdir()
     (out / "notes.txt").write_text("keep me")
-    assert main(_run_args(out, "--policy", "zero", "--episodes", "1", "--no-plots")) == 2
+    assert main(_run_args(out, "--policy", "zero", "--seeds", "1", "--no-plots")) == 2
     assert "--overwrite" in capsys.readouterr().err
     assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
-    assert main(_run_args(out, "--policy", "zero", "--episodes", "1", "--no-plots", "--overwrite")) == 0
+    assert main(_run_args(out, "--policy", "zero", "--seeds", "1", "--no-plots", "--overwrite")) == 0
     assert (out / "notes.txt").read_text() == "keep me"  # other files are kept
     assert (out / "results.json").is_file()
 
@@ -296,8 +295,8 @@ def test_atomic_write_keeps_the_old_file_when_the_write_fails(tmp_path, monkeypa
         raise OSError("disk full")
 
     monkeypatch.setattr(report.os, "replace", boom)
-    with pytest.raises(OSError, match="disk full"):
-        report.atomic_write_json(target, {"a": 2})
+    with pytest.raises(EvalError, match=r"cannot write .*results.json \(disk full\); fix that and run again"):
+        report.atomic_write_json(target, {"a": 2})  # an EvalError: the CLIs exit 2 naming the file
     assert json.loads(target.read_text()) == {"a": 1}
     assert [p.name for p in tmp_path.iterdir()] == ["results.json"]
 

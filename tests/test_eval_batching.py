@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import json
 
+import gymnasium as gym
 import pytest
 
 import eval.execution.batches as B
 import eval.execution.tasks as T
+import policies
 from eval import EvalConfig, run
 from eval.errors import RunInterrupted
 from eval.execution.batches import plan_units
@@ -154,6 +156,7 @@ class _FailsOnSeed:
         self.inner = inner
         self.armed = False
         self.k = 0
+        self.knowledge = policies.knowledge_of(inner)  # the wrapped controller's class, as its records say
 
     def reset(self, obs, info=None, *, seed=None):
         self.armed = policy_seed(self.BAD) in (seed if isinstance(seed, list) else [seed])  # batched: a list
@@ -223,10 +226,13 @@ def test_ctrl_c_keeps_the_finished_batches(tmp_path, monkeypatch, small_batches)
 
 
 def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_batches):
-    """robot="random" has a SyncVectorEnv: found out once per condition, then its episodes run singly."""
-    env_id = "WheeledRandomArm-Circle-v0"
+    """An id registered without mobman's vector entry point (here a user's registration of the env class): found
+    out once per condition, then its episodes run singly."""
+    env_id = "MyWheeledPuma-v0"
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point="mobman_env.env:WheeledPumaEnv")
     cfg = EvalConfig(envs=(env_id,), env_kwargs={"path": dict(TASKS[CIRCLE], duration=0.2)}, save_arrays="none")
-    tasks = [Task(i, env_id, "kinematic", "zero", i, 10_000 + i, None, None) for i in range(2)]
+    tasks = [Task(i, env_id, "kinematic", "zero", i, 10_000 + i, None, None) for i in range(4)]
     runner = B.UnitRunner(cfg, {})
     try:
         (unit,) = plan_units(cfg, {}, tasks)
@@ -234,7 +240,26 @@ def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_bat
     finally:
         runner.close()
     assert runner._unbatchable == {(env_id, "kinematic", None, None)}
-    assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000, "ok"), (10_001, "ok")]
+    assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000 + i, "ok") for i in range(4)]
+
+
+def test_random_arms_batch(small_batches):
+    """robot="random" has a native vector env (each robot its own arm): its episodes batch, with the records of
+    the single path."""
+    env_id = "WheeledRandomArm-Circle-v0"
+    cfg = EvalConfig(envs=(env_id,), env_kwargs={"path": dict(TASKS[CIRCLE], duration=0.2)}, save_arrays="none")
+    tasks = [Task(i, env_id, "kinematic", "clik", i, 10_000 + i, None, None) for i in range(4)]
+    runner = B.UnitRunner(cfg, {})
+    try:
+        (unit,) = plan_units(cfg, {}, tasks)
+        batched = [rec for _, rec, _ in runner.run(unit)]
+        single = [runner.single.run(t)[0] for t in tasks]
+    finally:
+        runner.close()
+    assert runner._unbatchable == set()
+    for b, s in zip(batched, single):
+        assert b["status"] == s["status"] == "ok"
+        assert b["max_error_m"] == s["max_error_m"] and b["true_params_hash"] == s["true_params_hash"]
 
 
 @pytest.mark.parametrize("command", [["run"], ["paper", "--dynamics", "kinematic"]])

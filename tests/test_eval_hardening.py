@@ -44,7 +44,7 @@ def test_unwritable_out_is_refused_before_the_first_rollout(unwritable, capsys, 
     import eval.execution.tasks as tasks
 
     monkeypatch.setattr(tasks, "rollout", lambda *a, **k: pytest.fail("an episode ran"))
-    args = ["--policy", "zero", "--episodes", "3", "--dynamics", "kinematic", "--env-kwargs", K]
+    args = ["--policy", "zero", "--seeds", "3", "--dynamics", "kinematic", "--env-kwargs", K]
     assert main(["run", *args, "--out", str(unwritable)]) == 2
     err = capsys.readouterr().err
     assert f"--out '{unwritable}' is not writable" in err and "Traceback" not in err
@@ -141,7 +141,7 @@ def _sweep_file(tmp_path) -> Path:
 
 
 def test_a_second_sweep_on_a_locked_out_changes_nothing(tmp_path, capsys):
-    from eval.sweep.journal import JOURNAL, Journal
+    from eval.output.journal import JOURNAL, Journal
 
     f, out = _sweep_file(tmp_path), tmp_path / "sweep"
     assert main(["sweep", "--config", str(f), "--out", str(out), "--quiet"]) == 0
@@ -159,7 +159,7 @@ def test_a_second_sweep_on_a_locked_out_changes_nothing(tmp_path, capsys):
 
 
 def test_a_journal_line_that_is_not_an_object_is_dropped_with_a_warning(tmp_path):
-    from eval.sweep.journal import JOURNAL
+    from eval.output.journal import JOURNAL
 
     f, out = _sweep_file(tmp_path), tmp_path / "sweep"
     assert main(["sweep", "--config", str(f), "--out", str(out), "--quiet"]) == 0
@@ -175,9 +175,12 @@ def test_a_journal_line_that_is_not_an_object_is_dropped_with_a_warning(tmp_path
 
 
 # --- Ctrl-C -------------------------------------------------------------------------------------------------
-def _interrupt(cmd: list[str], marks: Path, n_marks: int, cwd: Path) -> tuple[subprocess.Popen, str, float]:
-    """Start `cmd` in its own process group, SIGINT the group once `n_marks` episodes finished; returns the
-    process, its stderr and the seconds from SIGINT to exit."""
+def _interrupt(
+    cmd: list[str], marks: Path, n_marks: int, cwd: Path, sig: int = signal.SIGINT, group: bool = True
+) -> tuple[subprocess.Popen, str, float]:
+    """Start `cmd` in its own process group, send `sig` to the group (or, `group=False`, to the command's process
+    only, as `timeout` and `docker stop` do) once `n_marks` episodes finished; returns the process, its stderr
+    and the seconds from the signal to exit."""
     proc = subprocess.Popen(
         cmd,
         cwd=cwd,
@@ -197,7 +200,10 @@ def _interrupt(cmd: list[str], marks: Path, n_marks: int, cwd: Path) -> tuple[su
         # record: give the marked episodes time to reach the parent, so "n finished" means delivered
         time.sleep(0.5)
         t0 = time.time()
-        os.killpg(proc.pid, signal.SIGINT)
+        if group:
+            os.killpg(proc.pid, sig)
+        else:
+            os.kill(proc.pid, sig)
         _, err = proc.communicate(timeout=60)
         return proc, err, time.time() - t0
     finally:
@@ -205,8 +211,22 @@ def _interrupt(cmd: list[str], marks: Path, n_marks: int, cwd: Path) -> tuple[su
             os.killpg(proc.pid, signal.SIGKILL)
 
 
-def _group_gone(pgid: int) -> bool:
-    for _ in range(50):
+def _workers_gone(pgid: int) -> bool:
+    """No worker process (multiprocessing's `spawn_main`) of the process group `pgid` is alive (the resource
+    tracker, which exits by itself once the parent's pipe closes, is not a worker)."""
+    for stat_file in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat_file.read_text().rsplit(")", 1)[1].split()
+            cmdline = (stat_file.parent / "cmdline").read_bytes()
+        except OSError:
+            continue
+        if int(fields[2]) == pgid and fields[0] != "Z" and b"spawn_main" in cmdline:
+            return False
+    return True
+
+
+def _group_gone(pgid: int, tries: int = 50) -> bool:
+    for _ in range(tries):
         try:
             os.killpg(pgid, 0)
         except ProcessLookupError:
@@ -220,7 +240,7 @@ def _group_gone(pgid: int) -> bool:
 def test_ctrl_c_keeps_the_finished_episodes_and_stops_the_workers(tmp_path, workers):
     marks, out = tmp_path / "marks", tmp_path / "out"
     marks.mkdir()
-    cmd = [sys.executable, "-m", "eval", "run", "--policy", "test_eval_helpers:SlowMarked", "--episodes", "40"]
+    cmd = [sys.executable, "-m", "eval", "run", "--policy", "test_eval_helpers:SlowMarked", "--seeds", "40"]
     cmd += ["--dynamics", "kinematic", "--env-kwargs", json.dumps(SHORT), "--workers", str(workers)]
     cmd += ["--out", str(out), "--no-plots"]
     proc, err, took = _interrupt(cmd, marks, 3, tmp_path)
@@ -262,6 +282,53 @@ def test_ctrl_c_of_a_sweep_exits_130_without_tracebacks(tmp_path):
     assert _group_gone(proc.pid)
 
 
+def _slow_sweep_file(tmp_path: Path) -> Path:
+    import yaml
+
+    f = tmp_path / "s.yaml"
+    spec = {
+        "envs": [ENV],
+        "policies": ["test_eval_helpers:SlowMarked"],
+        "seeds": {"start": 10000, "count": 40},
+        "dynamics": ["kinematic"],
+        "env_kwargs": SHORT,
+    }
+    f.write_text(yaml.safe_dump(spec))
+    return f
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("group", [False, True], ids=["process", "group"])
+@pytest.mark.parametrize("command", ["run", "sweep", "bench"])
+def test_sigterm_keeps_the_finished_episodes_and_stops_the_workers_at_once(tmp_path, command, group):
+    """SIGTERM (`timeout` and `docker stop` signal the process, Slurm the whole job) stops run, sweep and bench
+    as Ctrl-C does: exit 130, no traceback, the finished episodes kept, no worker left behind."""
+    marks, out = tmp_path / "marks", tmp_path / "out"
+    marks.mkdir()
+    slow = "test_eval_helpers:SlowMarked"
+    common = ["--out", str(out), "--workers", "2", "--no-plots"]
+    cmd = [sys.executable, "-m", "eval", command]
+    if command == "run":
+        cmd += ["--policy", slow, "--seeds", "40", "--dynamics", "kinematic", "--env-kwargs", json.dumps(SHORT)]
+    elif command == "sweep":
+        cmd += ["--config", str(_slow_sweep_file(tmp_path))]
+    else:
+        cmd += ["--policy", slow, "--tasks", "circle", "--conditions", "default", "--seeds", "40", "--quiet"]
+        cmd += ["--env-kwargs", json.dumps(SHORT)]
+    proc, err, took = _interrupt(cmd + common, marks, 3, tmp_path, signal.SIGTERM, group)
+    gone = _workers_gone(proc.pid)  # at the exit: the parent stopped its workers itself
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and "KeyboardInterrupt" not in err and "interrupted" in err, err
+    if command == "run":
+        status = [r["status"] for r in json.loads((out / "results.json").read_text())["episodes"]]
+        assert status.count("ok") >= 3 and "interrupted" in status
+    else:
+        kept = list(out.rglob("episodes.jsonl"))
+        assert sum(len(p.read_text().splitlines()) for p in kept) >= 3, kept
+    assert gone, "worker processes outlived the command"
+    assert took < 15, f"{took:.1f} s from SIGTERM to exit"
+
+
 # --- Ray addresses ----------------------------------------------------------------------------------------
 def test_an_unreachable_ray_address_fails_at_once(tmp_path, capsys):
     pytest.importorskip("ray")
@@ -271,7 +338,7 @@ def test_an_unreachable_ray_address_fails_at_once(tmp_path, capsys):
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     t0 = time.perf_counter()
-    rc = main(["run", "--policy", "zero", "--backend", "ray", "--address", f"127.0.0.1:{port}", "--episodes", "1"])
+    rc = main(["run", "--policy", "zero", "--backend", "ray", "--address", f"127.0.0.1:{port}", "--seeds", "1"])
     took = time.perf_counter() - t0
     err = capsys.readouterr().err
     assert rc == 2 and f"cannot reach the Ray cluster at --address '127.0.0.1:{port}'" in err, err
@@ -371,10 +438,28 @@ def test_video_without_imageio_falls_back_to_a_gif(tmp_path):
 
 
 # --- stdout formats ----------------------------------------------------------------------------------------
+def test_the_console_table_is_whole_through_a_pipe(tmp_path):
+    """stdout a pipe (a log file, `| tee`): rich would assume 80 columns and drop the timing column; every
+    column and the whole policy spec are printed."""
+    spec = "nnbc-plus:info_dither=0.001,info_freq=2"
+    args = ["run", "--policy", spec, "--policy", "zero", "--seeds", "1", "--dynamics", "kinematic"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "eval", *args, "--env-kwargs", K, "--no-plots", "--out", str(tmp_path / "o")],
+        env={k: v for k, v in _env().items() if k != "COLUMNS"},
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    header = next(line for line in proc.stdout.splitlines() if "policy" in line)
+    assert header.split()[-1] == "µs", proc.stdout  # the timing column, last, is there
+    assert any(line.split()[:1] == [spec] and line.split()[-1].isdigit() for line in proc.stdout.splitlines())
+
+
 @pytest.mark.parametrize("fmt, file", [("json", "results.json"), ("csv", "results.csv"), ("markdown", "summary.md")])
 def test_format_prints_the_file_on_stdout(tmp_path, capsys, fmt, file):
     out = tmp_path / fmt
-    args = ["run", "--policy", "zero", "--episodes", "1", "--dynamics", "kinematic", "--env-kwargs", K]
+    args = ["run", "--policy", "zero", "--seeds", "1", "--dynamics", "kinematic", "--env-kwargs", K]
     assert main([*args, "--no-plots", "--format", fmt, "--out", str(out)]) == 0
     captured = capsys.readouterr()
     assert captured.out == (out / file).read_text()
@@ -392,7 +477,11 @@ CONSOLE_SCRIPT = (
 )
 
 
-def test_module_attr_from_the_working_directory_as_the_console_script(tmp_path):
+@pytest.mark.parametrize("workers", ["1", "2"])
+def test_module_attr_from_the_working_directory_as_the_console_script(tmp_path, workers):
+    """A console script imports `mymod` of `--policy mymod:MyCtrl` from the working directory (in its workers
+    too), and nothing else from there: a planted defusedxml.py or dill.py (modules libraries try optionally) is
+    never imported."""
     (tmp_path / "mymod.py").write_text(
         "import numpy as np\n"
         "class MyCtrl:\n"
@@ -400,9 +489,11 @@ def test_module_attr_from_the_working_directory_as_the_console_script(tmp_path):
         "    def predict(self, observation, state=None, episode_start=None, deterministic=True):\n"
         "        return np.zeros(8, dtype=np.float32), state\n"
     )
-    args = ["run", "--policy", "mymod:MyCtrl", "--episodes", "1", "--dynamics", "kinematic", "--env-kwargs", K]
+    for name in ("defusedxml", "dill"):
+        (tmp_path / f"{name}.py").write_text(f"open({str(tmp_path / (name + '-ran'))!r}, 'w').close()\n")
+    args = ["run", "--policy", "mymod:MyCtrl", "--policy", "zero", "--seeds", "2", "--dynamics", "kinematic"]
     proc = subprocess.run(
-        [sys.executable, "-c", CONSOLE_SCRIPT, *args, "--quiet", "--no-plots", "--out", "o", "--workers", "1"],
+        [sys.executable, "-c", CONSOLE_SCRIPT, *args, "--env-kwargs", K, "--quiet", "--out", "o", "--workers", workers],
         cwd=tmp_path,
         env=_env(),
         capture_output=True,
@@ -410,7 +501,16 @@ def test_module_attr_from_the_working_directory_as_the_console_script(tmp_path):
         timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
-    assert json.loads((tmp_path / "o" / "results.json").read_text())["episodes"][0]["status"] == "ok"
+    assert {e["status"] for e in json.loads((tmp_path / "o" / "results.json").read_text())["episodes"]} == {"ok"}
+    assert list((tmp_path / "o" / "plots").iterdir())  # the plots ran (matplotlib and PIL import optionally)
+    assert not list(tmp_path.glob("*-ran")), "a planted module of the working directory was imported"
+
+
+def test_a_file_name_as_module_is_refused_with_the_fix(tmp_path, capsys):
+    (tmp_path / "mypol.py").write_text("class Pol: pass\n")
+    assert main(["run", "--policy", "mypol.py:Pol", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert "'mypol.py' is a file name; name the module, without .py: mypol:Pol" in err and "Traceback" not in err
 
 
 def test_a_module_that_does_not_import_shows_why(tmp_path, capsys):
@@ -464,9 +564,77 @@ def test_a_shadowing_eval_py_is_named_when_train_is_imported(tmp_path):
 def test_format_json_through_a_pipe_is_only_json(tmp_path):
     """A real command line: stdout holds the JSON alone (native libraries' output goes to stderr)."""
     out = tmp_path / "o"
-    cmd = [sys.executable, "-m", "eval", "run", "--policy", "zero", "--episodes", "1", "--dynamics", "kinematic"]
+    cmd = [sys.executable, "-m", "eval", "run", "--policy", "zero", "--seeds", "1", "--dynamics", "kinematic"]
     cmd += ["--env-kwargs", K, "--no-plots", "--format", "json", "--out", str(out)]
     proc = subprocess.run(cmd, env=_env(), capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert json.loads(proc.stdout) == json.loads((out / "results.json").read_text())
     assert f"results in {out}" in proc.stderr
+
+
+# --- a full disk ------------------------------------------------------------------------------------------------
+class _Disk:
+    """Fault injection: the disk fills after `free` more journal lines (`os.write` of eval.output.journal), or
+    at the atomic write of a file named `full_at` (`os.replace` of eval.output.files): ENOSPC, as a full disk
+    gives."""
+
+    def __init__(self, monkeypatch, free: int | None = None, full_at: str | None = None):
+        import errno
+
+        import eval.output.files as files
+        import eval.output.journal as journal
+
+        self.free, self.full_at = free, full_at
+        real_write, real_replace = os.write, os.replace
+
+        def write(fd, data):
+            if self.free is not None and self.free <= 0:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            if self.free is not None:
+                self.free -= 1
+            return real_write(fd, data)
+
+        def replace(src, dst):
+            if self.full_at is not None and Path(dst).name == self.full_at:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+            return real_replace(src, dst)
+
+        monkeypatch.setattr(journal.os, "write", write)
+        monkeypatch.setattr(files.os, "replace", replace)
+
+
+RUN4 = ["run", "--policy", "zero", "--seeds", "4", "--dynamics", "kinematic", "--env-kwargs", K, "--no-plots"]
+
+
+@pytest.mark.parametrize("batch_size", ["1", "64"])
+def test_a_full_disk_while_journaling_stops_the_run_with_exit_2_and_keeps_what_was_journaled(
+    tmp_path, capsys, monkeypatch, batch_size
+):
+    out = tmp_path / "out"
+    _Disk(monkeypatch, free=2)
+    assert main([*RUN4, "--out", str(out), "--batch-size", batch_size, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write {out / 'episodes.jsonl'} (No space left on device); free space and run again" in err, err
+    assert "Traceback" not in err
+    lines = (out / "episodes.jsonl").read_text().splitlines()
+    assert len(lines) == 2 and all(json.loads(x)["status"] == "ok" for x in lines)
+
+
+def test_a_full_disk_at_the_report_exits_2_naming_the_file_and_the_journal(tmp_path, capsys, monkeypatch):
+    out = tmp_path / "out"
+    _Disk(monkeypatch, full_at="results.json")
+    assert main([*RUN4, "--out", str(out), "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert f"cannot write {out / 'results.json'} (No space left on device); free space and run again" in err, err
+    assert f"the 4 finished episodes are in {out / 'episodes.jsonl'}" in err and "Traceback" not in err
+    assert [json.loads(x)["seed"] for x in (out / "episodes.jsonl").read_text().splitlines()] == list(
+        range(10_000, 10_004)
+    )
+    assert not list(out.glob(".results.json.*.tmp"))  # no temporary file left behind
+
+
+def test_the_journal_of_a_run_is_kept_beside_its_results(tmp_path):
+    result = run(short_config(tmp_path, episodes=3))
+    lines = [json.loads(x) for x in (result.out / "episodes.jsonl").read_text().splitlines()]
+    assert [r["seed"] for r in lines] == [e["seed"] for e in result.episodes]
+    assert [r["max_error_m"] for r in lines] == [e["max_error_m"] for e in result.episodes]

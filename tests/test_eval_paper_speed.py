@@ -89,7 +89,7 @@ def test_speed_writes_speed_json(tmp_path):
             "1",
             "--episodes",
             "2",
-            "--batch",
+            "--batch-size",
             "2",
             "--policy",
             "zero",

@@ -40,10 +40,6 @@ def test_jacobians_match_finite_differences(params):
         Jp = K.paper_jacobian(params, q, pose[2])
         np.testing.assert_allclose(Jp @ u + np.r_[pc_dot, 0.0], fd, atol=2e-6)
         np.testing.assert_allclose(K.arm_base_jacobian(params, pose[2]) @ u, pc_dot, atol=2e-6)
-        # the fused hot-path function agrees with the separate ones
-        e, Jwb, Jpc = K.ee_and_jacobian(params, q, pose)
-        np.testing.assert_allclose(e, K.ee_position(params, q, pose), atol=1e-12)
-        np.testing.assert_allclose(Jwb, J, atol=1e-12)
 
 
 def test_joint6_never_moves_the_point():
@@ -70,7 +66,7 @@ def test_unicycle_integration_is_exact_for_constant_wheel_speeds():
 @pytest.mark.parametrize("params", [NOMINAL, PERTURBED], ids=["nominal", "perturbed"])
 def test_urdf_matches_numpy_fk(params):
     """PyBullet's `ee` link equals the numpy FK at 50 random configurations and base poses to 1e-6 m."""
-    sim = Sim("physics", 0.01, 2)
+    sim = Sim(0.01, 2)
     try:
         sim.reset(params, np.zeros(8), np.zeros(3))
         rng = np.random.default_rng(7)
@@ -106,7 +102,7 @@ def test_perturbed_refuses_rel_std_at_which_a_length_can_reach_zero():
     every factor of 1000 draws stays in [0.1, 1.9] (the extremes are reached: the clip is active)."""
     rng = np.random.default_rng(1)
     for bad in (1 / 3, 0.5, 5.0, True, "0.1"):
-        with pytest.raises(ValueError, match=r"rel_std must be a finite number >= 0 and < 0.333333.*reach 0"):
+        with pytest.raises(ValueError, match=r"rel_std must be a finite number >= 0 and < 0.333333.*max\(0.1, 1 - 3"):
             NOMINAL.perturbed(rng, bad)
     ratios = np.array(
         [
@@ -115,6 +111,34 @@ def test_perturbed_refuses_rel_std_at_which_a_length_can_reach_zero():
         ]
     )
     assert ratios.min() == pytest.approx(0.1) and ratios.max() == pytest.approx(1.9)
+
+
+@pytest.mark.parametrize("rel_std", [0.31, 0.33, 1 / 3 - 1e-12])
+def test_a_worn_length_is_at_least_a_tenth_of_its_nominal_one(rel_std):
+    """Just below 1/3 the clip 1 - 3 rel_std would let a length reach ~0 (4.5e-18 m, which PyBullet loads
+    silently): every factor stays >= MIN_LENGTH_FACTOR = 0.1, which the draws reach; the upper clip is kept."""
+    from mobman_env.params import MIN_LENGTH_FACTOR
+
+    rng = np.random.default_rng(2)
+    ratios = np.array(
+        [
+            [getattr(p, n) / getattr(NOMINAL, n) for n in PERTURBED_FIELDS]
+            for p in (NOMINAL.perturbed(rng, rel_std) for _ in range(1000))
+        ]
+    )
+    assert MIN_LENGTH_FACTOR == 0.1 and ratios.min() == pytest.approx(0.1, abs=1e-12)
+    assert ratios.min() >= 0.1 - 1e-15 and ratios.max() == pytest.approx(1 + 3 * rel_std)
+    assert (ratios <= 0.1 + 1e-12).mean() > 0.001  # the bound is active, not merely unreached
+
+
+def test_the_length_bound_changes_no_robot_up_to_rel_std_0_3():
+    """Up to rel_std = 0.3 (1 - 3 rel_std >= 0.1) the bound never acts: the draws are the plain clipped rule's."""
+    for rel_std in (0.05, 0.2, 0.3):
+        rng, ref = np.random.default_rng(4), np.random.default_rng(4)
+        for _ in range(50):
+            z = np.clip(ref.standard_normal(len(PERTURBED_FIELDS)), -3.0, 3.0)
+            expected = NOMINAL._with_factors([1.0 + rel_std * zi for zi in z])
+            assert NOMINAL.perturbed(rng, rel_std) == expected
 
 
 def _unchanged_fields(p, ref):

@@ -97,3 +97,60 @@ def test_aggregate_groups_counts_failures_and_ignores_them_in_statistics():
     assert a["max_error_m"]["std"] == pytest.approx(np.std([0.001, 0.010, 0.004]))
     assert a["effort"]["median"] is None  # no episode recorded it
     assert rows[1]["success_rate"] == 1.0 and rows[1]["n_failed"] == 0
+
+
+def test_command_smoothness_known_answers():
+    """u = a * scale from rest: a step to 1 rad/s at k = 0 and held has one jump (1/dt) among n steps, and its
+    second difference a +1/dt^2 then -1/dt^2 pair."""
+    dt, n = 0.01, 100
+    a = np.zeros((n, 2))
+    a[:, 0] = 0.5  # 0.5 x scale 2 = 1 rad/s from the first step on
+    accel, jerk = M.command_smoothness(a, dt, [2.0, 1.0])
+    assert accel == pytest.approx(math.sqrt(1.0 / n) / dt, rel=1e-12)
+    assert jerk == pytest.approx(math.sqrt(2.0 / n) / dt**2, rel=1e-12)
+    # a ramp u_k = c k dt has a constant acceleration c (after the start) and no jerk but at the start
+    ramp = (np.arange(n) * dt * 3.0)[:, None]
+    accel, _ = M.command_smoothness(ramp, dt, [1.0])
+    assert accel == pytest.approx(3.0 * math.sqrt((n - 1) / n), rel=1e-12)
+    assert M.command_smoothness(np.zeros((0, 2)), dt, [1.0, 1.0]) == (0.0, 0.0)
+
+
+def test_limit_margin_and_converge_time():
+    q = np.array([[0.0, 0.5], [0.9, -0.2], [0.3, 0.1]])
+    assert M.limit_margin(q, [-1.0, -1.0], [1.0, 1.0]) == pytest.approx(0.1)
+    assert M.limit_margin(np.array([[1.2]]), [-1.0], [1.0]) == pytest.approx(-0.2)  # beyond the limit: negative
+    err = np.array([0.0, 0.01, 0.002, 0.007, 0.001, 0.0])
+    assert M.converge_time(err, 0.1, 0.006) == pytest.approx(0.4)  # stays within from sample 4 on
+    assert M.converge_time(np.array([0.0, 0.001]), 0.1, 0.006) == 0.0
+    assert M.converge_time(np.array([0.0, 0.01]), 0.1, 0.006) is None  # ends outside
+
+
+def test_clean_success_and_the_tails_in_the_aggregate():
+    recs = [
+        {"env": "E", "policy": "p", "status": "ok", "max_error_m": e, "success": e <= 0.006, "clean_success": c}
+        for e, c in ((0.001, True), (0.002, False), (0.003, True), (0.004, True), (0.05, False))
+    ]
+    (row,) = M.aggregate(recs)
+    assert row["success_rate"] == 0.8 and row["clean_success_rate"] == 0.6
+    assert row["clean_success_rate_ci95"] == M.wilson_interval(3, 5)
+    assert row["max_error_m"]["worst"] == 0.05 and row["max_error_m"]["p90"] == pytest.approx(
+        np.percentile([0.001, 0.002, 0.003, 0.004, 0.05], 90)
+    )
+    assert len(row["success_curve_ci95"]) == len(row["success_curve"])
+    for p, band in zip(row["success_curve"], row["success_curve_ci95"]):
+        assert band == M.wilson_interval(round(p * 5), 5) and band[0] <= p <= band[1]
+
+
+def test_probability_of_improvement_known_answers():
+    """P(X < Y) on a lower-is-better score, ties half, averaged over tasks; the bootstrap interval holds the
+    point estimate and collapses when every pair agrees."""
+    p, ci = M.probability_of_improvement([[1.0, 2.0, 3.0]], [[4.0, 5.0, 6.0]])
+    assert p == 1.0 and ci == [1.0, 1.0]
+    p, ci = M.probability_of_improvement([[1.0, 2.0]], [[1.0, 2.0]])
+    assert p == 0.5 and ci[0] <= 0.5 <= ci[1]
+    # two tasks: 1.0 on the first, 0.0 on the second -> 0.5; a failed episode (inf) loses to every finite one
+    p, _ = M.probability_of_improvement([[1.0], [9.0]], [[2.0], [3.0]])
+    assert p == 0.5
+    p, _ = M.probability_of_improvement([[math.inf]], [[5.0]])
+    assert p == 0.0
+    assert M.probability_of_improvement([[]], [[1.0]]) is None

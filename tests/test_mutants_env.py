@@ -37,7 +37,7 @@ def test_sensor_noise_has_the_documented_std_on_each_noisy_key(make_env, kwargs,
     action = np.r_[0.1, -0.1, 0.1, 0.0, 0.1, 0.0, 0.2, 0.1]  # the platform and the arm move
     for _ in range(300):
         obs, *_ = env.step(action)
-        diffs.append(obs[key] - truth_of(env.sim.state()))
+        diffs.append(obs[key] - truth_of(env.state()))
     d = np.asarray(diffs, dtype=float)
     # 300 x n samples: the std is within 12% of the target and the mean within 4 standard errors of 0
     assert np.all(np.abs(d.std(axis=0) / std - 1.0) < 0.12), d.std(axis=0)
@@ -49,7 +49,7 @@ def test_without_noise_the_observation_is_the_truth(make_env):
     env.reset(seed=11)
     for _ in range(20):
         obs, *_ = env.step(np.full(8, 0.2))
-    s = env.sim.state()
+    s = env.state()
     for key, truth in (("arm_base_pos", s.arm_base_pos), ("ee_pos", s.ee_pos), ("arm_base_vel", s.arm_base_vel)):
         np.testing.assert_allclose(obs[key], truth, rtol=0, atol=1e-6, err_msg=key)
 
@@ -83,7 +83,7 @@ def test_kinematic_joint_limit_hits_are_counted_exactly(make_env):
     env.reset(seed=0, options={"arm_joint_pos": q0})
     both = np.r_[-1.0, 0, 0, 0, 1.0, 0, 0, 0]
     assert [env.step(both)[4]["joint_limit_hits"] for _ in range(2)] == [2, 4]
-    q = env.sim.state().joint_pos
+    q = env.state().joint_pos
     assert q[0] == pytest.approx(lower[0], abs=1e-9) and q[4] == pytest.approx(upper[4], abs=1e-9)
 
 

@@ -221,7 +221,7 @@ def test_probe_recovers_the_true_whole_body_jacobian():
         policy = NNBCPlus(EnvFacts.from_env(env), NNBCPlusConfig(dither=0.0, task_dither=0.0))
         rollout(env, policy, REPORTED_SEEDS[0], n_steps=17)
         base = env.unwrapped
-        state = base.sim.state()
+        state = base.state()
         J = K.whole_body_jacobian(base.true_params, state.joint_pos[:6], state.base_pose[2])
     finally:
         env.close()
@@ -242,7 +242,7 @@ def test_the_estimate_follows_the_true_jacobian_in_every_direction():
             action, _ = policy.predict(obs)
             obs, _, terminated, truncated, info = env.step(action)
             if k > 50 and k % 50 == 0:
-                state = base.sim.state()
+                state = base.state()
                 J = K.whole_body_jacobian(base.true_params, state.joint_pos[:6], state.base_pose[2])
                 rel_errors.append(np.linalg.norm(policy.J_hat - J) / np.linalg.norm(J))
                 sv_ratio.append(

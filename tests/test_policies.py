@@ -428,7 +428,9 @@ def test_model_free_controllers_never_touch_the_model(spec, env_id):
 
 
 @pytest.mark.parametrize("env_id", ROBOT_CIRCLES)
-@pytest.mark.parametrize("spec", ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle"])
+@pytest.mark.parametrize(
+    "spec", ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle", "calib-qp"]
+)
 def test_the_guard_catches_model_based_controllers(spec, env_id):
     env = _ModelGuard(gym.make(env_id, dynamics="kinematic", path=SHORT_CIRCLE))
     try:
@@ -537,3 +539,85 @@ def test_importing_policies_loads_neither_torch_nor_sb3():
     code = "import sys, policies; print(any(m in sys.modules for m in ('torch', 'stable_baselines3')))"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+USER_OPTIONS_MODULE = """
+import numpy as np
+
+
+class Ctrl:
+    '''A gain on the position error, a horizon, a flag: what a researcher sweeps.'''
+
+    def __init__(self, env, gain=1.0, horizon=1, verbose=False):
+        if horizon < 1:
+            raise ValueError(f"Ctrl: horizon must be >= 1, got {horizon}")
+        self.gain, self.horizon, self.verbose = gain, horizon, verbose
+        self.n = env.action_space.shape[0]
+
+    def reset(self, obs, info=None, *, seed=None):
+        pass
+
+    def predict(self, obs, state=None, episode_start=None, deterministic=True):
+        a = np.zeros(self.n, dtype=np.float32)
+        a[:3] = np.clip(self.gain * (obs["target_pos"] - obs["ee_pos"]), -1, 1)
+        return a, state
+
+
+class Strict(Ctrl):
+    '''Takes its options as **kwargs and checks the keys itself.'''
+
+    def __init__(self, env, **options):
+        unknown = sorted(set(options) - {"gain"})
+        if unknown:
+            raise TypeError(f"Strict takes the option gain, not {unknown}")
+        super().__init__(env, **options)
+
+
+def factory(gain=2.0):
+    return Ctrl.__new__(Ctrl)
+"""
+
+
+def test_user_controller_takes_options_as_keyword_arguments(kin_env, tmp_path, monkeypatch):
+    """`module:attr:key=value,...` parses the options as built-in specs do and passes them to the user's class;
+    the module comes from the working directory (imported by name, the folder not put on sys.path)."""
+    import sys
+
+    (tmp_path / "usermod_opts.py").write_text(USER_OPTIONS_MODULE)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.delitem(sys.modules, "usermod_opts", raising=False)
+    env = kin_env(path=SHORT_CIRCLE)
+    pol = policies.make("usermod_opts:Ctrl:gain=5,horizon=3,verbose=true", env)
+    assert (pol.gain, pol.horizon, pol.verbose) == (5, 3, True) and type(pol.horizon) is int
+    assert str(tmp_path) not in sys.path and "" not in sys.path[1:]
+    obs, _ = env.reset(seed=10_000)
+    for _ in range(5):  # off the path's start, where the error is zero
+        obs, *_ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+    weak = policies.make("usermod_opts:Ctrl:gain=0.5", env)
+    assert np.abs(pol.predict(obs)[0]).sum() > np.abs(weak.predict(obs)[0]).sum() > 0  # the gain reached the law
+    with pytest.raises(ValueError, match=r"Ctrl: horizon must be >= 1, got 0"):  # the class's own check
+        policies.make("usermod_opts:Ctrl:horizon=0", env)
+    with pytest.raises(ValueError, match=r"does not take the options \['gian'\]; its keyword arguments are "):
+        policies.make("usermod_opts:Ctrl:gian=5", env)
+    with pytest.raises(TypeError, match=r"Strict takes the option gain, not \['horizon'\]"):
+        policies.make("usermod_opts:Strict:horizon=2", env)
+    with pytest.raises(ValueError, match=r"bad option 'gain' in policy spec"):
+        policies.make("usermod_opts:Ctrl:gain", env)
+    with pytest.raises(ValueError, match=r"'usermod_opts.py' is a file name; name the module, without .py: "):
+        policies.make("usermod_opts.py:Ctrl", env)
+
+
+def test_user_controller_options_through_the_cli_and_workers(tmp_path, monkeypatch):
+    import json
+
+    from eval.cli import main
+
+    (tmp_path / "usermod_cli.py").write_text(USER_OPTIONS_MODULE)
+    monkeypatch.chdir(tmp_path)
+    specs = ["usermod_cli:Ctrl:gain=5", "usermod_cli:Ctrl:gain=0.5"]
+    args = ["run", "--seeds", "2", "--dynamics", "kinematic", "--workers", "2", "--quiet", "--no-plots"]
+    args += ["--env-kwargs", json.dumps({"path": SHORT_CIRCLE}), "--out", str(tmp_path / "o")]
+    assert main([*args, *(a for s in specs for a in ("--policy", s))]) == 0
+    episodes = json.loads((tmp_path / "o" / "results.json").read_text())["episodes"]
+    rms = {s: [e["rms_error_m"] for e in episodes if e["policy"] == s] for s in specs}
+    assert all(e["status"] == "ok" for e in episodes) and rms[specs[0]] != rms[specs[1]]

@@ -279,3 +279,83 @@ def test_sb3_without_torch_names_the_extra(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert "need Stable-Baselines3 and torch, which are not installed here" in out.stdout, out.stderr
     assert 'install them with pip install "mobman[rl]"' in out.stdout
+
+
+# --- which statistics are read, and the record of what was loaded ---------------------------------------------
+def _shipped_copy(tmp_path, name="sac-circle"):
+    import shutil
+
+    return shutil.copytree(policies.sb3.MODELS_DIR / name, tmp_path / name)
+
+
+class _NotStatistics:
+    """Pickles as a plain object of an allowed class (a set), not VecNormalize statistics."""
+
+    def __reduce__(self):
+        return (set, ([1, 2],))
+
+
+def _not_statistics(kind: str) -> bytes:
+    import pickle
+
+    from stable_baselines3.common.running_mean_std import RunningMeanStd
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    if kind == "array":
+        return pickle.dumps(np.zeros(3))
+    if kind == "dict":
+        return pickle.dumps({"obs_rms": {"mean": np.zeros(3)}})
+    if kind == "set":
+        return pickle.dumps(_NotStatistics())
+    if kind == "running_mean_std":
+        return pickle.dumps(RunningMeanStd(shape=(3,)))
+    venv = VecNormalize(DummyVecEnv([_make_env]), norm_obs=False, norm_reward=True)  # reward-only statistics
+    venv.venv.close()
+    return pickle.dumps(venv)
+
+
+@pytest.mark.parametrize("kind", ["array", "dict", "set", "running_mean_std", "norm_obs_off"])
+def test_statistics_that_are_not_the_agents_are_refused(tmp_path, env, kind):
+    d = _shipped_copy(tmp_path)
+    (d / "vecnormalize.pkl").write_bytes(_not_statistics(kind))
+    match = r"normalize_obs is true but .*norm_obs off" if kind == "norm_obs_off" else "does not hold VecNormalize stat"
+    with pytest.raises(ValueError, match=match):
+        policies.make(f"sb3:{d}", env)
+
+
+def test_normalize_obs_without_statistics_is_refused(tmp_path, env):
+    d = _shipped_copy(tmp_path)
+    (d / "vecnormalize.pkl").unlink()
+    with pytest.raises(ValueError, match=r"config.json: normalize_obs is true .* holds no vecnormalize.pkl; copy it"):
+        policies.make(f"sb3:{d}", env)
+    cfg = json.loads((d / "config.json").read_text())
+    (d / "config.json").write_text(json.dumps({**cfg, "normalize_obs": False}))
+    assert policies.make(f"sb3:{d}", env)._norm is None  # an agent trained without statistics loads
+
+
+def test_statistics_under_another_name_are_named_in_a_warning(tmp_path, env):
+    d = _shipped_copy(tmp_path)
+    (d / "vecnormalize.pkl").rename(d / "stats.pkl")
+    cfg = json.loads((d / "config.json").read_text())
+    del cfg["normalize_obs"]  # a plain SB3 folder does not say
+    (d / "config.json").write_text(json.dumps(cfg))
+    with pytest.warns(UserWarning, match=r"stats.pkl not used: only vecnormalize.pkl or vec_normalize.pkl is read"):
+        policies.make(f"sb3:{d}", env)
+
+
+def test_artefacts_name_every_file_loaded_with_its_sha256(tmp_path, env):
+    import hashlib
+
+    d = _shipped_copy(tmp_path)
+    policy = policies.make(f"sb3:{d}", env)
+    expected = [
+        {"path": str(d / name), "sha256": hashlib.sha256((d / name).read_bytes()).hexdigest()}
+        for name in ("model.zip", "vecnormalize.pkl", "config.json")
+    ]
+    assert policy.artefacts == expected
+    venv = gym.make_vec("WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    try:
+        assert policies.make(f"sb3:{d}", venv).artefacts == expected  # the rows' files, each once
+        assert policies.make("clik", venv).artefacts == []
+    finally:
+        venv.close()

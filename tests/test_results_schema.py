@@ -1,5 +1,6 @@
-"""results.json schema 2 and the reading of schema-1 files: `load_results`, the tables, and a sweep made by
-mobman 0.1 (tests/fixtures/schema1, written at commit 3d1df75) resumed by today's code."""
+"""results.json schema 3 and the reading of older files: `load_results`, the tables, a sweep made by mobman 0.1
+(tests/fixtures/schema1, written at commit 3d1df75) resumed by today's code, and a schema-2 run of mobman 0.2
+(tests/fixtures/schema2: the kinematic nnbc and jmpi episodes 0-2 of docs/results/paper/results.json at e8a9c1d)."""
 
 import json
 import shutil
@@ -17,23 +18,39 @@ from eval.sweep.run import run_sweep
 FIXTURES = Path(__file__).parent / "fixtures" / "schema1"
 
 
-def test_a_schema_1_run_loads_in_schema_2_shape():
+def test_a_schema_1_run_loads_in_schema_3_shape():
     res = load_results(FIXTURES / "run" / "results.json")
-    assert res["schema"] == 1 and SCHEMA == 2  # the file's own number is kept
+    assert res["schema"] == 1 and SCHEMA == 3  # the file's own number is kept
     assert res["provenance"] is None and res["statistics"] is None
     assert all(r["steady_max_error_m"] is None for r in res["episodes"])
     for row in res["aggregate"]:
         assert row["success_rate_ci95"] is None and row["success_curve"] is None
         assert row["max_error_m"]["iqm"] is None and row["max_error_m"]["median"] is not None
-        assert row["steady_max_error_m"] == dict.fromkeys(("median", "mean", "std", "min", "max", "iqm", "iqm_ci95"))
+        assert row["steady_max_error_m"] == dict.fromkeys(
+            ("median", "mean", "std", "min", "max", "p90", "iqm", "iqm_ci95", "worst")
+        )
     md = summary_markdown(res)  # today's tables render a schema-1 file
     assert "| nnbc-plus |" in md and "| jmpi |" in md
     assert aggregate_csv_text(res["aggregate"]).count("\n") == 3
 
 
+def test_a_schema_2_run_loads_in_schema_3_shape():
+    res = load_results(Path(__file__).parent / "fixtures" / "schema2" / "results.json")
+    assert res["schema"] == 2
+    assert all(
+        r["robot"] is None and r["cmd_accel_rms"] is None and r["clean_success"] is None for r in res["episodes"]
+    )
+    assert all(r["max_error_m"] is not None for r in res["episodes"])
+    for row in res["aggregate"]:
+        assert row["success_curve"] is not None and row["success_curve_ci95"] is None
+        assert row["max_error_m"]["iqm"] is not None and row["max_error_m"]["p90"] is None
+        assert row["max_error_m"]["worst"] == row["max_error_m"]["max"]
+    assert "| nnbc |" in summary_markdown(res)
+
+
 def test_unknown_schemas_and_files_are_refused(tmp_path):
-    with pytest.raises(EvalError, match="schema 3.*reads schemas 1, 2"):
-        upgrade_results({"schema": 3})
+    with pytest.raises(EvalError, match="schema 4.*reads schemas 1, 2, 3"):
+        upgrade_results({"schema": 4})
     with pytest.raises(EvalError, match="not a mobman results file"):
         upgrade_results({"episodes": []})
     with pytest.raises(EvalError, match="not found"):
@@ -59,7 +76,7 @@ def test_a_schema_1_sweep_resumes(tmp_path):
     result = run_sweep(sweep, out, progress=False, plots=False)
     assert (result.n_skipped, result.n_run, result.n_left) == (4, 2, 0)  # only the new seed ran
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 2 and len(res["episodes"]) == 6
+    assert res["schema"] == 3 and len(res["episodes"]) == 6
     by_key = {(r["policy"], r["seed"]): r for r in res["episodes"]}
     for r in old:  # the old episodes are kept as they were
         assert by_key[(r["policy"], r["seed"])]["max_error_m"] == r["max_error_m"]
@@ -73,7 +90,7 @@ def test_settle_time_flag_reaches_the_records(tmp_path):
     from eval.cli import main
 
     short = '{"path": {"type": "circle", "radius": 0.1, "tilt": 0.5236, "yaw": 3.1416, "duration": 1.0}}'
-    args = ["run", "--env", "WheeledPuma-Circle-v0", "--policy", "zero", "--episodes", "1", "--dynamics"]
+    args = ["run", "--env", "WheeledPuma-Circle-v0", "--policy", "zero", "--seeds", "1", "--dynamics"]
     args += ["kinematic", "--env-kwargs", short, "--quiet", "--no-plots"]
     for settle in ("0", "0.9"):
         assert main([*args, "--settle-time", settle, "--out", str(tmp_path / settle)]) == 0

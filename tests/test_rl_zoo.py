@@ -50,7 +50,7 @@ def test_rl_zoo_trains_from_the_shipped_file_and_sb3_evaluates_its_folder(tmp_pa
     from eval.cli import main
 
     out = tmp_path / "eval"
-    argv = ["run", "--env", ENV_ID, "--policy", f"sb3:{run}", "--episodes", "1", "--seed", "10000"]
+    argv = ["run", "--env", ENV_ID, "--policy", f"sb3:{run}", "--seeds", "1", "--seed", "10000"]
     assert main([*argv, "--dynamics", "kinematic", "--out", str(out), "--no-plots", "--quiet"]) == 0
     (episode,) = json.loads((out / "results.json").read_text())["episodes"]
     assert episode["status"] == "ok" and episode["n_steps"] == 2000

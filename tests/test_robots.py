@@ -405,3 +405,20 @@ def test_reach_of_the_puma():
 @pytest.mark.slow
 def test_docstring_table_is_current():
     assert S.table() in S.__doc__
+
+
+def test_the_scaled_family_scales_every_length_of_a_family_arm_by_one_factor():
+    """random_scaled_arm draws s in SCALE_RANGE first, then random_arm's design; every DH a and d and the tool are
+    s times the design's, twists, limits and the mount unchanged; the same stream gives the same arm."""
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        s = rng.uniform(*RA.SCALE_RANGE)
+        design = RA.random_arm(rng)
+        scaled = RA.random_scaled_arm(np.random.default_rng(seed))
+        assert RA.SCALE_RANGE[0] <= s <= RA.SCALE_RANGE[1]
+        np.testing.assert_allclose(scaled.arm.a, np.array(design.arm.a) * s, rtol=1e-15)
+        np.testing.assert_allclose(scaled.arm.d, np.array(design.arm.d) * s, rtol=1e-15)
+        assert scaled.arm.tool == pytest.approx(design.arm.tool * s, rel=1e-15)
+        assert scaled.arm.alpha == design.arm.alpha and scaled.arm.joint_lower == design.arm.joint_lower
+        assert scaled.arm.mount_offset == design.arm.mount_offset and scaled.q0 == design.q0
+        assert scaled == RA.random_scaled_arm(np.random.default_rng(seed))

@@ -29,7 +29,7 @@ from mobman_env.sim import Sim
 RANDOM_ARMS = [random_arm(np.random.default_rng(s)).arm for s in (0, 1)]
 ARMS = [PUMA560, UR5, PANDA, *RANDOM_ARMS]
 ARM_IDS = ["puma560", "ur5", "panda", "random0", "random1"]
-ROBOT_IDS = {"puma560": "WheeledPuma", "ur5": "WheeledUR5", "panda": "WheeledPanda", "random": "WheeledRandomArm"}
+ROBOT_IDS = {v: k for k, v in mobman_env.ROBOT_IDS.items()}
 
 
 def _params(arm, worn_seed=None):
@@ -48,7 +48,7 @@ def test_urdf_end_effector_equals_numpy_fk(arm, worn):
     """PyBullet's `ee` link (the generated URDF of the robot) equals `kinematics.ee_position` at 50 random
     configurations and base poses to 1e-6 m, for every robot, nominal and worn."""
     p = _params(arm, worn)
-    sim = Sim("physics", 0.01, 2)
+    sim = Sim(0.01, 2)
     try:
         sim.reset(p, np.zeros(p.n_actuators), np.zeros(3))
         assert len(sim.arm_ids) == p.n_joints and len(sim.torque_limits) == p.n_actuators
@@ -65,7 +65,7 @@ def test_urdf_end_effector_equals_numpy_fk(arm, worn):
 @pytest.mark.parametrize("arm", ARMS, ids=ARM_IDS)
 def test_urdf_limits_are_the_descriptions(arm):
     p = _params(arm)
-    sim = Sim("physics", 0.01, 2)
+    sim = Sim(0.01, 2)
     try:
         sim.reset(p, np.zeros(p.n_actuators), np.zeros(3))
         for i, j in enumerate(sim.arm_ids):
@@ -142,14 +142,23 @@ def test_spaces_and_starts_follow_the_robot(robot):
 
 
 def test_ids_and_robot_argument():
-    assert len(mobman_env.ENV_IDS) == 16
+    assert len(mobman_env.ENV_IDS) == 20
+    assert ROBOT_IDS == {
+        "puma560": "WheeledPuma",
+        "ur5": "WheeledUR5",
+        "panda": "WheeledPanda",
+        "random": "WheeledRandomArm",
+        "random-scaled": "WheeledScaledArm",
+    }
     assert mobman_env.env_ids("panda") == tuple(
         f"WheeledPanda-{t}-v0" for t in ("Circle", "Line", "Lemniscate", "Random")
     )
     # the PUMA ids are registered exactly as in release 0.1: the path alone
     assert set(gym.spec("WheeledPuma-Line-v0").kwargs) == {"path"}
     assert gym.spec("WheeledUR5-Line-v0").kwargs["robot"] == "ur5"
-    with pytest.raises(ValueError, match=r"unknown robot 'ur10'; accepted: 'puma560', 'ur5', 'panda', 'random'"):
+    with pytest.raises(
+        ValueError, match=r"unknown robot 'ur10'; accepted: 'puma560', 'ur5', 'panda', 'random', 'random-scaled'"
+    ):
         robot_source("ur10")
     with pytest.raises(ValueError, match="unknown robot"):
         mobman_env.WheeledPumaEnv(robot="kuka")
@@ -159,6 +168,47 @@ def test_ids_and_robot_argument():
         mobman_env.WheeledPumaEnv(robot="panda", arm_joint_pos=[0.0] * 6)
     with pytest.raises(ValueError, match="outside the joint limits of panda"):
         mobman_env.WheeledPumaEnv(robot="panda", arm_joint_pos=[0.0] * 7)  # joint 4 must be < -0.0698
+
+
+@pytest.mark.parametrize("mode", ["make", "vector_entry_point", "sync"])
+@pytest.mark.parametrize(
+    "env_id, robot, other",
+    [
+        ("WheeledUR5-Circle-v0", "panda", "WheeledPanda"),
+        ("WheeledPuma-Line-v0", "ur5", "WheeledUR5"),
+        ("WheeledRandomArm-Circle-v0", "puma560", "WheeledPuma"),
+        ("WheeledPanda-Circle-v0", "kuka", None),
+    ],
+)
+def test_a_robot_that_contradicts_the_id_is_refused(env_id, robot, other, mode):
+    prefix = env_id.split("-")[0]
+    fix = f"use the {other}-\\* id of the task" if other else "accepted here: robot="
+    match = rf"robot='{robot}' contradicts the id: {prefix}-\* ids are the .*; {fix}"
+    with pytest.raises(ValueError, match=match):
+        if mode == "make":
+            gym.make(env_id, robot=robot, dynamics="kinematic")
+        else:
+            gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, robot=robot, dynamics="kinematic")
+
+
+def test_the_ids_entry_points_still_make_the_env_everywhere():
+    """The robot check sits in the entry point: gym.make(id).unwrapped is the env class, the `mobman_env:` form
+    works, the id's own robot may be named, and the spec pickles (an async vector env sends it to workers)."""
+    import pickle
+
+    env = gym.make("mobman_env:WheeledUR5-Circle-v0", robot="ur5", dynamics="kinematic")
+    try:
+        assert type(env.unwrapped) is mobman_env.WheeledPumaEnv and env.unwrapped.robot == "ur5"
+    finally:
+        env.close()
+    spec = pickle.loads(pickle.dumps(gym.spec("WheeledPanda-Line-v0")))
+    assert spec.entry_point.robot == "panda" and spec.kwargs["robot"] == "panda"
+    venv = gym.make_vec("WheeledPanda-Line-v0", num_envs=2, vectorization_mode="async", dynamics="kinematic")
+    try:
+        obs, _ = venv.reset(seed=10_000)
+        assert obs["joint_pos"].shape == (2, 9)
+    finally:
+        venv.close()
 
 
 @pytest.mark.parametrize("robot", ROBOT_NAMES)
@@ -183,7 +233,7 @@ def test_same_seed_same_episode_for_every_robot(robot):
     assert a[0] == b[0] and a[1] == b[1]
     np.testing.assert_array_equal(a[2], b[2])
     assert a[0] != c[0]
-    assert (a[1] != c[1]) == (robot == "random")
+    assert (a[1] != c[1]) == (robot in ("random", "random-scaled"))
 
 
 @pytest.mark.parametrize("robot", ROBOT_NAMES)
@@ -256,3 +306,20 @@ def test_worn_draws_use_the_arms_length_slots():
         assert changed == list(p.perturbed_fields)
         assert worn.arm.masses == arm.masses and worn.arm.alpha == arm.alpha
         assert worn.hash() != p.hash()
+
+
+@pytest.mark.parametrize("robot", ["random", "random-scaled"])
+def test_a_memoised_draw_is_the_draw_and_leaves_the_generator_where_it_would_be(robot, monkeypatch):
+    """The drawn families memoise a draw on the generator's state: a hit returns the same arm and start and
+    leaves the generator in the state the draw itself would have left (a fresh, unmemoised draw checks it)."""
+    from mobman_env.robots import sources
+
+    src = robot_source(robot)
+    first = np.random.default_rng(10_020)
+    arm, q0 = src.draw(first)
+    after = first.random(3)
+    hit_rng = np.random.default_rng(10_020)
+    assert src.draw(hit_rng) == (arm, q0) and np.array_equal(hit_rng.random(3), after)
+    monkeypatch.setattr(sources, "_DRAWS", {})
+    fresh = np.random.default_rng(10_020)
+    assert src.draw(fresh) == (arm, q0) and np.array_equal(fresh.random(3), after)

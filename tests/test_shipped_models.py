@@ -74,6 +74,21 @@ def test_shipped_ppo_is_the_reports_median_seed_model(alias):
     assert shipped_cfg["seed"] == median["seed"] and shipped_cfg["algo"] == "ppo"
 
 
+@pytest.mark.parametrize("alias", sorted(set(sb3.ALIASES) - set(REPORTED)))
+def test_models_outside_the_report_ship_without_optimiser_state(alias):
+    """The optimiser state (Adam's moments) serves only further training: `sac-circle` ships without it (its
+    README), the weights and every other entry as trained. (The PPO models stay byte for byte the report's.)"""
+    import io
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(MODELS / alias / "model.zip") as z:
+        names = [n for n in z.namelist() if n.endswith("optimizer.pth")]
+        states = [torch.load(io.BytesIO(z.read(n)), weights_only=True) for n in names]
+    assert names and all(s["state"] == {} and s["param_groups"] for s in states), names
+
+
 def test_shipped_kinematic_ppo_tracks_on_development_seeds():
     """Accuracy on development seeds (never reported ones): better than standing still by far."""
     from eval.rollout import make_env, rollout

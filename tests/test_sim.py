@@ -66,7 +66,7 @@ def test_human_render_without_display_warns_and_runs_headless(monkeypatch):
     finally:
         env.close()
     with pytest.raises(RuntimeError, match="rgb_array"):
-        Sim("kinematic", 0.01, 2, gui=True)
+        Sim(0.01, 2, gui=True)
 
 
 def _rss_after_resets(env, seeds) -> float:
@@ -148,13 +148,17 @@ def test_rgb_array_shows_robot_and_path(make_env, dynamics):
 
 
 def test_kinematic_mode_makes_no_pybullet_call_per_step(make_env, monkeypatch):
-    env = make_env(dynamics="kinematic")
+    """Kinematic mode opens no PyBullet client unless it renders, and a rendering one is not called by a step."""
+    assert make_env(dynamics="kinematic").sim is None
+    env = make_env(dynamics="kinematic", render_mode="rgb_array")
     env.reset(seed=0)
 
     def forbidden(*args, **kwargs):
         raise AssertionError("PyBullet was called in a kinematic step")
 
     monkeypatch.setattr(env.sim, "client", type("NoClient", (), {"__getattr__": lambda self, n: forbidden})())
+    monkeypatch.setattr(pybullet, "stepSimulation", forbidden)
+    monkeypatch.setattr(pybullet, "getJointStates", forbidden)
     for _ in range(20):
         env.step(np.full(8, 0.2))
 
@@ -163,11 +167,11 @@ def test_kinematic_constant_wheel_speeds_follow_the_unicycle_exactly(make_env):
     env = make_env(dynamics="kinematic", model_error=0.0)
     env.reset(seed=0)
     a = np.r_[np.zeros(6), 0.3, 0.5]
-    start = env.sim.state().base_pose
+    start = env.state().base_pose
     for _ in range(300):
         env.step(a)
     expected = K.integrate_unicycle(env.true_params, start, a[6:] * env.action_scale[6:], 3.0)
-    np.testing.assert_allclose(env.sim.state().base_pose, expected, atol=1e-12)
+    np.testing.assert_allclose(env.state().base_pose, expected, atol=1e-12)
 
 
 # Physics mode vs the unicycle: after a 1 s ramp-up (a step change of wheel speed makes the wheels slip), two
@@ -182,10 +186,10 @@ def test_physics_follows_the_unicycle_within_tolerance(make_env):
     a = np.r_[np.zeros(6), 0.3, 0.5]
     for k in range(100):
         env.step(a * min(1.0, (k + 1) / 50))
-    start = env.sim.state().base_pose
+    start = env.state().base_pose
     for _ in range(200):
         env.step(a)
-    end = env.sim.state().base_pose
+    end = env.state().base_pose
     expected = K.integrate_unicycle(env.true_params, start, a[6:] * env.action_scale[6:], 2.0)
     assert np.linalg.norm(end[:2] - expected[:2]) < PHYSICS_UNICYCLE_TOL[0]
     assert abs(end[2] - expected[2]) < PHYSICS_UNICYCLE_TOL[1]
@@ -198,10 +202,10 @@ def test_physics_platform_does_not_drift_with_zero_command(make_env):
     env.reset(seed=0)
     for _ in range(50):
         env.step(np.zeros(8))
-    start = env.sim.state()
+    start = env.state()
     for _ in range(1000):
         _, _, term, _, info = env.step(np.zeros(8))
-    end = env.sim.state()
+    end = env.state()
     assert np.linalg.norm(end.base_pose[:2] - start.base_pose[:2]) < 1e-3
     assert abs(end.base_pose[2] - start.base_pose[2]) < 1e-3
     assert np.abs(end.joint_pos[:6] - start.joint_pos[:6]).max() < 1e-3
@@ -223,20 +227,16 @@ def test_joint_limits_are_enforced_and_counted(make_env, dynamics):
     assert obs["joint_pos"][4] < upper - 0.2
 
 
-def test_physics_limit_check_reads_the_angles_again_after_the_body_was_moved(make_env):
-    """The physics limit check reuses the arm angles of the last read; `set_state` moves the body without a read,
-    so the next step must read them afresh: a joint put at its limit is stopped (1 hit), one put away from it is
-    not (0 hits), whatever the previous read said."""
+def test_physics_limit_check_uses_the_angles_of_the_last_reading(make_env):
+    """The physics limit rule reads the arm angles of the last reading (every step and reset reads the body): a
+    joint that stands at its limit when the step starts is stopped (a hit), one that stands away is not."""
     env = make_env(dynamics="physics", path={"type": "circle", "radius": 0.1, "duration": 1.0})
-    env.reset(seed=0)
-    sim, p = env.sim, env.true_params
-    push = np.r_[0, 0, 0, 0, 5.0, 0, 0, 0]  # joint 5 up, rad/s
-    away = np.r_[env.unwrapped.arm_joint_pos[:6], 0.0, 0.0]
-    at_limit = away.copy()
-    at_limit[4] = p.joint_upper[4]
-    pose = np.array([0.0, 0.0, np.pi])
-    for start, moved_to, hits in ((away, at_limit, 1), (at_limit, away, 0)):
-        sim.set_state(start, pose)
-        sim.state()  # a read at `start`
-        sim.set_state(moved_to, pose)
-        assert sim.step(push) == hits
+    push = np.r_[0, 0, 0, 0, 1.0, 0, 0, 0]  # joint 5 up
+    upper = env.nominal_params.joint_upper[4]
+    start = np.r_[env.unwrapped.arm_joint_pos[:6], 0.0, 0.0]
+    at_limit = start.copy()
+    at_limit[4] = upper
+    for q0, hits in ((start, 0), (at_limit, 1)):
+        env.reset(seed=0, options={"arm_joint_pos": q0, "model_error": 0.0})
+        _, _, _, _, info = env.step(push)
+        assert info["joint_limit_hits"] == hits

@@ -213,6 +213,7 @@ def _fake_run_folder(tmp_path) -> Path:
         ("latest", r"checkpoints/latest.json is not a readable JSON file"),
         ("latest_keys", r"checkpoints/latest.json is not a checkpoint index"),
         ("checkpoint", r"names model file .*checkpoints/model_100_steps.zip, which is missing"),
+        ("checkpoint_path", r"latest.json: replay_buffer must be a plain name .*got '../../elsewhere.pkl'"),
     ],
 )
 def test_resume_names_the_damaged_file(tmp_path, capsys, damage, match):
@@ -228,6 +229,10 @@ def test_resume_names_the_damaged_file(tmp_path, capsys, damage, match):
         (out / "checkpoints" / "latest.json").write_text("[1, 2")
     elif damage == "latest_keys":
         (out / "checkpoints" / "latest.json").write_text('{"steps": 100}')
+    elif damage == "checkpoint_path":
+        entry = json.loads((out / "checkpoints" / "latest.json").read_text())
+        (out / "checkpoints" / "latest.json").write_text(json.dumps({**entry, "replay_buffer": "../../elsewhere.pkl"}))
+        (tmp_path / "elsewhere.pkl").write_bytes(b"")
     assert main(["--resume", str(out), "--timesteps", "200"]) == 2
     err = capsys.readouterr().err
     assert re.search(match, err), err
@@ -469,7 +474,7 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
         "0",
         "--out",
         str(out),
-        "--no-progress",
+        "--quiet",
         "--hyperparams",
         str(hp),
         "--env-kwargs",
@@ -500,7 +505,7 @@ def test_ctrl_c_saves_a_checkpoint_and_resume_finishes(tmp_path):
     latest = json.loads((out / "checkpoints" / "latest.json").read_text())
     assert 0 < latest["steps"] < 100_000
     assert (out / "model.zip").is_file()
-    assert main(["--resume", str(out), "--timesteps", str(latest["steps"] + 200), "--no-progress"]) == 0
+    assert main(["--resume", str(out), "--timesteps", str(latest["steps"] + 200), "--quiet"]) == 0
     assert json.loads((out / "summary.json").read_text())["status"] == "done"
 
 
@@ -534,7 +539,7 @@ def test_failed_final_evaluation_keeps_the_model_and_exits_1(tmp_path, monkeypat
             "1",
             "--out",
             str(out),
-            "--no-progress",
+            "--quiet",
             "--hyperparams",
             str(hp),
             "--env-kwargs",

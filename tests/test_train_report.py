@@ -355,3 +355,109 @@ def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch):
     (tmp_path / "models" / "my-ppo" / "model.zip").write_bytes(b"another model")
     with pytest.raises(ValueError, match=r"median-seed run ppo-kin-s1 has no model at .*give its run folder"):
         R.build_report(cfg)
+
+
+@pytest.mark.parametrize("name", ["../escaped", "../../escaped", "sub/escaped", "..", ""])
+def test_include_refuses_a_run_name_that_is_not_a_plain_folder_name(tmp_path, monkeypatch, name):
+    """An archived run's name becomes evals/<name>/ in the new report: `../x` must not write outside it."""
+    import shutil
+
+    monkeypatch.setattr(R, "cached_evaluation", _caching_evaluation([]))
+    common = dict(episodes=2, controllers=(), plots=False)
+    old = _run_folder(tmp_path / "m", "ppo-kin-s0", "ppo", 0)
+    R.build_report(R.ReportConfig(runs=(str(old),), out=str(tmp_path / "a"), **common))
+    results = json.loads((tmp_path / "a" / "results.json").read_text())
+    results["runs"][0]["name"] = name
+    (tmp_path / "a" / "results.json").write_text(json.dumps(results))
+    cached = tmp_path / "a" / "evals" / name  # where the crafted name points, given what the old report had
+    cached.mkdir(parents=True, exist_ok=True)
+    for f in ("inputs.json", "results.json"):
+        if not (cached / f).exists():  # ("..": the report's own results.json stays the crafted one)
+            shutil.copyfile(tmp_path / "a" / "evals" / "ppo-kin-s0" / f, cached / f)
+    out = tmp_path / "b" / "report"
+    with pytest.raises(ValueError, match=rf"run name must be a plain name .*got '{name}'.*restore the file"):
+        R.build_report(R.ReportConfig(include=(str(tmp_path / "a"),), out=str(out), **common))
+    assert not (tmp_path / "b").exists()
+
+
+def test_ship_alias_and_run_folder_names_must_be_plain(tmp_path, capsys):
+    from train.cli import main
+
+    run = _run_folder(tmp_path / "m", "ppo-kin-s0", "ppo", 0)
+    models = tmp_path / "shipped" / "models"
+    for alias in ("../x", "a/b", ".."):
+        assert main(["report", str(run), "--ship", f"{alias}=ppo-kinematic", "--models-dir", str(models)]) == 2
+        err = capsys.readouterr().err
+        assert "--ship ALIAS must be a plain name" in err and repr(alias) in err and "Traceback" not in err
+    assert not (tmp_path / "shipped").exists()
+    (run / "sub").mkdir()
+    assert R.read_run(f"{run}/sub/..")["name"] == "ppo-kin-s0"  # its real name, not "..", which is evals/..
+
+
+def _damage(run: Path, damage: str) -> None:
+    import os
+
+    curve, cfg = run / "learning_curve.csv", run / "config.json"
+    if damage == "curve_dev_zero":
+        curve.unlink()
+        curve.symlink_to("/dev/zero")
+    elif damage == "curve_fifo":
+        curve.unlink()
+        os.mkfifo(curve)
+    elif damage == "summary_fifo":
+        (run / "summary.json").unlink()
+        os.mkfifo(run / "summary.json")
+    elif damage == "curve_huge":
+        with open(curve, "ab") as f:
+            f.truncate(65 * 2**20)  # sparse: 65 MiB of NULs after the rows
+    elif damage == "config_no_algo":
+        cfg.write_text(json.dumps({k: v for k, v in json.loads(cfg.read_text()).items() if k != "algo"}))
+    elif damage == "summary_wall":
+        (run / "summary.json").write_text(json.dumps({"status": "done", "timesteps": 2000, "wall_s": "long"}))
+    elif damage == "curve_extra_column":
+        curve.write_text(curve.read_text().replace("\n1000,", "\n1000,7,", 1))
+    elif damage == "curve_not_a_number":
+        curve.write_text(curve.read_text().replace("\n1000,10.0,", "\n1000,10.0,abc", 1))
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize(
+    "damage, match",
+    [
+        ("curve_dev_zero", r"learning_curve.csv is a device, not a regular file"),
+        ("curve_fifo", r"learning_curve.csv is a FIFO, not a regular file"),
+        ("summary_fifo", r"summary.json is a FIFO, not a regular file"),
+        ("curve_huge", r"learning_curve.csv holds 68157440 bytes; a learning curve is at most 67108864 bytes"),
+        ("config_no_algo", r"config.json: 'algo' must be a text, got missing"),
+        ("summary_wall", r"summary.json: 'wall_s' must be a number, got 'long'"),
+        ("curve_extra_column", r"learning_curve.csv, line 3: 4 fields where the header has 3"),
+        ("curve_not_a_number", r"learning_curve.csv, line 3: median_max_error_m = 'abc[0-9.]+' is not a number"),
+    ],
+)
+def test_report_refuses_run_files_it_cannot_read_safely(tmp_path, capsys, damage, match):
+    """A run folder's files are read only as regular files under a size cap, and every malformed value is
+    named with its file (exit 2, no traceback, nothing written)."""
+    import re
+
+    from train.cli import main
+
+    run = _run_folder(tmp_path / "m", "ppo-kin-s0", "ppo", 0)
+    _damage(run, damage)
+    assert main(["report", str(run), "--out", str(tmp_path / "out"), "--policy", ""]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err) and "Traceback" not in err, err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_model_zip_that_inflates_beyond_the_cap_is_refused_unread(tmp_path):
+    import zipfile
+
+    from policies.sb3_files import read_zip_data
+    from policies.untrusted import MAX_MODEL_DATA_BYTES
+
+    path = tmp_path / "model.zip"
+    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("data", b"{" + b" " * (MAX_MODEL_DATA_BYTES + 1) + b"}")
+    assert path.stat().st_size < 2**20
+    with pytest.raises(ValueError, match=rf"entry 'data' inflates to {MAX_MODEL_DATA_BYTES + 3} bytes; at most"):
+        read_zip_data(path)

@@ -11,9 +11,9 @@ from gymnasium.vector import AutoresetMode
 
 import mobman_env
 from mobman_env import TASKS, WheeledPumaEnv
+from mobman_env import engine as E
 from mobman_env import kinematics as K
-from mobman_env.vector import SYNC_ROBOTS, WheeledPumaVectorEnv
-from mobman_env.vector_kinematics import _block_chain_exact, _block_products, _chain_products, robot_jacobians
+from mobman_env.vector import MAX_NUM_ENVS, PhysicsVectorEnv, WheeledPumaVectorEnv
 
 METRIC_KEYS = ("tracking_error", "n_clipped", "joint_limit_hits", "true_params_hash")
 STEP_KEYS = ("action_clipped", "tipped_over")
@@ -99,18 +99,17 @@ def test_other_arms_equal_single_envs_over_whole_episodes(robot, seed):
         assert _compare(env_id, {"path": dict(spec, duration=2.0), **extra}, n=3, steps=230, seed=seed) == 3
 
 
-def test_random_arm_falls_back_to_sync_vector_env_of_single_envs():
-    """robot="random" draws a new arm per reset: its vector entry point is a SyncVectorEnv of single envs (still
-    equal to them robot by robot), and the native class refuses it with the fix."""
-    assert "random" in SYNC_ROBOTS
+def test_random_arms_are_native_each_robot_its_own_arm():
+    """robot="random" draws a new arm per reset from robot i's generator: the native vector env holds a different
+    arm per row, each equal to its single env."""
     env_id = mobman_env.env_ids("random")[0]
     venv = _vec(env_id, 2)
-    assert isinstance(venv, gym.vector.SyncVectorEnv)
+    assert isinstance(venv, WheeledPumaVectorEnv)
+    venv.reset(seed=10_800)
+    assert venv.unwrapped.nominal_params_of(0).arm != venv.unwrapped.nominal_params_of(1).arm
     venv.close()
     short = dict(TASKS["WheeledPuma-Circle-v0"], duration=0.2)
     assert _compare(env_id, {"path": short}, n=2, steps=25, seed=10_800) == 2
-    with pytest.raises(ValueError, match="SyncVectorEnv"):
-        WheeledPumaVectorEnv(2, robot="random")
 
 
 @pytest.mark.parametrize(
@@ -134,8 +133,7 @@ def test_same_step_autoreset_equals_single_envs():
 
 
 def test_full_episode_at_a_thousand_robots_sampled():
-    """Default task and length, N = 1,024 (the block-diagonal BLAS products in full groups and a partial one are
-    both exercised with N = 1,027); 4 robots compared with their single envs over 400 steps."""
+    """Default task and length, N = 1,027; 4 robots compared with their single envs over 400 steps."""
     n, seed = 1027, 10_300
     venv = _vec("WheeledPuma-Lemniscate-v0", n)
     rows = (0, 5, 1024, 1026)
@@ -154,35 +152,24 @@ def test_full_episode_at_a_thousand_robots_sampled():
     venv.close()
 
 
-def test_block_products_equal_per_robot_products():
-    """The chain's products equal the per-robot ones on any BLAS: block-diagonal products where the probe found
-    them exact on this BLAS (whose kernel depends on the CPU and OPENBLAS_CORETYPE), per-robot products where
-    it did not (seen on an Intel Xeon)."""
-    rng = np.random.default_rng(10_400)
-    F, A = rng.normal(size=(37, 3, 4)), rng.normal(size=(37, 4, 4))
-    assert np.array_equal(_chain_products(F, A), np.matmul(F, A))
-    if _block_chain_exact():  # the block path is taken: it must then be exact on these matrices too
-        head = 36  # whole groups only: what _chain_products hands to the block product
-        assert np.array_equal(_block_products(F[:head], A[:head]), np.matmul(F[:head], A[:head]))
-
-
 @pytest.mark.parametrize(
     "env_id", ["WheeledPuma-Circle-v0", "WheeledUR5-Line-v0", "WheeledPanda-Circle-v0", "WheeledRandomArm-Line-v0"]
 )
-def test_robot_jacobians_equal_the_per_state_functions(env_id):
-    """One robot's Jacobians at many states in one pass (eval's Jacobian metrics) equal, bit for bit, the single
-    env's functions state by state: standard and modified DH, theta offsets, worn lengths."""
+def test_one_call_of_many_states_equals_the_per_state_functions(env_id):
+    """One robot's Jacobians at many states in one engine call (eval's Jacobian metrics) equal, bit for bit, the
+    per-state functions of `mobman_env.kinematics`: standard and modified DH, theta offsets, worn lengths."""
     env = gym.make(env_id, dynamics="kinematic")
     env.reset(seed=10_401)
     p = env.unwrapped.true_params
     env.close()
     rng = np.random.default_rng(10_402)
     q, yaw = rng.uniform(-3.0, 3.0, (23, p.n_joints)), rng.uniform(-7.0, 7.0, 23)
+    arm, prm = E.packed([p])
     for full, single in ((False, K.paper_jacobian), (True, K.whole_body_jacobian)):
         expected = np.array([single(p, q[i], float(yaw[i])) for i in range(len(q))])
-        got = robot_jacobians(p, q, yaw, full)
-        assert got.shape == expected.shape and np.array_equal(got, expected)
-        assert np.array_equal(robot_jacobians(p, q[:1], yaw[:1], full), expected[:1])
+        got = np.empty(expected.shape)
+        E.jacobians(arm, prm, np.zeros(len(q), dtype=np.intp), q, yaw, full, got)
+        assert np.array_equal(got, expected)
 
 
 def test_spaces_and_physics_fallback():
@@ -193,7 +180,7 @@ def test_spaces_and_physics_fallback():
     assert venv.observation_space.contains(obs)
     venv.close()
     phys = gym.make_vec("WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="vector_entry_point")
-    assert isinstance(phys, gym.vector.SyncVectorEnv)
+    assert isinstance(phys, PhysicsVectorEnv) and isinstance(phys, gym.vector.SyncVectorEnv)
     assert phys.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
     phys.close()
 
@@ -201,7 +188,10 @@ def test_spaces_and_physics_fallback():
 @pytest.mark.parametrize(
     ("call", "match"),
     [
-        (lambda: WheeledPumaVectorEnv(0), "num_envs must be an integer >= 1"),
+        (lambda: WheeledPumaVectorEnv(0), r"num_envs must be an integer in \[1, "),
+        (lambda: WheeledPumaVectorEnv(10**12), r"1000000000000.*step several vector envs"),
+        (lambda: WheeledPumaVectorEnv(MAX_NUM_ENVS + 1), "num_envs"),
+        (lambda: WheeledPumaVectorEnv(2.0), "num_envs"),
         (lambda: WheeledPumaVectorEnv(2, dynamics="physics"), "kinematic mode only"),
         (lambda: WheeledPumaVectorEnv(2, render_mode="rgb_array"), "does not render"),
         (lambda: WheeledPumaVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED), "not supported"),
@@ -227,3 +217,68 @@ def test_bad_actions_and_options_raise():
     venv.close()
     with pytest.raises(RuntimeError, match="closed"):
         venv.reset()
+
+
+@pytest.mark.parametrize(
+    ("seed", "match"),
+    [
+        ([10, 11, 12, "z"], r"seed\[3\] = 'z'.*robot 3"),
+        (1.5, "seed 1.5 is not accepted"),
+        ("abc", "seed 'abc' is not accepted"),
+        ([10, 11, 12], "got 3 seeds for 4 robots"),
+        (-1, "seed must be >= 0"),
+        ([10, True, 12, 13], r"seed\[1\] = True"),
+    ],
+)
+def test_a_refused_reset_leaves_every_robot_as_it_was(seed, match):
+    """Seeds are checked for every robot before any generator or state changes: after a refused reset the vector
+    env steps on exactly as if the call had not happened."""
+    a = np.random.default_rng(0).uniform(-1, 1, (3, 4, 8))
+    runs = []
+    for refuse in (False, True):
+        venv = WheeledPumaVectorEnv(4, path={"type": "circle", "duration": 1.0})
+        venv.reset(seed=[10_900, 10_901, 10_902, 10_903])
+        venv.step(a[0])
+        if refuse:
+            with pytest.raises(ValueError, match=match):
+                venv.reset(seed=seed)
+        runs.append([venv.step(x)[0]["ee_pos"].copy() for x in a[1:]])
+        venv.close()
+    np.testing.assert_array_equal(runs[0], runs[1])
+
+
+def test_a_numpy_array_of_seeds_is_a_list_of_seeds():
+    venv = WheeledPumaVectorEnv(3, path={"type": "circle", "duration": 1.0})
+    obs_a, _ = venv.reset(seed=np.array([10_910, 10_911, 10_912]))
+    obs_b, _ = venv.reset(seed=[10_910, 10_911, 10_912])
+    np.testing.assert_array_equal(obs_a["ee_pos"], obs_b["ee_pos"])
+    venv.close()
+
+
+@pytest.mark.parametrize("pose", [[1e308, 0.0, 0.0], [0.0, -1e4, 0.0], [0.0, 0.0, 40.0]])
+def test_an_absurd_base_pose_is_refused(pose):
+    venv = WheeledPumaVectorEnv(2)
+    with pytest.raises(ValueError, match=r"base_pose.*\[-100, 100\] m"):
+        venv.reset(seed=10_920, options={"base_pose": pose})
+    with pytest.raises(ValueError, match="base_pose"):
+        WheeledPumaEnv(dynamics="kinematic", base_pose=pose)
+    venv.close()
+
+
+def test_a_physics_vector_env_checks_every_row_before_stepping_any():
+    """A NaN in row 1 is refused, naming the row, before row 0's world moved."""
+    venv = gym.make_vec("WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    obs, _ = venv.reset(seed=10_930)
+    a = np.zeros((2, 8))
+    a[0] = 0.5
+    a[1, 3] = np.nan
+    with pytest.raises(ValueError, match="robot 1"):
+        venv.step(a)
+    a[1, 3] = 0.0
+    first, *_ = venv.step(a)
+    venv.close()
+    fresh = gym.make_vec("WheeledPuma-Circle-v0", num_envs=2, vectorization_mode="vector_entry_point")
+    fresh.reset(seed=10_930)
+    expected, *_ = fresh.step(a)
+    fresh.close()
+    np.testing.assert_array_equal(first["ee_pos"], expected["ee_pos"])

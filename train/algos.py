@@ -20,9 +20,12 @@ from __future__ import annotations
 import copy
 import inspect
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:  # the annotation only: importing train loads neither torch nor SB3
+    from stable_baselines3.common.base_class import BaseAlgorithm
 
 ACTIVATIONS = ("relu", "tanh", "elu", "leaky_relu")
 NOISE_TYPES = ("normal", "ornstein_uhlenbeck")
@@ -40,7 +43,7 @@ class AlgoSpec:
     defaults: dict
     normalize_reward: bool
 
-    def load_class(self) -> type:
+    def load_class(self) -> type[BaseAlgorithm]:
         import importlib
 
         module, name = self.class_path.split(":")
@@ -123,7 +126,7 @@ def get(name: str) -> AlgoSpec:
 
 def accepted_keys(name: str) -> tuple[str, ...]:
     """The constructor arguments of the algorithm a hyperparameter file may set."""
-    params = inspect.signature(get(name).load_class().__init__).parameters
+    params = inspect.signature(get(name).load_class()).parameters
     return tuple(k for k in params if k not in ("self",) + RESERVED)
 
 

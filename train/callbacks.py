@@ -20,7 +20,7 @@ log = logging.getLogger("train")
 class CheckpointSaver(BaseCallback):
     """Every `freq` env steps call `save(model)` (which writes model, normaliser and replay buffer)."""
 
-    def __init__(self, freq: int, save: Callable[[Any], None]):
+    def __init__(self, freq: int, save: Callable[[Any], object]):
         super().__init__()
         self.freq = freq
         self.save = save
@@ -51,7 +51,7 @@ class PeriodicEval(BaseCallback):
         reference: dict | None,
         t0: float,
         wall_offset: float = 0.0,
-        on_result: Callable[[Any, dict], None] | None = None,
+        on_result: Callable[[Any, dict], object] | None = None,
     ):
         super().__init__()
         self.on_result = on_result

@@ -14,78 +14,89 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
+from eval.cli.options import Opt, add_options, build, field_default, flags, given, json_object
 from mobman_env import __version__
 from mobman_env.sim import DYNAMICS_MODES
-from train import algos, zoo
+from train import algos, report_cli, zoo
 from train.config import LEARNING_ENV_KWARGS, TrainConfig
 
-#: CLI options that may be given with --resume (everything else comes from the run's config.json).
-RESUME_OPTIONS = ("timesteps", "no_progress")
+#: The --help note on --resume (checkpoints hold pickles), beside mobman-eval's note on agents.
+RESUME_TRUST_NOTE = (
+    "Resume only run folders you trust: a checkpoint's model zip, vecnormalize_*.pkl and replay_buffer.pkl hold "
+    "pickles; mobman reads them with a restricted unpickler (an allow-list of SB3, gymnasium, torch and numpy "
+    "names), which narrows but does not sandbox what a crafted file can do. The same holds for agents given to "
+    "`mobman-eval` and `mobman-train report`."
+)
+
+#: TrainConfig fields whose options may be given with --resume (everything else comes from the run's config.json).
+RESUME_OPTIONS = ("timesteps", "progress_bar")
+
+
+#: the options of a training run (`TrainConfig`'s fields)
+OPTIONS = (
+    Opt("algo", choices=algos.algo_names()),
+    Opt("env_id", flag="--env", metavar="ID"),
+    Opt("timesteps", metavar="N"),
+    Opt("n_envs", metavar="K"),
+    Opt("seed", metavar="S"),
+    Opt("dynamics", choices=DYNAMICS_MODES),
+    Opt(
+        "env_kwargs",
+        metavar="JSON",
+        parse=str,  # a JSON object merged over LEARNING_ENV_KWARGS by config_from_args (null unsets a key)
+        more='Given as a JSON object, merged over the default (null unsets a key, e.g. {"error_bound": null}).',
+    ),
+    Opt("alive_bonus", metavar="R"),
+    Opt(
+        "hyperparams",
+        metavar="FILE",
+        parse=str,  # read by load_hyperparams
+        more="The file holds a flat mapping, a mapping per algorithm name, or an rl-baselines3-zoo entry per env id "
+        "(e.g. train/hyperparams/ppo.yml; its n_timesteps, normalize and env_wrapper set those settings; see "
+        "train.zoo). What the command line sets wins over the file.",
+    ),
+    Opt("eval_freq", metavar="N"),
+    Opt("eval_episodes", metavar="N"),
+    Opt("final_eval_episodes", metavar="N"),
+    Opt("checkpoint_freq", metavar="N"),
+    Opt("torch_threads", metavar="T"),
+    "device",
+    "tensorboard",
+    Opt("out", metavar="DIR"),
+    "overwrite",
+    Opt("progress_bar", flag="--quiet", old=("--no-progress",)),
+    Opt("verbose", choices=(0, 1, 2)),
+)
+
+
+@dataclass(frozen=True)
+class Resume:
+    """`mobman-train --resume DIR`: continue a run instead of starting one."""
+
+    resume: str | None = None
+    """Continue the run in this folder from its latest checkpoint; its config.json gives every setting but
+    --timesteps (the new total) and --quiet."""
+
+
+RESUME = (Opt("resume", metavar="DIR"),)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    d = TrainConfig()
     p = argparse.ArgumentParser(
         prog="mobman-train",
         description="Train a Stable-Baselines3 agent on a mobman env; the run folder holds model.zip, "
-        "vecnormalize.pkl and config.json, which `mobman-eval run --policy sb3:DIR/model.zip` loads.",
+        "vecnormalize.pkl and config.json, which `mobman-eval run --policy sb3:DIR/model.zip` loads. "
+        "`mobman-train report RUN_DIR...` evaluates several runs into one report.",
+        epilog=RESUME_TRUST_NOTE,
     )
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    p.add_argument("--algo", choices=algos.algo_names(), help=f"algorithm (default {d.algo})")
-    p.add_argument("--env", dest="env_id", metavar="ID", help=f"env id (default {d.env_id})")
-    p.add_argument("--timesteps", type=int, metavar="N", help=f"total env steps (default {d.timesteps})")
-    p.add_argument(
-        "--n-envs", type=int, metavar="K", help=f"parallel envs; SubprocVecEnv when > 1 (default {d.n_envs})"
-    )
-    p.add_argument("--seed", type=int, metavar="S", help=f"training seed, a development seed 0-999 (default {d.seed})")
-    p.add_argument("--out", metavar="DIR", help="run folder (default runs/train-<algo>-<task>-<timestamp>)")
-    p.add_argument("--overwrite", action="store_true", help="allow a non-empty --out")
-    p.add_argument("--dynamics", choices=DYNAMICS_MODES, help=f"env dynamics (default {d.dynamics})")
-    p.add_argument(
-        "--env-kwargs",
-        metavar="JSON",
-        help=f"extra env arguments as a JSON object, merged over the learning defaults "
-        f'{json.dumps(LEARNING_ENV_KWARGS)} (use null to unset one, e.g. {{"error_bound": null}})',
-    )
-    p.add_argument("--alive-bonus", type=float, metavar="R", help=f"training reward per step (default {d.alive_bonus})")
-    p.add_argument(
-        "--hyperparams",
-        metavar="FILE",
-        help="YAML or JSON file of hyperparameters overriding the algorithm's defaults: a flat mapping, a "
-        "mapping per algorithm name, or an rl-baselines3-zoo file (a mapping per env id, e.g. "
-        "train/hyperparams/ppo.yml; its n_timesteps, normalize and env_wrapper set those settings; see train.zoo)",
-    )
-    p.add_argument(
-        "--eval-freq",
-        type=int,
-        metavar="N",
-        help=f"evaluate on development seeds every N steps, 0: never (default {d.eval_freq})",
-    )
-    p.add_argument(
-        "--eval-episodes", type=int, metavar="N", help=f"episodes per evaluation (default {d.eval_episodes})"
-    )
-    p.add_argument(
-        "--final-eval-episodes",
-        type=int,
-        metavar="N",
-        help=f"episodes of the final evaluation on reported seeds, 0: skip (default {d.final_eval_episodes})",
-    )
-    p.add_argument(
-        "--checkpoint-freq", type=int, metavar="N", help=f"checkpoint every N steps (default {d.checkpoint_freq})"
-    )
-    p.add_argument("--torch-threads", type=int, metavar="T", help=f"torch threads (default {d.torch_threads})")
-    p.add_argument("--device", help=f"torch device (default {d.device})")
-    p.add_argument("--tensorboard", action="store_true", help="write TensorBoard logs to DIR/tensorboard")
-    p.add_argument(
-        "--no-progress",
-        "--quiet",
-        action="store_true",
-        help="no progress bar (there is none either when stderr is not a terminal, e.g. in CI logs)",
-    )
-    p.add_argument("--verbose", type=int, choices=(0, 1, 2), help="SB3 verbosity")
-    p.add_argument("--resume", metavar="DIR", help="continue the run in DIR from its latest checkpoint")
+    add_options(p, TrainConfig, OPTIONS)
+    add_options(p, Resume, RESUME)
+    sub = p.add_subparsers(title="commands", dest="command", metavar="{report}")
+    report_cli.add_parser(sub)
     return p
 
 
@@ -125,50 +136,29 @@ def load_hyperparams(path: str, algo: str, env_id: str | None = None) -> dict:
 
 
 def config_from_args(args: argparse.Namespace) -> TrainConfig:
-    fields = {}
-    for name in (
-        "algo",
-        "env_id",
-        "timesteps",
-        "n_envs",
-        "seed",
-        "out",
-        "dynamics",
-        "alive_bonus",
-        "eval_freq",
-        "eval_episodes",
-        "final_eval_episodes",
-        "checkpoint_freq",
-        "torch_threads",
-        "device",
-        "verbose",
-    ):
-        value = getattr(args, name)
-        if value is not None:
-            fields[name] = value
-    fields["overwrite"] = args.overwrite
-    fields["tensorboard"] = args.tensorboard
+    """The TrainConfig of a parsed command line: what it gives over the hyperparameter file over the defaults;
+    --env-kwargs merged over `LEARNING_ENV_KWARGS`; a progress bar only on a terminal."""
+    fields = given(args, OPTIONS)
+    fields.pop("hyperparams", None)
     fields["progress_bar"] = _progress(args)
-    if args.env_kwargs is not None:
+    text = fields.pop("env_kwargs", None)
+    if text is not None:
         try:
-            extra = json.loads(args.env_kwargs)
-        except json.JSONDecodeError as exc:
-            raise ValueError(
-                f"--env-kwargs is not valid JSON ({exc}): {args.env_kwargs!r}; e.g. '{{\"model_error\": 0.0}}'"
-            ) from None
-        if not isinstance(extra, dict):
-            raise ValueError(f"--env-kwargs must be a JSON object, got {args.env_kwargs!r}")
+            extra = json_object(text)
+        except argparse.ArgumentTypeError as exc:
+            raise ValueError(str(exc)) from None
         merged = {**json.loads(json.dumps(LEARNING_ENV_KWARGS)), **extra}
         fields["env_kwargs"] = {k: v for k, v in merged.items() if v is not None}
-    if args.hyperparams is not None:  # what the command line sets wins over the file
-        file_fields = load_hyperparams(args.hyperparams, args.algo or TrainConfig().algo, args.env_id)
-        fields = {**file_fields, **fields}
+    hyperparams = getattr(args, "hyperparams", None)
+    if hyperparams is not None:  # what the command line sets wins over the file
+        algo = fields.get("algo", field_default(TrainConfig, "algo"))
+        fields = {**load_hyperparams(hyperparams, algo, fields.get("env_id")), **fields}
     return TrainConfig(**fields)
 
 
 def _progress(args: argparse.Namespace) -> bool:
-    """A progress bar unless --no-progress, and only on a terminal (a CI log would get one line per update)."""
-    return not args.no_progress and hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
+    """A progress bar unless --quiet, and only on a terminal (a CI log would get one line per update)."""
+    return getattr(args, "progress_bar", True) and hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
 
 
 def require_rl() -> None:
@@ -185,12 +175,12 @@ def require_rl() -> None:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv[:1] == ["report"]:
-        from train.report_cli import main as report_main
-
-        return report_main(argv[1:])
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "command", None) == "report":
+        if argv[:1] != ["report"]:
+            parser.error("report takes no training options: mobman-train report RUN_DIR... [report options]")
+        return report_cli.run(args)
     try:
         require_rl()
     except ValueError as exc:
@@ -199,16 +189,15 @@ def main(argv: list[str] | None = None) -> int:
     from train.run import TrainingInterrupted, resume, run
 
     try:
-        if args.resume:
-            given = [
-                a for a, v in vars(args).items() if a not in RESUME_OPTIONS + ("resume",) and v not in (None, False)
-            ]
-            if given:
+        folder = build(Resume, args, RESUME).resume
+        if folder:
+            extra = [flags(OPTIONS)[f] for f in given(args, OPTIONS) if f not in RESUME_OPTIONS]
+            if extra:
                 raise ValueError(
-                    f"--resume takes its settings from the run's config.json; only --timesteps and "
-                    f"--no-progress may be given with it, not {', '.join('--' + g.replace('_', '-') for g in given)}"
+                    f"--resume takes its settings from the run's config.json; only --timesteps and --quiet may be "
+                    f"given with it, not {', '.join(extra)}"
                 )
-            summary = resume(args.resume, timesteps=args.timesteps, progress_bar=_progress(args))
+            summary = resume(folder, timesteps=getattr(args, "timesteps", None), progress_bar=_progress(args))
         else:
             summary = run(config_from_args(args))
     except TrainingInterrupted as exc:

@@ -52,7 +52,9 @@ class TrainConfig:
     overwrite: bool = False
     """Allow writing into an existing non-empty `out` (its files are replaced)."""
     dynamics: str = "kinematic"
-    """Env dynamics mode for training and for every evaluation of this run ("kinematic" or "physics")."""
+    """Env dynamics mode for training and for every evaluation of this run ("kinematic" or "physics"). Default
+    kinematic, unlike `mobman-eval run` (physics, the envs' default): a physics step costs about 30 kinematic ones,
+    and training takes 1e5-1e6 of them."""
     env_kwargs: dict = field(default_factory=lambda: json.loads(json.dumps(LEARNING_ENV_KWARGS)))
     """Extra env constructor arguments for training (not `dynamics`). Defaults: `LEARNING_ENV_KWARGS`. The
     learning-only keys (`LEARNING_ONLY_KEYS`) are dropped for evaluation; the others (e.g. `model_error`,
@@ -96,7 +98,8 @@ class TrainConfig:
     tensorboard: bool = False
     """Write TensorBoard logs to `<out>/tensorboard`."""
     progress_bar: bool = True
-    """Show SB3's progress bar."""
+    """Show SB3's progress bar (`mobman-train` shows it only when stderr is a terminal: a CI log would get a line
+    per update)."""
     verbose: int = 0
     """SB3 verbosity (0, 1, 2)."""
 

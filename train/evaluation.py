@@ -122,7 +122,7 @@ def eval_command(cfg) -> str:
     parts = ["mobman-eval", "run", "--env", cfg.envs[0]]
     for p in cfg.policies:
         parts += ["--policy", p]
-    parts += ["--episodes", str(cfg.episodes), "--seed", str(cfg.seed), "--dynamics", cfg.dynamics[0]]
+    parts += ["--seeds", str(cfg.episodes), "--seed", str(cfg.seed), "--dynamics", cfg.dynamics[0]]
     if cfg.model_error is not None:
         parts += ["--model-error", repr(cfg.model_error)]
     if cfg.obs_noise is not None:

@@ -24,7 +24,7 @@ What it does, in order (`build_report(ReportConfig)`):
    per evaluation step the IQM over seeds of the periodic evaluation (learning curves).
 4. Writes `OUT/results.json` (config, provenance, runs, family rows, controller rows, curves, and every
    reported episode under "episodes"), `curves.csv` (per run), `curves_iqm.csv` (per family), `curves.png`,
-   `summary.md` (the Markdown tables that `mobman-eval readme` copies into the README) and `config.json`.
+   `summary.md` (the Markdown tables that `mobman-eval readme` copies into docs/rl/index.md) and `config.json`.
 
 The training code's commit is not in a run folder (`config.json` records versions only): pass it as
 `--train-commit`; it is recorded as given.
@@ -36,7 +36,6 @@ Imports: the standard library, numpy, `eval` (run, config, metrics, output) and 
 from __future__ import annotations
 
 import csv
-import hashlib
 import io
 import json
 import math
@@ -44,7 +43,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from eval.metrics import DEFAULT_TOLERANCE
-from mobman_env.validation import integer
+from mobman_env.validation import folder_name, integer
+from policies.untrusted import file_sha256
 from train.curve import read_curve
 from train.evaluation import eval_command
 from train.report_archive import read_json as _json
@@ -112,8 +112,12 @@ class ReportConfig:
         object.__setattr__(self, "controllers", tuple(self.controllers))
         object.__setattr__(self, "env_kwargs", dict(self.env_kwargs))
         object.__setattr__(self, "ship", tuple((str(a), str(f)) for a, f in self.ship))
+        for alias, _ in self.ship:
+            folder_name(
+                "--ship ALIAS", alias, hint="the alias is a folder of models_dir, e.g. --ship ppo-circle=ppo-kinematic"
+            )
         object.__setattr__(self, "include", tuple(str(p) for p in self.include))
-        integer("episodes", self.episodes, low=1, hint="e.g. --episodes 20")
+        integer("episodes", self.episodes, low=1, hint="the number of seeds, e.g. --seeds 20")
         integer("seed", self.seed, low=10_000, hint="reported seeds start at 10000; tune on 0-999")
         integer("workers", self.workers, low=1, hint="e.g. --workers 1")
         if not self.runs and not self.include:
@@ -134,12 +138,8 @@ class ReportConfig:
 # --- reading run folders ---------------------------------------------------------------------------------
 
 
-def sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
+#: The SHA-256 of a file (hex): the model identity the report caches its evaluations under.
+sha256 = file_sha256
 
 
 #: config.json entries that must agree between the seeds of one family.
@@ -163,12 +163,20 @@ def read_run(path: str | Path) -> dict:
     d = Path(path)
     if not (d / "config.json").is_file():
         raise ValueError(f"{d} is not a mobman-train run folder (no config.json); give the folders of the runs")
+    name = folder_name(
+        f"run folder {str(path)!r}: its name",
+        d.resolve().name,
+        hint="give the run folder by a path that ends in its name",
+    )
     cfg = _json(d / "config.json")
+    _require(d / "config.json", cfg, {"algo": str, "dynamics": str, "env_id": str, "seed": int, "timesteps": int})
     curve = read_curve(d / "learning_curve.csv")
-    summary = _json(d / "summary.json") if (d / "summary.json").is_file() else {}
+    summary = _json(d / "summary.json") if (d / "summary.json").exists() else {}
     done = summary.get("status") == "done" and (d / "model.zip").is_file()
+    if done:
+        _require(d / "summary.json", summary, {"timesteps": int, "wall_s": float})
     run = {
-        "name": d.name,
+        "name": name,
         "path": str(d.resolve()),
         "family": f"{cfg['algo']}-{cfg['dynamics']}",
         "seed": int(cfg["seed"]),
@@ -180,13 +188,27 @@ def read_run(path: str | Path) -> dict:
         "eval_env_kwargs": {k: v for k, v in cfg.get("eval_env_kwargs", {}).items() if k != "dynamics"},
         "hyperparams": cfg.get("hyperparams_resolved", cfg.get("hyperparams", {})),
         "hyperparams_overrides": cfg.get("hyperparams", {}),
-        "train_command": train_command(cfg, f"runs/{d.name}"),
+        "train_command": train_command(cfg, f"runs/{name}"),
         "versions": cfg.get("versions", {}),
         "curve": curve,
     }
     if done:
         run["model_sha256"] = sha256(d / "model.zip")
     return run
+
+
+def _require(path: Path, data: dict, types: dict[str, type]) -> None:
+    """ValueError naming the file, the key and what it must be when `data` lacks a key of `types` or holds a
+    value of another type (an int is a float; a bool is neither)."""
+    for key, kind in types.items():
+        value = data.get(key)
+        accepted = (int, float) if kind is float else (kind,)
+        if value is None or isinstance(value, bool) or not isinstance(value, accepted):
+            shown = "missing" if key not in data else f"{value!r}"
+            raise ValueError(
+                f"{path}: {key!r} must be {'a number' if kind is float else 'an integer' if kind is int else 'a text'}"
+                f", got {shown}; this file is not what mobman-train writes: copy it again from the run"
+            )
 
 
 def train_command(cfg: dict, out: str) -> str:

@@ -18,17 +18,27 @@ on the command line wins over an archived run of the same name.
 Every carried run says where it came from (`archived_from`) and which code trained it (`train_commit`, from
 the old report's record).
 
-Imports: the standard library and `train.evaluation`; what it needs of `train.report` (which imports this
+Run names become folder names (`evals/<name>/`), so each must be one plain path component
+(`mobman_env.validation.folder_name`): a results.json naming a run `../x` is refused, never written outside.
+
+Every file is read as a regular file with a size cap (`read_json`, `train.curve.read_curve`): a curves.csv
+symlinked to /dev/zero or a FIFO is refused, never read.
+
+Imports: the standard library, `mobman_env.validation`, `policies.untrusted`, `train.curve` and
+`train.evaluation`; what it needs of `train.report` (which imports this
 module) is handed in as an `Evaluation`.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 import shutil
 from pathlib import Path
 from typing import Any, NamedTuple
+
+from mobman_env.validation import folder_name
+from policies.untrusted import FileRefused, read_regular
+from train.curve import read_curve
 
 #: The schema of the report results this module reads (`train.report.build_report` writes it).
 REPORT_SCHEMA = "mobman-rl-report-1"
@@ -47,10 +57,17 @@ class Evaluation(NamedTuple):
 RUN_COLUMNS = ("family", "run", "seed")
 
 
+#: Cap on a JSON file a report reads (a report's results.json with every episode: about 0.3 MB).
+MAX_JSON_BYTES = 64 * 2**20
+
+
 def read_json(path: Path) -> dict:
-    """The JSON object in `path`; ValueError naming the file when it is unreadable or not an object."""
+    """The JSON object in `path`; ValueError naming the file when it is not a regular file of at most
+    `MAX_JSON_BYTES` (`policies.untrusted.read_regular`), unreadable or not an object."""
     try:
-        data = json.loads(path.read_text())
+        data = json.loads(read_regular(path, MAX_JSON_BYTES, "JSON file"))
+    except FileRefused:
+        raise
     except (OSError, ValueError) as exc:
         raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
     if not isinstance(data, dict):
@@ -65,9 +82,8 @@ def archived_curves(folder: Path) -> dict[str, list[dict]]:
     if not path.is_file():
         raise ValueError(f"{folder} holds no curves.csv; --include takes a folder written by mobman-train report")
     curves: dict[str, list[dict]] = {}
-    with open(path, newline="") as f:
-        for row in csv.DictReader(f):
-            curves.setdefault(row["run"], []).append({k: float(v) for k, v in row.items() if k not in RUN_COLUMNS})
+    for row in read_curve(path, run_columns=RUN_COLUMNS):
+        curves.setdefault(str(row.get("run")), []).append({k: v for k, v in row.items() if k not in RUN_COLUMNS})
     return curves
 
 
@@ -93,7 +109,11 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
     for entry in old["runs"]:
         if entry.get("status") != "done":
             continue
-        name = entry["name"]
+        name = folder_name(
+            f"--include {folder}: results.json's run name",
+            entry.get("name"),
+            hint="a report names each run by its folder's name, and writes evals/<name>/; restore the file",
+        )
         cached = folder / "evals" / name
         if not (cached / "inputs.json").is_file() or not (cached / "results.json").is_file():
             raise ValueError(f"--include {folder}: run {name} has no cached evaluation in {cached}")

@@ -26,6 +26,7 @@ import functools
 import logging
 import signal
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -40,6 +41,7 @@ from train.runfolder import (
     latest_checkpoint,
     load_run_config,
     make_run_folder,
+    read_checkpoint,
     read_json_file,
     run_config_dict,
     save_checkpoint,
@@ -82,7 +84,7 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     sub = config.n_envs > 1
-    fns = [
+    fns: list[Callable[[], gym.Env]] = [
         functools.partial(
             _make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys, config.alive_bonus, sub
         )
@@ -275,12 +277,13 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
             f"{out} already has {ckpt['steps']} steps >= timesteps {config.timesteps}; pass a larger "
             f"--timesteps to train further"
         )
+    state = read_checkpoint(ckpt, out)  # before anything is written: a refused checkpoint changes nothing
     _prepare(config, build_model=False)
     setup_logging(out)
     write_json(out / "config.json", run_config_dict(config))
     torch.set_num_threads(config.torch_threads)
     venv = VecMonitor(make_vec_env(config, seed_offset=ckpt["steps"]), str(out / f"monitor_{ckpt['steps']}.csv"))
-    model = load_checkpoint(config, ckpt, out, venv)
+    model = load_checkpoint(config, ckpt, out, venv, state)
     # SB3's load() re-seeds the env with the run's own seed (set_random_seed(seed) -> env.seed(seed)), which
     # would replay the first session's episodes: seed the resumed session with seed + steps done instead
     model.set_random_seed(config.seed + ckpt["steps"])
@@ -289,26 +292,30 @@ def resume(run_dir: Path | str, timesteps: int | None = None, progress_bar: bool
     return _train(config, model, out, wall_offset=_wall_so_far(out))
 
 
-def load_checkpoint(config: TrainConfig, ckpt: dict, out: Path, venv: Any) -> Any:
-    """The model (with its normaliser and replay buffer) of checkpoint entry `ckpt` on `venv`."""
-    from stable_baselines3.common.vec_env import VecNormalize
-
-    folder = out / "checkpoints"
-    if ckpt["vecnormalize"]:
-        venv = VecNormalize.load(str(folder / ckpt["vecnormalize"]), venv)
+def load_checkpoint(config: TrainConfig, ckpt: dict, out: Path, venv: Any, state: dict) -> Any:
+    """The model (with its normaliser and replay buffer) of checkpoint entry `ckpt` on `venv`; the pickled
+    parts come from `read_checkpoint` (`state`), never from plain pickle."""
+    if state["vecnormalize"] is not None:
+        state["vecnormalize"].set_venv(venv)  # what VecNormalize.load does after unpickling
+        venv = state["vecnormalize"]
         venv.training = True
     model = (
         algos.get(config.algo)
         .load_class()
         .load(
-            folder / ckpt["model"],
+            out / "checkpoints" / ckpt["model"],
             env=venv,
             device=config.device,
             tensorboard_log=str(out / "tensorboard") if config.tensorboard else None,
+            custom_objects=state["custom_objects"],
         )
     )
-    if ckpt["replay_buffer"]:
-        model.load_replay_buffer(folder / ckpt["replay_buffer"])
+    if state["replay_buffer"] is not None:
+        from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+        assert isinstance(model, OffPolicyAlgorithm)  # only off-policy runs save a replay buffer
+        model.replay_buffer = state["replay_buffer"]  # what load_replay_buffer does after unpickling
+        model.replay_buffer.device = model.device
     return model
 
 

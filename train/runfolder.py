@@ -5,11 +5,13 @@ from __future__ import annotations
 import json
 import logging
 import os
+import pickle
 import sys
 from pathlib import Path
 from typing import Any
 
 from eval.output.provenance import versions
+from mobman_env.validation import folder_name
 from train.callbacks import write_json
 from train.config import TrainConfig
 
@@ -90,13 +92,57 @@ def latest_checkpoint(run_dir: Path) -> dict | None:
         raise ValueError(
             f"{path} is not a checkpoint index (keys {list(CHECKPOINT_KEYS)}, an integer 'steps'); got {entry}"
         )
-    for key in ("model", "vecnormalize", "replay_buffer"):
-        name = entry[key]
-        if name is not None and not (folder / str(name)).is_file():
+    names = {k: entry[k] for k in ("model", "vecnormalize", "replay_buffer") if entry[k] is not None}
+    for key, name in names.items():
+        folder_name(f"{path}: {key}", name, hint="a file of checkpoints/; restore latest.json, or start a new run")
+    for key, name in names.items():
+        if not (folder / str(name)).is_file():
             raise ValueError(
                 f"{path} names {key} file {folder / str(name)}, which is missing; restore it, or start a new run"
             )
     return entry
+
+
+#: What a mobman-train checkpoint may unpickle: SB3's checkpoint state and mobman-train's own schedule.
+CHECKPOINT_PAIRS = frozenset({("train.algos", "LinearSchedule")})
+
+
+def read_checkpoint(ckpt: dict, out: Path) -> dict:
+    """The pickled parts of checkpoint entry `ckpt`, read through `policies.untrusted`'s allow-list (never
+    plain pickle; SB3 reads the weights with `weights_only=True`): {"custom_objects": every serialized entry
+    of the model.zip, "vecnormalize": a VecNormalize without its venv or None, "replay_buffer": a
+    ReplayBuffer or None}. ValueError naming the file when one is refused or unreadable; nothing is
+    written."""
+    from stable_baselines3.common.buffers import ReplayBuffer
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    from policies.sb3_files import read_zip_data, safe_custom_objects
+    from policies.untrusted import ALLOWED_CHECKPOINT, UnsafePickleError, load_pickle_file
+
+    folder = Path(out) / "checkpoints"
+    allowed = ALLOWED_CHECKPOINT | CHECKPOINT_PAIRS
+    model = folder / str(ckpt["model"])
+    state: dict = {"custom_objects": safe_custom_objects(read_zip_data(model), model, allowed)}
+    for key, cls, what in (
+        ("vecnormalize", VecNormalize, "VecNormalize statistics"),
+        ("replay_buffer", ReplayBuffer, "a replay buffer"),
+    ):
+        state[key] = None
+        if ckpt[key] is None:
+            continue
+        path = folder / str(ckpt[key])
+        try:
+            obj = load_pickle_file(path, allowed, f"a mobman-train checkpoint's {what}")
+        except UnsafePickleError as exc:
+            raise ValueError(f"{path}: {exc}; resume only from checkpoints you trust") from None
+        except (ValueError, pickle.UnpicklingError, EOFError, AttributeError, TypeError, ImportError) as exc:
+            raise ValueError(
+                f"cannot resume from {path} ({type(exc).__name__}: {exc}); restore it, or start a new run"
+            ) from None
+        if not isinstance(obj, cls):
+            raise ValueError(f"cannot resume from {path}: it holds a {type(obj).__name__}, not {what}")
+        state[key] = obj
+    return state
 
 
 def setup_logging(out: Path, verbose: bool = True) -> None:
@@ -119,7 +165,7 @@ def save_checkpoint(model: Any, out: Path, off_policy: bool) -> dict:
     ckpt = out / "checkpoints"
     ckpt.mkdir(exist_ok=True)
     n = int(model.num_timesteps)
-    entry = {"steps": n, "model": f"model_{n}_steps.zip", "vecnormalize": None, "replay_buffer": None}
+    entry: dict[str, Any] = {"steps": n, "model": f"model_{n}_steps.zip", "vecnormalize": None, "replay_buffer": None}
     model.save(ckpt / entry["model"])
     vn = model.get_vec_normalize_env()
     if vn is not None:

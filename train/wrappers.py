@@ -21,6 +21,7 @@ rewards.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import SupportsFloat
 
 import gymnasium as gym
 import numpy as np
@@ -75,6 +76,8 @@ class AgentObservation(gym.ObservationWrapper):
         check_wrappers(wrappers)
         self.wrappers = tuple(wrappers)
         self.obs_keys = tuple(obs_keys)
+        if not isinstance(env.observation_space, spaces.Dict):
+            raise ValueError(f"AgentObservation needs a Dict observation space, got {env.observation_space}")
         self.observation_space = transform_space(env.observation_space, self.wrappers, self.obs_keys)
 
     def observation(self, observation: dict) -> dict:
@@ -88,5 +91,5 @@ class AliveBonus(gym.RewardWrapper):
         super().__init__(env)
         self.bonus = float(bonus)
 
-    def reward(self, reward: float) -> float:
+    def reward(self, reward: SupportsFloat) -> SupportsFloat:
         return float(reward) + self.bonus

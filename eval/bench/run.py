@@ -17,24 +17,32 @@ controllers or conditions may be added later; the tolerance, settle time and ext
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from contextlib import nullcontext
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
-from eval.bench.config import CONDITIONS, BenchConfig
-from eval.bench.scorecard import build_scorecard, scorecard_figures, scorecard_json_text, scorecard_markdown
+from eval.bench import against as A
+from eval.bench.config import CONDITIONS, HELDOUT_COMMIT, HELDOUT_SHA256, PROTOCOL_VERSION, BenchConfig
+from eval.bench.scorecard import (
+    build_scorecard,
+    scorecard_figures,
+    scorecard_json_text,
+    scorecard_markdown,
+    track_episodes,
+)
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text, check_out
+from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text, check_out, read_folder_record
+from eval.output.journal import FolderLock
 from eval.sweep.config import SweepConfig
-from eval.sweep.run import run_sweep
+from eval.sweep.run import check_sweep, run_sweep
 from mobman_env.validation import integer
 
 #: bench settings that must not change within one output directory
-FIXED_KEYS = ("tolerance", "settle_time", "env_kwargs")
+FIXED_KEYS = ("version", "tolerance", "settle_time", "env_kwargs")
 
 DEFAULT_OUT = Path("runs") / "bench"
 
@@ -51,12 +59,12 @@ class BenchResult:
 
 
 def sweep_for(cfg: BenchConfig, condition: str) -> SweepConfig:
-    """The sweep grid of one condition of a resolved bench."""
+    """The sweep grid of one condition of a resolved bench: its robots x tasks, the controllers, its seeds."""
     c = CONDITIONS[condition]
     return SweepConfig(
-        envs=cfg.env_ids(),
+        envs=cfg.env_ids(condition),
         policies=tuple(cfg.policies or ()),
-        seeds=cfg.seed_list,
+        seeds=cfg.seed_list(condition),
         dynamics=(c.dynamics,),
         model_error=(c.model_error,),
         obs_noise=(c.obs_noise,),
@@ -69,14 +77,24 @@ def sweep_for(cfg: BenchConfig, condition: str) -> SweepConfig:
 def protocol_dict(cfg: BenchConfig) -> dict:
     """The resolved protocol as recorded in bench.json and scorecard.json."""
     assert cfg.conditions is not None and cfg.policies is not None
+    envs = list(dict.fromkeys(e for name in cfg.conditions for e in cfg.env_ids(name)))
     return {
-        "version": 1,
-        "robots": list(cfg.robots),
+        "version": PROTOCOL_VERSION,
+        "track": cfg.track,
+        "heldout_sha256": HELDOUT_SHA256,
+        "heldout_commit": HELDOUT_COMMIT,
+        "robots": list(dict.fromkeys(r for name in cfg.conditions for r in cfg.condition_robots(name))),
         "tasks": list(cfg.tasks),
-        "envs": list(cfg.env_ids()),
-        "conditions": {name: CONDITIONS[name].to_dict() for name in cfg.conditions},
+        "envs": envs,
+        "conditions": {
+            name: {**CONDITIONS[name].to_dict(), "envs": list(cfg.env_ids(name)), "seeds": list(cfg.seed_list(name))}
+            for name in cfg.conditions
+        },
         "policies": list(cfg.policies),
-        "seeds": list(cfg.seed_list),
+        "seeds": list(cfg.seed_list(cfg.conditions[0])),
+        "seed_start": cfg.seed_start,
+        "kinematic_seeds": cfg.seeds,
+        "physics_seeds": cfg.physics_seeds,
         "tolerance": cfg.tolerance,
         "settle_time": cfg.settle_time,
         "env_kwargs": dict(cfg.env_kwargs),
@@ -95,8 +113,22 @@ def run_bench(
     retry_failed: bool = False,
     plots: bool = True,
     progress: bool = True,
+    against: str | Path | None = None,
 ) -> BenchResult:
-    """Run what is left of the bench in `out`, then write scorecard.json, scorecard.md and the plots."""
+    """Run what is left of the bench in `out`, then write scorecard.json, scorecard.md and the plots.
+
+    `against`: a committed bench (folder or scorecard.json) whose baselines' rows are reused after a sample of
+    them is run again bit for bit (`eval.bench.against`); then only `config.policies` run."""
+    committed: dict | None = None
+    against_record: dict[str, Any] | None = None
+    if against is not None:
+        if config.policies is None:
+            raise EvalError(
+                "--against runs only your controllers beside the committed scorecard's: name them with --policy "
+                "(e.g. --policy mymod:Ctrl)"
+            )
+        committed, sha = A.load_against(against)
+        against_record = {"scorecard": str(against), "sha256": sha}
     cfg, notes = config.resolved()
     out = Path(out) if out is not None else DEFAULT_OUT
     if max_episodes is not None and (
@@ -106,61 +138,94 @@ def run_bench(
     EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
     integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
     protocol = protocol_dict(cfg)
+    baselines: list[str] = []
+    if committed is not None:
+        A.check_protocol(committed, protocol)
+        assert cfg.policies is not None and cfg.conditions is not None and against_record is not None
+        baselines = [q for q in committed["protocol"]["policies"] if q not in cfg.policies]
+        samples = A.pick_samples(committed, baselines, list(cfg.conditions))
+        same, lines = A.check_samples(committed, samples)
+        against_record.update(samples_equal=same, samples=lines)
+        if progress:
+            print("bench --against: " + "\n  ".join(["committed baselines re-run here:", *lines]), file=sys.stderr)
+        if not same:
+            notes = [
+                *notes,
+                f"--against {against}: a committed baseline episode differs on this machine (see bench.json); the "
+                "baselines were run again here",
+            ]
+            cfg = replace(cfg, policies=(*cfg.policies, *baselines))
+            protocol = protocol_dict(cfg)
+            baselines = []
     _check_out_dir(out, protocol)
     sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
+    checked = {  # every condition's envs, policies and folder, before bench.json changes
+        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size)
+        for name, sweep in sweeps.items()
+    }
     out.mkdir(parents=True, exist_ok=True)
-    atomic_write_json(
-        out / "bench.json",
-        {
-            "command": "bench",
-            **protocol,
-            "notes": notes,
-            "out": str(out),
-            "backend": backend,
-            "address": address,
-            "workers": workers,
-            "batch_size": batch_size,
-        },
-    )
-    n_expected = sum(s.n_episodes for s in sweeps.values())
-    if progress:
-        for n in notes:
-            print(f"bench: {n}", file=sys.stderr)
-        print(
-            f"bench: {len(protocol['envs'])} tasks x {len(sweeps)} conditions x {len(cfg.policies or ())} "
-            f"controllers x {cfg.seeds} seeds = {n_expected} episodes in {out}",
-            file=sys.stderr,
+    with FolderLock(out, "bench"):  # a second bench on this --out stops here, before anything is written
+        atomic_write_json(
+            out / "bench.json",
+            {
+                "command": "bench",
+                **protocol,
+                "notes": notes,
+                "out": str(out),
+                "backend": backend,
+                "address": address,
+                "workers": workers,
+                "batch_size": batch_size,
+                "against": against_record,
+            },
         )
-    results: dict[str, dict] = {}
-    n_run = n_skipped = n_left = 0
-    budget = max_episodes
-    t0 = time.perf_counter()
-    session = _ray_session(backend, address, workers)
-    with session:
-        for name, sweep in sweeps.items():
-            if progress:
-                print(f"bench: condition {name}: {CONDITIONS[name].description}", file=sys.stderr)
-            res = run_sweep(
-                sweep,
-                out / "conditions" / name,
-                backend=backend,
-                address=address,
-                workers=workers,
-                batch_size=batch_size,
-                max_episodes=budget,
-                retry_failed=retry_failed,
-                plots=False,
-                progress=progress,
+        n_expected = sum(s.n_episodes for s in sweeps.values())
+        if progress:
+            for n in notes:
+                print(f"bench: {n}", file=sys.stderr)
+            print(
+                f"bench: track {cfg.track}, {len(sweeps)} conditions x {len(cfg.policies or ())} controllers "
+                f"({cfg.seeds} kinematic and {cfg.physics_seeds} physics seeds per cell) = {n_expected} episodes in "
+                f"{out}",
+                file=sys.stderr,
             )
-            results[name] = res.results
-            n_run += res.n_run
-            n_skipped += res.n_skipped
-            n_left += res.n_left
-            if budget is not None:
-                budget = max(0, budget - res.n_run)
-    sc = build_scorecard(protocol, notes, results, n_expected=n_expected, wall_s=time.perf_counter() - t0)
-    write_scorecard(out, sc, plots)
-    return BenchResult(out=out, scorecard=sc, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
+        results: dict[str, dict] = {}
+        n_run = n_skipped = n_left = 0
+        budget = max_episodes
+        t0 = time.perf_counter()
+        session = _ray_session(backend, address, workers)
+        with session:
+            for name, sweep in sweeps.items():
+                if progress:
+                    print(f"bench: condition {name}: {CONDITIONS[name].description}", file=sys.stderr)
+                res = run_sweep(
+                    sweep,
+                    out / "conditions" / name,
+                    backend=backend,
+                    address=address,
+                    workers=workers,
+                    batch_size=batch_size,
+                    max_episodes=budget,
+                    retry_failed=retry_failed,
+                    plots=False,
+                    progress=progress,
+                    checked=checked[name],
+                )
+                results[name] = res.results
+                n_run += res.n_run
+                n_skipped += res.n_skipped
+                n_left += res.n_left
+                if budget is not None:
+                    budget = max(0, budget - res.n_run)
+        sc = build_scorecard(protocol, notes, results, n_expected=n_expected, wall_s=time.perf_counter() - t0)
+        if committed is not None and baselines:
+            sc = A.merge(committed, sc, baselines, track_episodes(protocol, results))
+            sc["notes"] = [
+                *sc["notes"],
+                f"the rows of {', '.join(baselines)} are those of {against} (samples re-run here bit for bit)",
+            ]
+        write_scorecard(out, sc, plots)
+        return BenchResult(out=out, scorecard=sc, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
 
 
 def write_scorecard(out: Path, sc: dict, plots: bool = True) -> list[Path]:
@@ -193,12 +258,7 @@ def _check_out_dir(out: Path, protocol: dict) -> None:
     if not out.is_dir() or not any(out.iterdir()):
         check_out(out, overwrite=False)
         return
-    try:
-        old = json.loads((out / "bench.json").read_text())
-    except (OSError, ValueError):
-        old = None
-    if not isinstance(old, dict) or old.get("command") != "bench":
-        raise EvalError(f"--out {str(out)!r} exists and does not hold a bench (no bench.json); choose another --out")
+    old = read_folder_record(out, "bench.json", "bench")
     changed = [k for k in FIXED_KEYS if old.get(k) != protocol[k]]
     if changed:
         diff = "; ".join(f"{k}: {old.get(k)!r} there, {protocol[k]!r} now" for k in changed)

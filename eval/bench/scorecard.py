@@ -1,28 +1,35 @@
-"""The scorecard of a bench: per-condition sweep results -> scorecard.json (schema 2), scorecard.md, plots, and
+"""The scorecard of a bench: per-condition sweep results -> scorecard.json (schema 3), scorecard.md, plots, and
 the README block.
 
 scorecard.json:
 
 ```
-{"schema": 2, "kind": "mobman-bench-scorecard", "protocol": {"version": 1, "robots", "tasks", "envs",
-   "conditions": {name: {dynamics, model_error, obs_noise, env_kwargs, description}}, "policies", "seeds",
-   "tolerance", "settle_time", "env_kwargs"},
+{"schema": 3, "kind": "mobman-bench-scorecard", "protocol": {"version": 2, "track", "heldout_sha256",
+   "heldout_commit", "robots", "tasks", "envs", "conditions": {name: {track, dynamics, model_error, obs_noise,
+   env_kwargs, robots, tasks, description, envs, seeds}}, "policies", "seeds", "seed_start", "kinematic_seeds",
+   "physics_seeds", "tolerance", "settle_time", "env_kwargs"},
  "notes": [...],                     # e.g. conditions this mobman_env cannot build, non-reported seeds
- "provenance": {...}, "statistics": {...}, "versions": {...}, "git": "...",   # as results.json schema 2
+ "provenance": {...}, "statistics": {...}, "versions": {...}, "git": "...",   # as results.json schema 3
  "precision": {"significant_digits": {policy: digits}, "chaotic": [policy, ...]},
  "n_episodes", "n_expected", "n_failed", "wall_s",
- "rows": [ results.json aggregate rows (one per condition, env, policy) with "condition" ],
- "pooled": [ one row per (condition, policy) over every task of the bench: the same statistics, the IQM
-             interval bootstrapped within each task (strata = envs), "env": null ],
- "by_robot": [ only for a bench of several robots: one row per (condition, robot, policy) over that robot's
-               tasks, as "pooled" ]}
+ "rows": [ results.json aggregate rows (one per condition, env, policy) with "condition", "track", "knowledge" ],
+ "pooled": [ one row per (condition, policy) over the condition's robots and tasks (strata = envs) ],
+ "by_robot": [ one row per (condition, robot, policy) for the conditions of several robots, as "pooled" ],
+ "tracks": [ one row per (track, policy) over every condition of the track (strata = condition x env) ],
+ "ladder": [ per policy: {"policy", "knowledge", "rungs": [{"condition", "duration", "success_rate",
+             "success_rate_ci95"}], "fastest": duration of the fastest rung with >= 90% success | null} ],
+ "prob_improvement": [ {"track", "policy", "reference", "p", "ci95"}: P(policy's max error < reference's) ],
+ "entries": [ the leaderboard entry of each policy: {"spec", "knowledge", "artefacts": [{path, sha256}]} ],
+ "reference_episodes": {reference: {condition: {env: [max_error_m per seed]}}},   # for `--against`
+ "samples": [ {"condition", "env", "policy", "seed", "fields": {...}} ]}           # re-run bit for bit by `--against`
 ```
 
-A bench of several robots (`--robots all`) adds the portability table to its README block: per robot and
-controller, the success rate [Wilson 95%] and the median max error over the robot's tasks, per condition.
+The scorecard leads with the held-out track when it has one (`scorecard.md`, the README block): its conditions
+were fixed before any tuning (`protocol.heldout_commit`), so they are the figures to trust.
 
-The episodes stay in the bench directory (`conditions/<name>/results.json`, one sweep per condition);
-the scorecard holds the statistics only, so a committed scorecard stays small.
+The episodes stay in the bench directory (`conditions/<name>/results.json`, one sweep per condition); the
+scorecard holds the statistics, each reference controller's max errors (the probability of improvement of a
+new controller against them needs its episodes) and one sample episode per (condition, controller).
 
 `readme_markdown(scorecard)` is the block the README shows between `<!-- bench:begin PATH -->` and
 `<!-- bench:end -->`; `render_readme(text, root)` regenerates every such block from the scorecard file it
@@ -32,22 +39,41 @@ names, and a test fails when the README and the committed scorecards disagree.
 from __future__ import annotations
 
 import json
+import math
 import re
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from eval import metrics as M
-from eval.bench.config import ROBOTS
+from eval.bench.config import ROBOTS, conditions_markdown
 from eval.errors import EvalError
 from eval.output.files import to_jsonable
 from eval.output.precision import CHAOTIC, CHAOTIC_NOTE, SIGNIFICANT_DIGITS, format_mm, is_chaotic
 from eval.output.provenance import git_rev, provenance, versions
+from eval.output.readme import source_path
 from eval.output.results import statistics_block
-from eval.output.tables import iqm_text, markdown_table, seed_text, success_text
+from eval.output.tables import iqm_text, markdown_table, success_text
 
 KIND = "mobman-bench-scorecard"
-SCHEMA = 2
+SCHEMA = 3
+#: the controllers every other one is compared with (probability of improvement), when they ran: the known-model
+#: ceiling, the nominal-model law and the structure-aware adaptive baseline
+REFERENCES = ("qp-oracle", "qp", "calib-qp")
+#: the per-episode fields `--against` compares bit for bit on its re-run samples
+SAMPLE_FIELDS = ("max_error_m", "rms_error_m", "final_error_m", "effort", "cmd_accel_rms", "n_steps", "success")
+
+
+def _max_error(rec: dict) -> float:
+    """An episode's max error for the probability of improvement: +inf when it failed or tipped over."""
+    v = rec.get("max_error_m")
+    if v is None or rec.get("status") != "ok" or rec.get("tipped_over"):
+        return math.inf
+    return float(v)
+
+
+def _first(values: Iterable[Any]) -> Any:
+    return next((v for v in values if v is not None), None)
 
 
 def build_scorecard(
@@ -59,25 +85,60 @@ def build_scorecard(
     wall_s: float | None = None,
 ) -> dict:
     """The scorecard dict from {condition name: that condition's results.json dict} (in scorecard order)."""
+    conds = protocol["conditions"]
     rows: list[dict] = []
     pooled: list[dict] = []
     by_robot: list[dict] = []
     n_episodes = n_failed = 0
-    several = len(protocol.get("robots") or ()) > 1
+    keys = ("policy", "dynamics", "model_error", "obs_noise")
+    track_eps = track_episodes(protocol, condition_results)
+    knowledge: dict[str, str] = {}
+    artefacts: dict[str, dict[str, dict]] = {}
+    samples: list[dict] = []
+    references: dict[str, dict[str, dict[str, list]]] = {}
     for name, res in condition_results.items():
+        track = conds[name].get("track", "dev")
         eps = res["episodes"]
         n_episodes += len(eps)
         n_failed += sum(r.get("status") != "ok" for r in eps)
+        for r in eps:
+            pol = str(r["policy"])
+            knowledge.setdefault(pol, r.get("knowledge") or "unknown")
+            for art in r.get("artefacts") or []:
+                artefacts.setdefault(pol, {})[art["sha256"]] = dict(art)
+        policy_kind = {p: _first(r.get("knowledge") for r in eps if r["policy"] == p) for p in protocol["policies"]}
         for a in res["aggregate"]:
-            rows.append({"condition": name, **a})
-        keys = ("policy", "dynamics", "model_error", "obs_noise")
+            rows.append({"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a})
         for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
-            pooled.append({"condition": name, "env": None, **a})
-        if several:
+            pooled.append(
+                {"condition": name, "track": track, "env": None, "knowledge": policy_kind.get(a["policy"]), **a}
+            )
+        robots = {robot_of(str(r["env"])) for r in eps}
+        if len(robots) > 1:
             tagged = [{**r, "robot": robot_of(str(r["env"]))} for r in eps]
             for a in M.aggregate(tagged, group_keys=("robot", *keys), strata_key="env"):
-                by_robot.append({"condition": name, "env": None, **a})
-    extra = {"by_robot": by_robot} if several else {}
+                by_robot.append({"condition": name, "track": track, "env": None, **a})
+        seen: set[str] = set()
+        for r in sorted(eps, key=lambda r: (str(r["env"]), r["seed"])):
+            if r["policy"] not in seen and r.get("status") == "ok":
+                seen.add(r["policy"])
+                samples.append(
+                    {
+                        "condition": name,
+                        "env": r["env"],
+                        "policy": r["policy"],
+                        "seed": r["seed"],
+                        "fields": {k: r.get(k) for k in SAMPLE_FIELDS},
+                    }
+                )
+            if r["policy"] in REFERENCES:
+                references.setdefault(r["policy"], {}).setdefault(name, {}).setdefault(str(r["env"]), []).append(
+                    _max_error(r)
+                )
+    tracks = []
+    for track, eps in track_eps.items():
+        for a in M.aggregate(eps, group_keys=("policy",), strata_key="cell"):
+            tracks.append({"track": track, "knowledge": knowledge.get(a["policy"]), **a})
     return to_jsonable(
         {
             "schema": SCHEMA,
@@ -95,9 +156,81 @@ def build_scorecard(
             "wall_s": wall_s,
             "rows": rows,
             "pooled": pooled,
-            **extra,
+            "by_robot": by_robot,
+            "tracks": tracks,
+            "ladder": ladder(pooled, protocol),
+            "prob_improvement": prob_improvement(track_eps),
+            "entries": [
+                {"spec": p, "knowledge": knowledge.get(p, "unknown"), "artefacts": list(artefacts.get(p, {}).values())}
+                for p in protocol["policies"]
+            ],
+            "reference_episodes": references,
+            "samples": samples,
         }
     )
+
+
+def track_episodes(protocol: dict, condition_results: dict[str, dict]) -> dict[str, list[dict]]:
+    """The episodes of each track, each tagged with its `cell` (condition:env), the tasks of the probability of
+    improvement."""
+    out: dict[str, list[dict]] = {}
+    for name, res in condition_results.items():
+        track = protocol["conditions"][name].get("track", "dev")
+        out.setdefault(track, []).extend({**r, "cell": f"{name}:{r['env']}"} for r in res["episodes"])
+    return out
+
+
+def ladder(pooled: Sequence[dict], protocol: dict) -> list[dict]:
+    """Per policy, the ladder's rungs (the conditions `ladder-*`, in the protocol's order) and the duration of
+    the fastest rung it tracks in at least `LADDER_SUCCESS` of its episodes (None: not even the slowest)."""
+    from eval.bench.config import LADDER_SUCCESS
+
+    conds = protocol["conditions"]
+    rungs = [n for n in conds if n.startswith("ladder-")]
+    if not rungs:
+        return []
+    cell = {(r["condition"], r["policy"]): r for r in pooled}
+    out = []
+    for pol in protocol["policies"]:
+        steps = []
+        for n in rungs:
+            r = cell.get((n, pol))
+            if r is None:
+                continue
+            duration = float(conds[n]["env_kwargs"]["path"]["duration"])
+            steps.append(
+                {
+                    "condition": n,
+                    "duration": duration,
+                    "success_rate": r["success_rate"],
+                    "success_rate_ci95": r["success_rate_ci95"],
+                }
+            )
+        tracked = [s["duration"] for s in steps if s["success_rate"] >= LADDER_SUCCESS]
+        kind = _first(r.get("knowledge") for r in pooled if r["policy"] == pol)
+        out.append({"policy": pol, "knowledge": kind, "rungs": steps, "fastest": min(tracked) if tracked else None})
+    return out
+
+
+def prob_improvement(track_eps: dict[str, list[dict]]) -> list[dict]:
+    """Per track, every controller against each of `REFERENCES` that ran: P(its max error < the reference's)
+    over the track's cells (condition x env) as tasks, with the bootstrap interval (`eval.metrics`)."""
+    out = []
+    for track, eps in track_eps.items():
+        cells: dict[str, dict[str, list[float]]] = {}
+        for r in eps:
+            cells.setdefault(str(r["policy"]), {}).setdefault(r["cell"], []).append(_max_error(r))
+        for ref in REFERENCES:
+            if ref not in cells:
+                continue
+            for pol, by_cell in cells.items():
+                if pol == ref:
+                    continue
+                common = [c for c in by_cell if c in cells[ref]]
+                res = M.probability_of_improvement([by_cell[c] for c in common], [cells[ref][c] for c in common])
+                if res is not None:
+                    out.append({"track": track, "policy": pol, "reference": ref, "p": res[0], "ci95": res[1]})
+    return out
 
 
 def robot_of(env_id: str) -> str:
@@ -111,7 +244,7 @@ def scorecard_json_text(sc: dict) -> str:
     """scorecard.json's text: the header indented, each row of `rows` and `pooled` on one line (a 20-seed
     bench has a few hundred rows: one line each keeps the file small and its diffs readable)."""
     data = to_jsonable(sc)
-    lists = [k for k in ("rows", "pooled", "by_robot") if k in data]
+    lists = [k for k in ("rows", "pooled", "by_robot", "tracks", "ladder", "prob_improvement", "samples") if k in data]
     head = {k: v for k, v in data.items() if k not in lists}
     text = json.dumps(head, indent=2, allow_nan=False)[:-2]  # without the closing "\n}"
     for key in lists:
@@ -132,7 +265,10 @@ def load_scorecard(path: str | Path) -> dict:
     if not isinstance(data, dict) or data.get("kind") != KIND:
         raise EvalError(f"{str(path)!r} is not a bench scorecard (its 'kind' is not {KIND!r})")
     if data.get("schema") != SCHEMA:
-        raise EvalError(f"{str(path)!r} has scorecard schema {data.get('schema')!r}; this mobman reads {SCHEMA}")
+        raise EvalError(
+            f"{str(path)!r} has scorecard schema {data.get('schema')!r}; this mobman reads {SCHEMA} (protocol v2). A "
+            "schema-2 scorecard is protocol v1's (release 0.2): read its scorecard.md, or run the bench again"
+        )
     return data
 
 
@@ -155,152 +291,233 @@ def _blas_text(sc: dict) -> str:
     return kernel + (f", OPENBLAS_CORETYPE={core}" if core else "")
 
 
-def headline_tables(sc: dict) -> list[str]:
-    """Two tables, controllers x conditions, pooled over the bench's tasks: success rate [Wilson 95%] and the
-    max-error IQM [bootstrap 95%] in mm."""
-    conds = _conditions(sc)
-    cell = {(r["condition"], str(r["policy"])): r for r in sc["pooled"]}
-    pols = _policies(sc)
-    tol_mm = sc["protocol"]["tolerance"] * 1e3
-    succ = [[p] + [success_text(cell[(c, p)]) if (c, p) in cell else "" for c in conds] for p in pols]
-    err = [[p] + [iqm_text(cell[(c, p)]) if (c, p) in cell else "" for c in conds] for p in pols]
-    lines = [
-        f"Success rate, % [Wilson 95% interval] (max tracking error <= {tol_mm:g} mm), all tasks pooled:",
+def _tracks(sc: dict) -> list[str]:
+    """The scorecard's tracks, held-out first (the figures to trust lead)."""
+    present = {r["track"] for r in sc.get("tracks", [])}
+    return [t for t in ("heldout", "dev") if t in present]
+
+
+def _num_mm(x: float | None, pol: str) -> str:
+    return format_mm(x, pol)
+
+
+def track_table(sc: dict, track: str) -> list[str]:
+    """Controllers over every condition of `track` pooled: knowledge class, success and clean success [Wilson
+    95%], the max error's IQM [bootstrap 95%], p90 and worst (mm), and the commands' smoothness."""
+    body = []
+    for r in (r for r in sc["tracks"] if r["track"] == track):
+        pol = str(r["policy"])
+        me = r["max_error_m"]
+        clean = r.get("clean_success_rate")
+        ci = r.get("clean_success_rate_ci95")
+        clean_text = (
+            "-" if clean is None else f"{clean * 100:.0f}%" + (f" [{ci[0] * 100:.0f}-{ci[1] * 100:.0f}]" if ci else "")
+        )
+        accel = (r.get("cmd_accel_rms") or {}).get("median")
+        body.append(
+            [
+                pol,
+                str(r.get("knowledge") or "unknown"),
+                success_text(r),
+                clean_text,
+                iqm_text(r),
+                _num_mm(me.get("p90"), pol),
+                _num_mm(me.get("worst"), pol),
+                "-" if accel is None else f"{accel:.3g}",
+            ]
+        )
+    conds = [n for n, c in sc["protocol"]["conditions"].items() if c.get("track", "dev") == track]
+    n = len({(r["condition"], r["env"]) for r in sc["rows"] if r["track"] == track})
+    return [
+        f"**{track} track** ({len(conds)} conditions: {', '.join(conds)}; {n} cells), every condition, robot and "
+        f"task pooled:",
         "",
-        markdown_table(["controller", *conds], succ),
-        "",
-        "Max tracking error, IQM in mm [stratified bootstrap 95% interval], all tasks pooled:",
-        "",
-        markdown_table(["controller", *conds], err),
+        markdown_table(
+            [
+                "controller",
+                "knowledge",
+                "success [95% CI]",
+                "clean success [95% CI]",
+                "max error IQM [95% CI] (mm)",
+                "p90 (mm)",
+                "worst (mm)",
+                "cmd accel RMS, median (rad/s^2)",
+            ],
+            body,
+        ),
         "",
     ]
-    if any(is_chaotic(p) for p in pols):
+
+
+def condition_success_table(sc: dict, track: str) -> list[str]:
+    """Controllers x the track's conditions: success rate [Wilson 95%] over each condition's robots and tasks."""
+    conds = [n for n in _conditions(sc) if sc["protocol"]["conditions"][n].get("track", "dev") == track]
+    cell = {(r["condition"], str(r["policy"])): r for r in sc["pooled"]}
+    body = [[p] + [success_text(cell[(c, p)]) if (c, p) in cell else "" for c in conds] for p in _policies(sc)]
+    tol_mm = sc["protocol"]["tolerance"] * 1e3
+    return [
+        f"Success rate per {track} condition, % [Wilson 95%] (max tracking error <= {tol_mm:g} mm), its robots and "
+        "tasks pooled:",
+        "",
+        markdown_table(["controller", *conds], body),
+        "",
+    ]
+
+
+def ladder_table(sc: dict) -> list[str]:
+    """The difficulty ladder: per controller the success rate on each rung and the fastest rung it tracks."""
+    from eval.bench.config import LADDER_CEILING, LADDER_SUCCESS
+
+    entries = sc.get("ladder") or []
+    if not entries:
+        return []
+    durations = [s["duration"] for s in entries[0]["rungs"]]
+    body = []
+    for e in entries:
+        by = {s["duration"]: s for s in e["rungs"]}
+        body.append(
+            [e["policy"], str(e.get("knowledge") or "unknown")]
+            + [f"{by[d]['success_rate'] * 100:.0f}%" if d in by else "" for d in durations]
+            + ["-" if e["fastest"] is None else f"{e['fastest']:g} s"]
+        )
+    ceiling = next((e for e in entries if e["policy"] == LADDER_CEILING), None)
+    ceil_text = (
+        ""
+        if ceiling is None or ceiling["fastest"] is None
+        else f" (the ceiling, {LADDER_CEILING}: {ceiling['fastest']:g} s)"
+    )
+    return [
+        f"Difficulty ladder: success on a 5-harmonic 0.3 m random path (PUMA, kinematic) in each duration, and the "
+        f"fastest one tracked in >= {LADDER_SUCCESS * 100:.0f}% of the episodes{ceil_text}:",
+        "",
+        markdown_table(["controller", "knowledge", *[f"{d:g} s" for d in durations], "fastest tracked"], body),
+        "",
+    ]
+
+
+def prob_table(sc: dict, track: str) -> list[str]:
+    """P(controller's max error < reference's) [bootstrap 95%] over the track's cells, per reference."""
+    rows = [r for r in sc.get("prob_improvement", []) if r["track"] == track]
+    refs = list(dict.fromkeys(r["reference"] for r in rows))
+    if not refs:
+        return []
+    cell = {(r["policy"], r["reference"]): r for r in rows}
+    body = []
+    for pol in _policies(sc):
+        cells = []
+        for ref in refs:
+            r = cell.get((pol, ref))
+            cells.append("" if r is None else f"{r['p']:.2f} [{r['ci95'][0]:.2f}-{r['ci95'][1]:.2f}]")
+        body.append([pol, *cells])
+    return [
+        f"Probability of improvement on the {track} track: P(the controller's max error < the reference's) "
+        "[stratified bootstrap 95%], the track's condition x task cells as tasks (0.5: neither is better):",
+        "",
+        markdown_table(["controller", *[f"vs {r}" for r in refs]], body),
+        "",
+    ]
+
+
+def headline_tables(sc: dict) -> list[str]:
+    """Per track, held-out first: the pooled table and the success per condition; then the ladder."""
+    lines: list[str] = []
+    for track in _tracks(sc):
+        lines += track_table(sc, track) + condition_success_table(sc, track)
+    lines += ladder_table(sc)
+    if any(is_chaotic(p) for p in _policies(sc)):
         lines += [CHAOTIC_NOTE + ".", ""]
     return lines
 
 
-def portability_table(sc: dict) -> list[str]:
-    """The portability table of a bench of several robots: one row per robot and controller, per condition the
-    success rate [Wilson 95%] and the median max tracking error (mm) over the robot's tasks."""
-    conds = _conditions(sc)
-    cell = {(r["condition"], str(r["robot"]), str(r["policy"])): r for r in sc["by_robot"]}
-    robots = list(dict.fromkeys(str(r["robot"]) for r in sc["by_robot"]))
-    tol_mm = sc["protocol"]["tolerance"] * 1e3
-    body = []
-    for robot in robots:
-        for pol in _policies(sc):
-            row = [robot, pol]
-            for c in conds:
-                r = cell.get((c, robot, pol))
-                row += ["", ""] if r is None else [success_text(r), format_mm(r["max_error_m"]["median"], pol)]
-            body.append(row)
-    header = ["robot", "controller"]
-    for c in conds:
-        header += [f"{c}: success", f"{c}: median max error (mm)"]
-    return [
-        f"Portability: success rate, % [Wilson 95% interval] (max tracking error <= {tol_mm:g} mm) and median "
-        f"max tracking error per robot and controller, the robot's tasks ({', '.join(sc['protocol']['tasks'])}) "
-        "pooled:",
-        "",
-        markdown_table(header, body),
-        "",
-    ]
-
-
 def readme_markdown(sc: dict) -> str:
-    """The README block of a scorecard: what ran, on what, and the two headline tables (a bench of several
-    robots: the portability table instead, since pooling robots would hide what it compares)."""
+    """The README block of a scorecard: what ran, on what, then the headline tables (held-out first)."""
     p = sc["protocol"]
-    seeds = p["seeds"]
     prov = sc.get("provenance") or {}
-    if "by_robot" in sc:
-        what = f"{len(p['robots'])} robots ({', '.join(p['robots'])}) x {len(p['tasks'])} tasks"
-        tables = portability_table(sc)
-        if any(is_chaotic(q) for q in _policies(sc)):
-            tables += [CHAOTIC_NOTE + ".", ""]
-    else:
-        what = f"{len(p['envs'])} tasks"
-        tables = headline_tables(sc)
+    heldout = f", held-out track fixed at {str(p['heldout_commit'])[:7]}" if "heldout" in _tracks(sc) else ""
     lines = [
-        f"`mobman-eval bench` (protocol v{p['version']}): {what} ({', '.join(p['tasks'])}) x "
-        f"{len(_conditions(sc))} conditions x {len(_policies(sc))} controllers x {len(seeds)} seeds "
-        f"({seed_text(seeds)}); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
-        f"{prov.get('cpu') or '?'}, {_blas_text(sc)}.",
+        f"`mobman-eval bench` (protocol v{p['version']}, track {p['track']}{heldout}): {len(_conditions(sc))} "
+        f"conditions x {len(p['robots'])} robots x {len(p['tasks'])} tasks x {len(_policies(sc))} controllers; "
+        f"seeds {p['seed_start']}.. ({p['kinematic_seeds']} per kinematic cell, {p['physics_seeds']} per physics "
+        f"cell); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
+        f"{prov.get('cpu') or '?'}.",
         "",
-        *tables,
+        *headline_tables(sc),
     ]
     return "\n".join(lines).rstrip() + "\n"
 
 
 def condition_table(sc: dict, condition: str) -> str:
-    """Controllers x tasks for one condition: success and max-error IQM per task, then pooled with intervals
-    and the steady-state (t >= settle time) max-error IQM."""
-    rows = [r for r in sc["rows"] if r["condition"] == condition]
-    envs = list(dict.fromkeys(r["env"] for r in rows))
-    cell = {(r["env"], str(r["policy"])): r for r in rows}
+    """Controllers x robots for one condition: success and max-error IQM per robot (its tasks pooled), then over
+    every robot and task with intervals, the tail and the smoothness."""
     pooled = {str(r["policy"]): r for r in sc["pooled"] if r["condition"] == condition}
-    header = ["controller"] + [e.split("-")[1] if e.count("-") >= 2 else e for e in envs]
-    header += ["all: success [95% CI]", "all: max IQM [95% CI] (mm)", "all: steady max IQM (mm)"]
+    robots = list(dict.fromkeys(str(r["robot"]) for r in sc.get("by_robot", []) if r["condition"] == condition))
+    cell = {(str(r["robot"]), str(r["policy"])): r for r in sc.get("by_robot", []) if r["condition"] == condition}
+    header = ["controller", *robots]
+    header += ["all: success [95% CI]", "all: clean success", "all: max IQM [95% CI] (mm)", "p90 (mm)", "worst (mm)"]
     body = []
     for pol in _policies(sc):
         if pol not in pooled:
             continue
         cells = [pol]
-        for e in envs:
-            r = cell.get((e, pol))
+        for rb in robots:
+            r = cell.get((rb, pol))
             cells.append(
                 "" if r is None else f"{r['success_rate'] * 100:.0f}% · {format_mm(r['max_error_m']['iqm'], pol)}"
             )
         a = pooled[pol]
-        cells += [success_text(a), iqm_text(a), format_mm((a.get("steady_max_error_m") or {}).get("iqm"), pol)]
+        clean = a.get("clean_success_rate")
+        cells += [
+            success_text(a),
+            "-" if clean is None else f"{clean * 100:.0f}%",
+            iqm_text(a),
+            _num_mm(a["max_error_m"].get("p90"), pol),
+            _num_mm(a["max_error_m"].get("worst"), pol),
+        ]
         body.append(cells)
     return markdown_table(header, body)
 
 
 def scorecard_markdown(sc: dict) -> str:
-    """scorecard.md: what ran and where, the headline tables, then one table per condition."""
+    """scorecard.md: what ran and where, the tracks (held-out first), the ladder, the probability of improvement,
+    the conditions and one table per condition."""
     p = sc["protocol"]
     prov = sc.get("provenance") or {}
     lines = [
         "# mobman-eval bench: scorecard",
         "",
-        f"Protocol v{p['version']}; seeds {seed_text(p['seeds'])}; success = max tracking error <= "
+        f"Protocol v{p['version']}, track {p['track']}; held-out conditions fixed at commit {p['heldout_commit']} "
+        f"(sha256 {str(p['heldout_sha256'])[:12]}); seeds from {p['seed_start']} ({p['kinematic_seeds']} per "
+        f"kinematic cell, {p['physics_seeds']} per physics cell); success = max tracking error <= "
         f"{p['tolerance'] * 1e3:g} mm over the whole episode (failed or tipped-over episodes are not successes); "
-        f"steady-state errors over t >= {p['settle_time']:g} s. {sc['n_episodes']} of {sc['n_expected']} episodes, "
-        f"{sc['n_failed']} failed. IQM = interquartile mean (rliable's); intervals: Wilson 95% for success, "
-        f"stratified bootstrap 95% for the IQM (strata = tasks when pooled). Errors in mm.",
+        f"clean success = success without a joint-limit hit; steady-state errors over t >= {p['settle_time']:g} s. "
+        f"{sc['n_episodes']} of {sc['n_expected']} episodes, {sc['n_failed']} failed. IQM = interquartile mean "
+        f"(rliable's); intervals: Wilson 95% for rates, stratified bootstrap 95% for the IQM and the probability "
+        f"of improvement. Errors in mm; knowledge: what a controller knows of the robot (none, structure, nominal, "
+        f"true).",
         "",
         f"Machine: {prov.get('cpu') or '?'} ({prov.get('cpu_count')} CPUs), {prov.get('platform')}, "
         f"{prov.get('python')}, numpy {prov.get('numpy')}, BLAS {_blas_text(sc)}; git {sc['git']}.",
         "",
     ]
     lines += [f"* {n}" for n in sc["notes"]] + ([""] if sc["notes"] else [])
-    lines += ["## Conditions", ""]
-    lines.append(
-        markdown_table(
-            ["condition", "dynamics", "model_error", "obs_noise (mm)", "further env arguments", "what"],
-            [
-                [
-                    name,
-                    c["dynamics"],
-                    f"{c['model_error']:g}",
-                    f"{c['obs_noise'] * 1e3:g}",
-                    ", ".join(f"{k}={v}" for k, v in c["env_kwargs"].items()) or "-",
-                    c["description"],
-                ]
-                for name, c in p["conditions"].items()
-            ],
-        )
-    )
-    lines += ["", "## All tasks pooled", "", *headline_tables(sc)]
+    for track in _tracks(sc):
+        lines += [f"## The {track} track", ""]
+        lines += track_table(sc, track) + condition_success_table(sc, track) + prob_table(sc, track)
+    if sc.get("ladder"):
+        lines += ["## The difficulty ladder", "", *ladder_table(sc)]
+    lines += ["## Conditions", "", conditions_markdown(p["conditions"])]
+    lines.append("")
     for name in _conditions(sc):
         c = p["conditions"][name]
-        lines += [f"## {name}: {c['description']}", "", condition_table(sc, name), ""]
+        lines += [f"## {name} ({c.get('track', 'dev')}): {c['description']}", "", condition_table(sc, name), ""]
     lines += [
-        "Per-task cells: success rate · max-error IQM (mm). Plots: `plots/success_<condition>.png` (success vs "
-        "tolerance), `plots/error_vs_wear.png`. Episodes: `conditions/<name>/results.json`.",
+        "Per-robot cells: success rate · max-error IQM (mm), the robot's tasks pooled. Plots: "
+        "`plots/success_<condition>.png` (success vs tolerance, with its band), `plots/ladder.png`, "
+        "`plots/error_vs_wear.png`. Episodes: `conditions/<name>/results.json`.",
         "",
     ]
+    if any(is_chaotic(q) for q in _policies(sc)):
+        lines += [CHAOTIC_NOTE + ".", ""]
     return "\n".join(lines)
 
 
@@ -308,19 +525,22 @@ def scorecard_markdown(sc: dict) -> str:
 
 
 def scorecard_figures(sc: dict) -> list[tuple[str, Any]]:
-    """(file stem, Figure) pairs: success-vs-tolerance per condition (a panel per task and one pooled) and
-    error-vs-wear over the kinematic conditions without noise or drift (if there are two wear levels)."""
-    from eval.output.stat_plots import plot_error_vs_wear, plot_success_curves
+    """(file stem, Figure) pairs: success-vs-tolerance per condition (its robots and tasks pooled, with the Wilson
+    band), the difficulty ladder, and error-vs-wear over the kinematic conditions without noise, drift or lag
+    (if there are two wear levels)."""
+    from eval.bench.config import LADDER_SUCCESS
+    from eval.output.stat_plots import plot_error_vs_wear, plot_ladder, plot_success_curves
 
     tolerances = sc["statistics"]["success_curve_tolerances_m"]
     tol = sc["protocol"]["tolerance"]
     figs = []
     for name in _conditions(sc):
-        rows = [r for r in sc["rows"] if r["condition"] == name]
-        rows += [r for r in sc["pooled"] if r["condition"] == name]
+        rows = [r for r in sc["pooled"] if r["condition"] == name]
         figs.append(
             (f"success_{name}", plot_success_curves(rows, tolerances, title=f"success vs tolerance: {name}", mark=tol))
         )
+    if sc.get("ladder"):
+        figs.append(("ladder", plot_ladder(sc["ladder"], success=LADDER_SUCCESS, title="difficulty ladder")))
     conds = sc["protocol"]["conditions"]
     wear = [
         n
@@ -341,15 +561,16 @@ def scorecard_figures(sc: dict) -> list[tuple[str, Any]]:
 README_BLOCK = re.compile(r"(<!-- bench:begin (?P<path>\S+) -->\n)(?P<body>.*?)(<!-- bench:end -->)", re.S)
 
 
-def render_readme(text: str, root: str | Path) -> tuple[str, list[str]]:
-    """`text` with every bench block regenerated from the scorecard it names (relative to `root`), and the
-    paths of those scorecards. EvalError when a block names a missing file or no block exists."""
+def render_readme(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
+    """`text` with every bench block regenerated from the scorecard it names (relative to `root`, inside the
+    page's repository `repo`: `eval.output.readme.source_path`), and the paths of those scorecards. EvalError
+    when a block names a missing file or one outside the repository, or no block exists."""
     root = Path(root)
     found: list[str] = []
 
     def sub(m: re.Match) -> str:
         found.append(m.group("path"))
-        body = readme_markdown(load_scorecard(root / m.group("path")))
+        body = readme_markdown(load_scorecard(source_path(root, m.group("path"), repo)))
         return m.group(1) + body + m.group(4)
 
     new = README_BLOCK.sub(sub, text)

@@ -1,19 +1,25 @@
 """`mobman-eval`: benchmark policies side by side (`run`), sweep a grid (`sweep`), run the benchmark protocol
-(`bench`), reproduce the paper (`paper`), measure speed (`speed`).
+(`bench`), reproduce the paper (`paper`), measure speed (`speed`), render the README's picture (`picture`).
 
 ```
-mobman-eval run --env WheeledPuma-Circle-v0 --policy nnbc --policy jmpi --episodes 20 --dynamics kinematic
+mobman-eval run --env WheeledPuma-Circle-v0 --policy nnbc,jmpi --seeds 20 --dynamics kinematic
 mobman-eval run ... --backend ray --address auto    # the same episodes as Ray tasks on a cluster
 mobman-eval sweep --config sweep.yaml --workers 2   # a resumable grid (`--example` prints one)
-mobman-eval bench --workers 2    # the benchmark protocol v1: one scorecard (resumable)
+mobman-eval bench --workers 2    # the benchmark protocol v2: one scorecard (resumable)
 mobman-eval paper                # the paper's section IV, both dynamics modes, 20 reported seeds
 mobman-eval speed                # env steps/s, predict microseconds, episodes/s
+mobman-eval picture              # docs/assets/robot.png: nnbc-plus tracking the Line, physics mode
 ```
 
-One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`) builds its parser and parses into the
-library's config; `main(argv=None)` parses into a frozen config and calls one function, so tests call it in-process. Bad input
-(unknown env id or policy, missing model file, existing non-empty --out, malformed --env-kwargs) stops before
-any rollout with exit code 2 and a message naming the bad value and what is accepted.
+One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`) builds its parser
+from the fields of the library's frozen config dataclasses (`eval.cli.options`: one option per field, its help the
+field's docstring, its default the field's default) and calls one function; `main(argv=None)`, so tests call it
+in-process. The same concept has the same option everywhere: `--policy SPEC` (repeatable, comma lists; one spec
+in `picture`, which renders one episode), `--env ID`, `--dynamics MODE`, `--seed S` (the first seed), `--seeds N`
+(how many), `--out DIR`, `--workers N`, `--env-kwargs JSON`; earlier spellings (`--episodes`, `--policies`,
+`--seed-start`, `--batch`) still work for one release and say so on stderr. Bad input (unknown env id or policy,
+missing model file, existing non-empty --out, malformed --env-kwargs) stops before any rollout with exit code 2
+and a message naming the bad value and what is accepted.
 """
 
 from __future__ import annotations
@@ -26,14 +32,15 @@ from mobman_env import __version__
 from mobman_env.packages import shadowing_message
 
 #: the subcommands, each a module of this package with add_parser(sub) and main(args)
-SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "readme")
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme")
 
 
 def _subcommands() -> dict:
     """The subcommand modules, imported only after the shadowing check (they import policies)."""
-    from eval.cli import bench, paper, readme, run, speed, sweep
+    from eval.cli import bench, paper, picture, readme, run, speed, sweep
 
-    return {"run": run, "sweep": sweep, "bench": bench, "paper": paper, "speed": speed, "readme": readme}
+    modules = (run, sweep, bench, paper, speed, picture, readme)
+    return dict(zip(SUBCOMMANDS, modules, strict=True))
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -48,20 +55,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Parse `argv` and run the subcommand. Exit codes: 0 done, 2 bad input (before any rollout), 130
-    interrupted by Ctrl-C (what finished is written)."""
+    interrupted by Ctrl-C or SIGTERM (what finished is written)."""
     message = shadowing_message(("mobman_env", "policies", "eval"))
     if message is not None:  # before anything imports the hidden package
         print(f"mobman-eval: error: {message}", file=sys.stderr)
         return 2
-    from eval.cli.common import reserve_stdout, working_directory_importable
+    from eval.cli.common import reserve_stdout
+    from eval.output.files import sigterm_interrupts
 
     parser = build_parser()
     args = parser.parse_args(argv)
-    if argv is None and getattr(args, "stdout_format", "table") != "table" and not getattr(args, "quiet", False):
+    if argv is None and getattr(args, "stdout_format", "table") != "table" and getattr(args, "progress", True):
         reserve_stdout()  # a command line piping data: native output (PyBullet, Ray) goes to stderr
     try:
-        working_directory_importable()
-        return _subcommands()[args.command].main(args)
+        with sigterm_interrupts():  # SIGTERM (timeout, Slurm, docker stop) stops a command as Ctrl-C does
+            return _subcommands()[args.command].main(args)
     except EvalError as exc:
         print(f"mobman-eval {args.command}: error: {exc}", file=sys.stderr)
         return 2

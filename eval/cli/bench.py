@@ -1,8 +1,9 @@
-"""`mobman-eval bench`: the benchmark protocol v1 (parses the options, calls `eval.bench.run.run_bench`).
+"""`mobman-eval bench`: the benchmark protocol v2 (parses the options, calls `eval.bench.run.run_bench`).
 
 ```
-mobman-eval bench --workers 2                       # every task, condition and built-in controller, 20 seeds
-mobman-eval bench --seeds 5 --policies nnbc-plus,jmpi --conditions default,wear20 --out runs/quick
+mobman-eval bench --workers 2                       # the dev track: every condition, robot, task and controller
+mobman-eval bench --track heldout --out runs/heldout   # the held-out track (report it as it comes)
+mobman-eval bench --seeds 5 --policy nnbc-plus,jmpi --conditions default,wear20 --out runs/quick
 mobman-eval bench --list                            # the conditions, tasks and default controllers
 mobman-eval bench --markdown runs/bench/scorecard.json   # the README block of a scorecard
 mobman-eval bench --render-readme README.md         # regenerate the README's bench blocks in place
@@ -12,181 +13,124 @@ mobman-eval bench --render-readme README.md         # regenerate the README's be
 from __future__ import annotations
 
 import sys
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from eval.bench.config import (
-    CONDITIONS,
-    DEFAULT_CONDITIONS,
-    DEFAULT_SEEDS,
-    REPORTED_SEED_START,
-    ROBOTS,
-    TASKS,
-    BenchConfig,
-    default_policies,
-)
+from eval.bench.config import CONDITIONS, DEFAULT_CONDITIONS, ROBOTS, TASKS, TRACKS, BenchConfig, default_policies
 from eval.bench.run import DEFAULT_OUT, run_bench
 from eval.bench.scorecard import load_scorecard, readme_markdown, render_readme
-from eval.cli.common import HelpFormatter, add_backend_arguments, default, env_kwargs_arg
+from eval.cli.common import EXECUTION, RESUMABLE, add_execution, policy_help, policy_option
+from eval.cli.options import Opt, add_options, build, values
+from eval.config import EvalConfig
 from eval.errors import EvalError
+from eval.output.files import atomic_rewrite_text
+from eval.sweep.config import SweepRun
 
 
-def _list(text: str) -> list[str]:
-    return [v.strip() for v in text.split(",") if v.strip()]
+@dataclass(frozen=True)
+class BenchActions:
+    """What `mobman-eval bench` does instead of (or besides) running the protocol."""
+
+    list_conditions: bool = False
+    """Print the conditions, tasks and default controllers and exit."""
+    markdown: str | None = None
+    """A scorecard.json: print its README block and exit."""
+    render_readme: str | None = None
+    """A Markdown file: regenerate every <!-- bench:begin PATH --> block of it from its scorecard, in place, and
+    exit."""
+    against: str | None = None
+    """A committed bench (e.g. docs/results/bench-v2-dev): re-run a sample of its baselines bit for bit, reuse
+    their rows, and run only the controllers given with --policy (yours)."""
 
 
-def policy_list(text: str) -> list[str]:
-    """Comma-separated policy specs; a piece `key=value` without a name continues the spec before it, so
-    `nnbc:gamma=20,mu=20,jmpi` is two specs: `nnbc:gamma=20,mu=20` and `jmpi`."""
-    specs: list[str] = []
-    for piece in _list(text):
-        if specs and "=" in piece and ":" not in piece and ":" in specs[-1]:
-            specs[-1] += "," + piece
-        else:
-            specs.append(piece)
-    return specs
+#: what is run (`BenchConfig`'s fields)
+PROTOCOL = (
+    Opt("track", choices=TRACKS),
+    Opt("robots", metavar="NAME", more=lambda: f"Accepted: {', '.join(ROBOTS)}, or all."),
+    Opt("tasks", metavar="NAME", more=lambda: f"Accepted: {', '.join(TASKS)}."),
+    Opt(
+        "conditions",
+        metavar="NAME",
+        more=lambda: (
+            f"Accepted: {', '.join(CONDITIONS)} (--list shows them; the dev track's default: "
+            f"{', '.join(DEFAULT_CONDITIONS['dev'])})."
+        ),
+    ),
+    policy_option(old=("--policies",), more=lambda: "--list shows the built-in controllers. " + policy_help()),
+    Opt("seeds", metavar="N"),
+    Opt("physics_seeds", metavar="N"),
+    Opt("seed_start", flag="--seed", metavar="S", old=("--seed-start",)),
+    Opt("tolerance", metavar="M"),
+    Opt("settle_time", metavar="S"),
+    Opt("env_kwargs", metavar="JSON"),
+)
+ACTIONS = (
+    Opt("against", metavar="DIR"),
+    Opt("list_conditions", flag="--list"),
+    Opt("markdown", metavar="SCORECARD"),
+    Opt("render_readme", metavar="README"),
+)
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "bench",
-        help="the benchmark protocol v1: tasks x conditions x every controller x seeds, one scorecard (resumable)",
+        help="the benchmark protocol v2: conditions x robots x tasks x every controller x seeds, one scorecard "
+        "(resumable)",
         description=(
-            "Run the benchmark protocol v1 (eval.bench): every task x condition x built-in controller x seed, "
-            "as one resumable sweep per condition, and write scorecard.md, scorecard.json and plots. Run the "
-            "same command again to resume."
+            "Run the benchmark protocol v2 (eval.bench): for every condition of the track, its robots x tasks x "
+            "built-in controllers x seeds, as one resumable sweep per condition, and write scorecard.md, "
+            "scorecard.json and plots. Run the same command again to resume."
         ),
-        formatter_class=HelpFormatter,
     )
-    p.add_argument(
-        "--robots",
-        type=_list,
-        action="extend",
-        metavar="A,B",
-        help=f"robots ({', '.join(ROBOTS)}, or all); default: puma",
-    )
-    p.add_argument(
-        "--tasks", type=_list, action="extend", metavar="A,B", help=f"tasks ({', '.join(TASKS)}); default: all"
-    )
-    p.add_argument(
-        "--conditions",
-        type=_list,
-        action="extend",
-        metavar="A,B",
-        help=f"conditions ({', '.join(CONDITIONS)}); default: {', '.join(DEFAULT_CONDITIONS)} (those this "
-        f"mobman_env can build)",
-    )
-    p.add_argument(
-        "--policies",
-        type=policy_list,
-        action="extend",
-        metavar="A,B",
-        help="policy specs (nnbc:gamma=20,mu=20,jmpi is two); default: every built-in controller of the "
-        "registry (`--list` shows them)",
-    )
-    p.add_argument("--seeds", type=int, default=DEFAULT_SEEDS, metavar="N", help="seeds per cell")
-    p.add_argument(
-        "--seed-start",
-        type=int,
-        default=REPORTED_SEED_START,
-        metavar="S",
-        help="first seed (reported results use seeds >= 10000; a development run may start at 0)",
-    )
-    p.add_argument(
-        "--out",
-        default=None,
-        help=f"output directory (default: {DEFAULT_OUT}); an existing bench there is resumed",
-    )
-    add_backend_arguments(p)
-    p.add_argument(
-        "--max-episodes",
-        type=int,
-        default=None,
-        metavar="N",
-        help="run at most N new episodes, then write the scorecard",
-    )
-    p.add_argument("--retry-failed", action="store_true", help="run again the episodes recorded as failed")
-    p.add_argument("--tolerance", type=float, default=default(BenchConfig, "tolerance"), help="success threshold, m")
-    p.add_argument(
-        "--settle-time", type=float, default=default(BenchConfig, "settle_time"), help="steady-state window start, s"
-    )
-    p.add_argument(
-        "--env-kwargs",
-        type=env_kwargs_arg,
-        default={},
-        metavar="JSON",
-        help="env arguments added to every condition (e.g. a short path for a quick check)",
-    )
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--quiet", action="store_true", help="no progress and no summary")
-    p.add_argument("--list", action="store_true", help="print the conditions, tasks and default controllers and exit")
-    p.add_argument("--markdown", metavar="SCORECARD", help="print the README block of a scorecard.json and exit")
-    p.add_argument(
-        "--render-readme",
-        metavar="README",
-        help="regenerate every <!-- bench:begin PATH --> block of README from its scorecard, in place, and exit",
-    )
+    add_options(p, BenchConfig, PROTOCOL)
+    add_options(p, SweepRun, RESUMABLE)
+    add_execution(p)
+    add_options(p.add_argument_group("instead of running"), BenchActions, ACTIONS)
 
 
 def main(args) -> int:
-    if args.markdown:
-        sys.stdout.write(readme_markdown(load_scorecard(args.markdown)))
+    actions = build(BenchActions, args, ACTIONS)
+    if actions.markdown:
+        sys.stdout.write(readme_markdown(load_scorecard(actions.markdown)))
         return 0
-    if args.render_readme:
-        path = Path(args.render_readme)
+    if actions.render_readme:
+        path = Path(actions.render_readme)
         try:
             text = path.read_text()
         except OSError as exc:
             raise EvalError(f"cannot read {str(path)!r}: {exc}") from None
         new, used = render_readme(text, path.parent)
         if new != text:
-            path.write_text(new)
+            atomic_rewrite_text(path, new)
         print(
             f"{path}: {len(used)} bench block(s) {'updated' if new != text else 'already up to date'} ({', '.join(used)})"
         )
         return 0
-    if args.list:
+    if actions.list_conditions:
         for name, c in CONDITIONS.items():
-            mark = "*" if name in DEFAULT_CONDITIONS else " "
+            mark = "*" if name in DEFAULT_CONDITIONS[c.track] else " "
             extra = ", ".join(f"{k}={v}" for k, v in c.env_kwargs.items())
             print(
-                f"{mark} {name:9s} {c.dynamics:9s} model_error={c.model_error:g} obs_noise={c.obs_noise:g} {extra}  {c.description}"
+                f"{mark} {c.track:7s} {name:16s} {c.dynamics:9s} model_error={c.model_error:g} obs_noise={c.obs_noise:g} "
+                f"robots={','.join(c.robots)} {extra}  {c.description}"
             )
-        print("(* = default set)")
+        print("(* = in the track's default set)")
         print(f"tasks: {', '.join(TASKS)}; robots: {', '.join(ROBOTS)}")
         print(f"default controllers: {', '.join(default_policies())}")
         return 0
-    config = BenchConfig(
-        robots=tuple(args.robots or ("puma",)),
-        tasks=tuple(args.tasks or TASKS),
-        conditions=tuple(args.conditions) if args.conditions else None,
-        policies=tuple(args.policies) if args.policies else None,
-        seeds=args.seeds,
-        seed_start=args.seed_start,
-        tolerance=args.tolerance,
-        settle_time=args.settle_time,
-        env_kwargs=args.env_kwargs,
-    )
+    config = build(BenchConfig, args, PROTOCOL)
+    how = build(SweepRun, args, RESUMABLE)
     try:
-        result = run_bench(
-            config,
-            args.out,
-            backend=args.backend,
-            address=args.address,
-            workers=args.workers,
-            batch_size=args.batch_size,
-            max_episodes=args.max_episodes,
-            retry_failed=args.retry_failed,
-            plots=not args.no_plots,
-            progress=not args.quiet,
-        )
+        result = run_bench(config, **asdict(how), against=actions.against, **values(args, EvalConfig, EXECUTION))
     except KeyboardInterrupt:
         print(
-            f"\nbench interrupted; finished episodes are in {args.out or DEFAULT_OUT}/conditions/*/; run the same "
+            f"\nbench interrupted; finished episodes are in {how.out or DEFAULT_OUT}/conditions/*/; run the same "
             f"command again to go on",
             file=sys.stderr,
         )
         return 130
-    if not args.quiet:
+    if how.progress:
         from eval.bench.scorecard import headline_tables
 
         print("\n".join(headline_tables(result.scorecard)))

@@ -1,15 +1,14 @@
-"""What every `mobman-eval` subcommand's parser shares: the help formatter, the policy list, --env-kwargs parsing,
-the backend arguments, and defaults read from the config dataclasses (so no default is written twice)."""
+"""What every `mobman-eval` subcommand's parser shares: the policy list in the help, the execution options (from
+`EvalConfig`'s fields) and stdout reserved for piped data. The options themselves are generated from the config
+dataclasses (`eval.cli.options`), so no default or help text is written twice."""
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import json
 import os
 import sys
-from typing import Any
 
+from eval.cli.options import Opt, add_options, policy_list
 from eval.config import BACKEND_CHOICES, EvalConfig
 
 
@@ -23,51 +22,16 @@ def reserve_stdout() -> None:
     sys.stdout = open(fd, "w", encoding=sys.stdout.encoding or "utf-8", closefd=True)  # noqa: SIM115
 
 
-def working_directory_importable() -> None:
-    """Put the working directory at the end of `sys.path`, so `--policy mymod:MyCtrl` imports the `mymod.py`
-    of the folder the command runs in (console scripts do not put it on sys.path; `python -m eval` does). At the
-    end, a file there never hides an installed package. Spawned workers inherit sys.path."""
-    cwd = os.getcwd()
-    if not any(os.path.realpath(p or os.curdir) == os.path.realpath(cwd) for p in sys.path):
-        sys.path.append(cwd)
-
-
-def default(cls: Any, name: str) -> Any:
-    """The default of field `name` of the dataclass `cls` (the CLIs show and use the configs' own defaults)."""
-    f = cls.__dataclass_fields__[name]
-    if f.default is not dataclasses.MISSING:
-        return f.default
-    if f.default_factory is not dataclasses.MISSING:
-        return f.default_factory()
-    raise KeyError(f"{cls.__name__}.{name} has no default")
-
-
-def param_default(func: Any, name: str) -> Any:
-    """The default of parameter `name` of `func` (for subcommands whose library entry is a function)."""
-    import inspect
-
-    value = inspect.signature(func).parameters[name].default
-    if value is inspect.Parameter.empty:
-        raise KeyError(f"{func.__name__}({name}) has no default")
-    return value
-
-
-class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
-    """Shows "(default: X)" only where X says something (not None/False) and the help does not already."""
-
-    def _get_help_string(self, action):
-        text = action.help or ""
-        if action.default in (None, False, argparse.SUPPRESS) or "default:" in text:
-            return text
-        return super()._get_help_string(action)
-
-
 def policy_help() -> str:
     """Every policy spec the registry knows, with its one-line description (no list is written twice)."""
     from policies.registry import KNOWN_POLICIES, SPEC_FORMS
 
-    return "; ".join(f"{k}: {v}" for k, v in {**KNOWN_POLICIES, **SPEC_FORMS}.items()) + f". {TRUST_NOTE}"
+    known = "; ".join(f"{k}: {v}" for k, v in {**KNOWN_POLICIES, **SPEC_FORMS}.items())
+    return f"{POLICY_LISTS} Known: {known}. {TRUST_NOTE}"
 
+
+#: How --policy lists are read (the same in every command).
+POLICY_LISTS = "A piece key=value continues the spec before it: nnbc:gamma=20,mu=20,jmpi is two specs."
 
 #: The --help note on loading agents (model files hold pickles).
 TRUST_NOTE = (
@@ -78,50 +42,30 @@ TRUST_NOTE = (
 )
 
 
-def env_kwargs_arg(text: str) -> dict:
-    try:
-        value = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise argparse.ArgumentTypeError(
-            f'--env-kwargs must be a JSON object such as \'{{"path": {{"type": "circle", "duration": 2.0}}}}\' ({exc})'
-        ) from None
-    if not isinstance(value, dict):
-        raise argparse.ArgumentTypeError(f"--env-kwargs must be a JSON object, got {text!r}")
-    return value
+def policy_option(field: str = "policies", more=policy_help, old: tuple[str, ...] = ()) -> Opt:
+    """`--policy SPEC`: repeatable, comma lists (`policy_list`), in every command that takes policies."""
+    return Opt(field, flag="--policy", metavar="SPEC", split=policy_list, more=more, old=old)
 
 
-def add_batch_size_argument(p) -> None:
-    """--batch-size (run, sweep, bench and paper)."""
-    p.add_argument(
-        "--batch-size",
-        type=int,
-        default=default(EvalConfig, "batch_size"),
-        metavar="N",
-        help="most kinematic episodes of one env, condition and built-in policy stepped together through one "
-        "vector env (same results; 1: one episode at a time; physics, sb3: and module:attr always run singly)",
-    )
+#: Where and how many episodes run at once (run, sweep, bench): `EvalConfig`'s fields.
+EXECUTION = (
+    Opt("workers", metavar="N"),
+    Opt("batch_size", metavar="N"),
+    Opt("backend", choices=BACKEND_CHOICES),
+    Opt("address", metavar="ADDRESS"),
+)
 
 
-def add_backend_arguments(p) -> None:
-    """--workers, --batch-size, --backend and --address (run, sweep and bench)."""
-    add_batch_size_argument(p)
-    p.add_argument(
-        "--workers",
-        type=int,
-        default=default(EvalConfig, "workers"),
-        help="parallel episodes: worker processes (one PyBullet client each), or with --backend ray and "
-        "no --address the CPUs of the local Ray instance started for the run",
-    )
-    p.add_argument(
-        "--backend",
-        choices=BACKEND_CHOICES,
-        default=default(EvalConfig, "backend"),
-        help='where episodes run: local processes, or one Ray task per batch or episode (pip install "mobman[ray]")',
-    )
-    p.add_argument(
-        "--address",
-        default=None,
-        metavar="ADDRESS",
-        help="with --backend ray: the cluster to join (auto, HOST:6379, ray://HOST:10001); default: a "
-        "local Ray instance",
-    )
+#: How this run of a resumable grid goes (sweep, bench): `SweepRun`'s fields.
+RESUMABLE = (
+    Opt("out", metavar="DIR"),
+    Opt("max_episodes", metavar="N"),
+    "retry_failed",
+    Opt("plots", flag="--no-plots"),
+    Opt("progress", flag="--quiet"),
+)
+
+
+def add_execution(parser: argparse.ArgumentParser) -> None:
+    """--workers, --batch-size, --backend, --address, documented by `EvalConfig`'s fields."""
+    add_options(parser.add_argument_group("where episodes run"), EvalConfig, EXECUTION)

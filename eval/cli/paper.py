@@ -1,49 +1,46 @@
-"""`mobman-eval paper`: the paper's section IV in one command (calls `eval.paper.reproduce`)."""
+"""`mobman-eval paper`: the paper's section IV in one command (parses into `PaperConfig`, calls
+`eval.paper.reproduce`)."""
 
 from __future__ import annotations
 
 from eval import paper
-from eval.cli.common import HelpFormatter, add_batch_size_argument, param_default
+from eval.cli.options import Opt, add_options, build, commas, deprecated
+from eval.paper import PAPER_DYNAMICS, PaperConfig
+
+
+def dynamics_list(text: str) -> list[str]:
+    """`--dynamics kinematic,physics`; the old value `both` (release 0.1) is both modes, with a deprecation
+    message."""
+    if text.strip() == "both":
+        deprecated("mobman-eval paper", "--dynamics both is now --dynamics kinematic,physics (the default)")
+        return list(PAPER_DYNAMICS)
+    return commas(text)
+
+
+OPTIONS = (
+    Opt("out", metavar="DIR"),
+    "overwrite",
+    Opt("seeds", metavar="N"),
+    Opt("dynamics", choices=PAPER_DYNAMICS, split=dynamics_list),
+    Opt("workers", metavar="N"),
+    Opt("batch_size", metavar="N"),
+    "video",
+    Opt("progress", flag="--quiet"),
+)
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "paper",
         help="reproduce the paper's section IV (NNBC vs JMPI on the circle) and write paper.md",
-        description=paper.__doc__.split("\n\n")[0],
-        formatter_class=HelpFormatter,
+        description=(paper.__doc__ or "").split("\n\n")[0],
     )
-    p.add_argument("--out", default=None, help="output directory (default: runs/paper-<UTC timestamp>)")
-    p.add_argument(
-        "--seeds",
-        type=int,
-        default=param_default(paper.reproduce, "seeds"),
-        help=f"reported seeds ({paper.PAPER_SEED}, {paper.PAPER_SEED + 1}, ...)",
-    )
-    p.add_argument(
-        "--dynamics",
-        choices=tuple(paper.DYNAMICS_ARG),
-        default=param_default(paper.reproduce, "dynamics"),
-        help="dynamics mode(s)",
-    )
-    p.add_argument("--workers", type=int, default=param_default(paper.reproduce, "workers"), help="worker processes")
-    add_batch_size_argument(p)
-    p.add_argument("--overwrite", action="store_true", help="write into an existing non-empty --out")
-    p.add_argument("--video", action="store_true", help="also write videos of seed 10000 (slow)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
+    add_options(p, PaperConfig, OPTIONS)
 
 
 def main(args) -> int:
-    out = paper.reproduce(
-        out=args.out,
-        seeds=args.seeds,
-        dynamics=args.dynamics,
-        workers=args.workers,
-        batch_size=args.batch_size,
-        overwrite=args.overwrite,
-        video=args.video,
-        progress=not args.quiet,
-    )
-    if not args.quiet:
+    config = build(PaperConfig, args, OPTIONS)
+    out = paper.reproduce(config)
+    if config.progress:
         print(f"paper reproduction: {out / 'paper.md'}")
     return 0

@@ -3,16 +3,31 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
-from eval.cli.common import HelpFormatter, add_backend_arguments
-from eval.config import BACKEND_CHOICES
+from eval.cli.common import EXECUTION, RESUMABLE, add_execution
+from eval.cli.options import Opt, add_options, build, values
+from eval.config import EvalConfig
 from eval.errors import EvalError
+from eval.output.journal import JOURNAL
 from eval.sweep import __doc__ as sweep_doc
-from eval.sweep.config import example_path, load_sweep
-from eval.sweep.journal import JOURNAL
+from eval.sweep.config import SweepRun, example_path, load_sweep
 from eval.sweep.report import print_summary
 from eval.sweep.run import default_out, run_sweep
+
+
+@dataclass(frozen=True)
+class SweepCommand:
+    """What `mobman-eval sweep` does besides running: which file, or print the example."""
+
+    config: str | None = None
+    """The sweep file (YAML: the grid, `eval.sweep.config.SweepConfig`); `--example` prints one to start from."""
+    example: bool = False
+    """Print the example sweep file and exit."""
+
+
+COMMAND = (Opt("config", metavar="YAML"), "example")
 
 
 def add_parser(sub) -> None:
@@ -20,60 +35,32 @@ def add_parser(sub) -> None:
         "sweep",
         help="run a grid of policies x envs x seeds x model errors x noise levels from a YAML file (resumable)",
         description=sweep_doc.split("\n\n")[0] + " Run the same command again to resume.",
-        formatter_class=HelpFormatter,
     )
-    p.add_argument("--config", metavar="YAML", help="the sweep file (`--example` prints one to start from)")
-    p.add_argument(
-        "--out",
-        default=None,
-        help="output directory (default: runs/sweep-<config file stem>); an existing sweep there is resumed",
-    )
-    add_backend_arguments(p)
-    p.add_argument(
-        "--max-episodes",
-        type=int,
-        default=None,
-        metavar="N",
-        help="run at most N episodes not yet done, then write the table and stop (run again to go on)",
-    )
-    p.add_argument("--retry-failed", action="store_true", help="run again the episodes recorded as failed")
-    p.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
-    p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
-    p.add_argument("--example", action="store_true", help="print the example sweep file and exit")
+    add_options(p, SweepCommand, COMMAND)
+    add_options(p, SweepRun, RESUMABLE)
+    add_execution(p)
 
 
 def main(args) -> int:
-    if args.example:
+    command = build(SweepCommand, args, COMMAND)
+    if command.example:
         sys.stdout.write(example_path().read_text())
         return 0
-    if not args.config:
+    if not command.config:
         raise EvalError("--config YAML is required (`mobman-eval sweep --example > sweep.yaml` writes an example)")
-    if args.backend not in BACKEND_CHOICES:  # pragma: no cover - argparse checks it
-        raise EvalError(f"unknown backend {args.backend!r}")
-    sweep = load_sweep(args.config)
+    sweep = load_sweep(command.config)
+    how = build(SweepRun, args, RESUMABLE)
     try:
-        result = run_sweep(
-            sweep,
-            args.out,
-            backend=args.backend,
-            address=args.address,
-            workers=args.workers,
-            batch_size=args.batch_size,
-            max_episodes=args.max_episodes,
-            retry_failed=args.retry_failed,
-            plots=not args.no_plots,
-            progress=not args.quiet,
-            source=args.config,
-        )
+        result = run_sweep(sweep, **asdict(how), source=command.config, **values(args, EvalConfig, EXECUTION))
     except KeyboardInterrupt:
-        out = Path(args.out) if args.out else default_out(args.config)
+        out = Path(how.out) if how.out else default_out(command.config)
         print(
             f"\nsweep interrupted; the episodes that ended are in {out / JOURNAL} and the table; run the same "
             f"command again to go on",
             file=sys.stderr,
         )
         return 130
-    if not args.quiet:
+    if how.progress:
         print_summary(result)
         n_failed = sum(r["status"] != "ok" for r in result.episodes)
         n_grid = result.results["config"]["n_episodes"]

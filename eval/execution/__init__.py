@@ -3,7 +3,7 @@
 single episodes), `local` (this process or N spawned worker processes), `ray_backend` (one Ray task per batch or
 episode) and `dispatch.execute` (the one entry, choosing by `config.backend`).
 
-May import: `eval.errors`, `eval.config`, `eval.rollout`, `eval.batch_rollout`, `eval.metrics`; never
+May import: `eval.errors`, `eval.config`, `eval.rollout`, `eval.metrics`; never
 `eval.output`, `eval.sweep`, `eval.cli` or the runners. Within the package: tasks <- batches <- local,
 ray_backend <- dispatch.
 """

@@ -1,4 +1,4 @@
-"""Batches: the kinematic episodes that can share one vector env run together, through `eval.batch_rollout`.
+"""Batches: the kinematic episodes that can share one vector env run together, through `eval.rollout.rollout_batch`.
 
 `plan_units(config, user, tasks)` cuts the task list into *units*, each run by one process (or Ray
 task) with `UnitRunner.run`: a batch of N episodes stepped together through one native vector env
@@ -47,7 +47,7 @@ are lost (the runner records them "interrupted"), those of finished units are ke
 generator, so the episodes of a single unit or of a fallback reach the caller (progress bar, sweep journal) as
 each ends; a batch's all at once, when it ends.
 
-Imports `eval.config`, `eval.batch_rollout`, `eval.rollout`, `eval.execution.tasks`, `policies` (its registry
+Imports `eval.config`, `eval.rollout`, `eval.execution.tasks`, `policies` (its registry
 names) and `mobman_env.vector`.
 """
 
@@ -58,10 +58,9 @@ import math
 from collections.abc import Iterator
 from typing import Any
 
-from eval.batch_rollout import make_vector_env, rollout_batch
 from eval.config import EvalConfig
 from eval.execution.tasks import Executor, Task
-from eval.rollout import make_policy
+from eval.rollout import make_policy, make_vector_env, rollout_batch
 
 #: The smallest batch worth a vector env. Below it the vector env's fixed cost per step (about 0.3 ms, the
 #: `mobman-eval speed` figure at N = 1) outweighs what it saves over N single env steps (about 80 us each) while the

@@ -41,11 +41,11 @@ def execute_local(
     arrays: dict[int, dict] = {}
 
     def take(index, rec, arr):
+        if on_result is not None:  # first: a record whose journaling was interrupted is not returned either
+            on_result(rec)
         records[index] = rec
         if arr is not None:
             arrays[index] = arr
-        if on_result is not None:
-            on_result(rec)
 
     units = plan_units(config, user, tasks)
     n_workers = min(config.workers, len(units))
@@ -75,8 +75,8 @@ def _execute_workers(
     take,
 ) -> None:
     """The units dealt round-robin to `n_workers` spawned processes. The workers ignore SIGINT (they are
-    spawned with it ignored): on Ctrl-C this process takes what they sent, terminates them and raises
-    `ExecutionInterrupted`."""
+    spawned with it ignored): on Ctrl-C (or SIGTERM, which the CLI turns into one) this process takes what they
+    sent, terminates them and raises `ExecutionInterrupted`."""
 
     import multiprocessing as mp
     from multiprocessing.connection import wait
@@ -85,7 +85,7 @@ def _execute_workers(
     ctx = mp.get_context("spawn")
     shares = [units[i::n_workers] for i in range(n_workers)]
     readers, procs = [], []
-    with _single_threaded_children(), _sigint_ignored():
+    with _single_threaded_children(), _ignored(signal.SIGINT):  # not SIGTERM: terminate() must stop them
         for i in range(n_workers):
             r, w = ctx.Pipe(duplex=False)
             p = ctx.Process(
@@ -118,7 +118,7 @@ def _execute_workers(
                         if t.index not in records:
                             take(t.index, failed_record(t, message), None)
     except KeyboardInterrupt:
-        with _sigint_ignored():
+        with _ignored(signal.SIGINT, signal.SIGTERM):
             for i in active:  # what was sent before Ctrl-C is kept
                 _read_available(readers[i], take)
             for p in procs:
@@ -126,6 +126,10 @@ def _execute_workers(
             for p in procs:
                 p.join(timeout=5)
         raise ExecutionInterrupted(records, arrays) from None
+    except BaseException:  # e.g. the journal could not be written: stop the workers now, not after their units
+        for p in procs:
+            p.terminate()
+        raise
     finally:
         for p in procs:
             p.join(timeout=10)
@@ -159,17 +163,22 @@ class _single_threaded_children:
                 os.environ[k] = v
 
 
-class _sigint_ignored:
-    """Ignore SIGINT inside the block (processes spawned in it start with SIGINT ignored); main thread only."""
+class _ignored:
+    """Ignore the signals `signums` inside the block (processes spawned in it start with them ignored); main
+    thread only."""
+
+    def __init__(self, *signums: int) -> None:
+        self.signums = signums
 
     def __enter__(self):
         self._main = threading.current_thread() is threading.main_thread()
         if self._main:
-            self._previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+            self._previous = {s: signal.signal(s, signal.SIG_IGN) for s in self.signums}
 
     def __exit__(self, *exc):
         if self._main:
-            signal.signal(signal.SIGINT, self._previous)
+            for s, handler in self._previous.items():
+                signal.signal(s, handler)
 
 
 def _read_available(conn, take) -> bool:

@@ -4,7 +4,7 @@ them).
 
 * **Same results as the local backend.** A task receives the run's config and its `Task`s (env id, dynamics,
   policy, seed, model error, noise), builds the env(s) and the policy inside the Ray worker process (its own
-  PyBullet client), runs the rollout loop of `eval.rollout` (or `eval.batch_rollout` for a batch, with the
+  PyBullet client), runs the rollout loop of `eval.rollout` (`rollout_batch` for a batch, with the
   same fallback to single episodes when a batch fails) and closes the envs, so no PyBullet client or
   temporary URDF outlives the task (Ray kills its worker processes without running their exit handlers).
   Every episode starts from `env.reset(seed)` and `policy.reset(..., seed=policy_seed(seed))`: the records equal those of
@@ -270,11 +270,11 @@ def _run_on_ray(
                     except Exception as exc:  # the task and its retry failed (RayTaskError, WorkerCrashedError, ...)
                         results = [(failed_record(task, task_error_text(exc)), None) for task in unit]
                     for task, (rec, arr) in zip(unit, results):
+                        if on_result is not None:  # first: a record whose journaling was interrupted is dropped
+                            on_result(rec)
                         records[task.index] = rec
                         if arr is not None:
                             arrays[task.index] = arr
-                        if on_result is not None:
-                            on_result(rec)
         finally:
             for ref in pending:  # interrupted (Ctrl-C): leave no task running on a shared cluster
                 with contextlib.suppress(Exception):

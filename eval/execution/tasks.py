@@ -13,21 +13,34 @@ Kinematic episodes of built-in specs are batched by `eval.execution.batches`, wh
 from __future__ import annotations
 
 import os
-from typing import Any, NamedTuple
+from dataclasses import dataclass
+from typing import Any
 
 from eval.config import EvalConfig
 from eval.rollout import make_env, make_policy, rollout
 
 
-class Task(NamedTuple):
-    index: int  # position in results["episodes"]
+@dataclass(frozen=True)
+class Task:
+    """One episode, completely (a frozen record rather than a NamedTuple: its field `index` would hide
+    `tuple.index`)."""
+
+    index: int
+    """Position in results["episodes"]."""
     env: str
+    """Env id."""
     dynamics: str
+    """Dynamics mode."""
     policy: str
-    episode: int  # k: the k-th seed of the run (run: seed S + k)
-    seed: int  # env.reset(seed=seed) and policy.reset(..., seed=policy_seed(seed))
-    model_error: float | None  # env argument; None: the env's default
-    obs_noise: float | None  # env argument; None: the env's default
+    """Policy spec (or the name of a user's policy object)."""
+    episode: int
+    """k: the k-th seed of the run (run: seed S + k)."""
+    seed: int
+    """`env.reset(seed=seed)` and `policy.reset(..., seed=policy_seed(seed))`."""
+    model_error: float | None
+    """Env argument; None: the env's default."""
+    obs_noise: float | None
+    """Env argument; None: the env's default."""
 
 
 class Executor:
@@ -148,7 +161,7 @@ class ExecutionInterrupted(KeyboardInterrupt):
 
 
 def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
-    tasks = []
+    tasks: list[Task] = []
     for env_id in config.envs:
         for dyn in config.dynamics:
             for name in names:

@@ -8,11 +8,13 @@ half-written file and never destroys the previous version of a file before the n
 from __future__ import annotations
 
 import contextlib
+import errno
 import io
 import json
 import math
 import os
 import signal
+import stat
 import tempfile
 import threading
 from datetime import datetime, timezone
@@ -38,25 +40,49 @@ def current_umask() -> int:
     return mask
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write `data` to `path` through a temporary file in the same folder and `os.replace`; the file gets the
-    mode a plain `open(path, "w")` would give it (0666 minus the umask), not mkstemp's 0600."""
+def atomic_write_bytes(path: Path, data: bytes, mode: int | None = None) -> None:
+    """Write `data` to `path` through a temporary file in the same folder and `os.replace`; the file gets
+    `mode`, by default the mode a plain `open(path, "w")` would give it (0666 minus the umask), not mkstemp's
+    0600."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise write_error(path, exc) from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
-            os.fchmod(f.fileno(), 0o666 & ~current_umask())
+            os.fchmod(f.fileno(), 0o666 & ~current_umask() if mode is None else mode)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise write_error(path, exc) from None
         raise
+
+
+def write_error(path: Path, exc: OSError, kept: str = "") -> EvalError:
+    """The EvalError of a file that could not be written (a full disk, a read-only folder): the path, the
+    system's reason and the fix (the CLIs exit 2 with it, no traceback); `kept` says what survived."""
+    fix = {
+        errno.ENOSPC: "free space and run again",
+        errno.EDQUOT: "free space (your disk quota is full) and run again",
+        errno.EFBIG: "raise the file-size limit (ulimit -f) or free space and run again",
+    }.get(exc.errno or 0, "fix that and run again")
+    return EvalError(f"cannot write {path} ({exc.strerror or exc}); {fix}" + (f" ({kept})" if kept else ""))
 
 
 def atomic_write_text(path: Path, text: str) -> None:
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_rewrite_text(path: Path, text: str) -> None:
+    """Replace the text of the existing file `path` atomically as an edit in place would: a symlink stays a
+    symlink (its target is rewritten) and the file keeps its mode."""
+    target = Path(path).resolve()
+    atomic_write_bytes(target, text.encode("utf-8"), mode=stat.S_IMODE(target.stat().st_mode))
 
 
 def json_text(data: Any) -> str:
@@ -76,7 +102,9 @@ def atomic_save_figure(fig, path: Path, dpi: int = 110) -> None:
 
 def atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:
     buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
+    # the names become the archive's entries; `allow_pickle` would be taken as savez's own keyword (never a key here)
+    entries: dict[str, Any] = dict(arrays)
+    np.savez_compressed(buf, **entries)
     atomic_write_bytes(path, buf.getvalue())
 
 
@@ -106,10 +134,33 @@ def slug(text: str) -> str:
     return "".join(c if c.isalnum() or c in "-_." else "-" for c in text)
 
 
-class sigint_deferred:
-    """Ignore Ctrl-C while the block runs (a report being written is finished, not cut short); a Ctrl-C that
-    came meanwhile is raised as KeyboardInterrupt at the end (with `reraise`). Main thread only (elsewhere: no
-    effect)."""
+#: The signals that stop a run as Ctrl-C does: SIGINT, and SIGTERM (`timeout`, Slurm, `docker stop`).
+INTERRUPTS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _raise_interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt
+
+
+class sigterm_interrupts:
+    """Inside the block SIGTERM raises KeyboardInterrupt in the main thread, as Ctrl-C does, so that a run,
+    sweep or bench stopped by `timeout`, Slurm or `docker stop` keeps (writes) what finished and stops its
+    workers. Main thread only (elsewhere: no effect); the previous handler is restored at the end."""
+
+    def __enter__(self) -> None:
+        self._main = threading.current_thread() is threading.main_thread()
+        if self._main:
+            self._previous = signal.signal(signal.SIGTERM, _raise_interrupt)
+
+    def __exit__(self, *exc: Any) -> None:
+        if self._main:
+            signal.signal(signal.SIGTERM, self._previous)
+
+
+class interrupts_deferred:
+    """Ignore Ctrl-C and SIGTERM while the block runs (a report being written is finished, not cut short); one
+    that came meanwhile is raised as KeyboardInterrupt at the end (with `reraise`). Main thread only
+    (elsewhere: no effect)."""
 
     def __init__(self, reraise: bool = True) -> None:
         self.reraise = reraise
@@ -118,11 +169,12 @@ class sigint_deferred:
         self._main = threading.current_thread() is threading.main_thread()
         self._got: list[int] = []
         if self._main:
-            self._previous = signal.signal(signal.SIGINT, lambda signum, frame: self._got.append(signum))
+            self._previous = {s: signal.signal(s, lambda signum, frame: self._got.append(signum)) for s in INTERRUPTS}
 
     def __exit__(self, *exc: Any) -> None:
         if self._main:
-            signal.signal(signal.SIGINT, self._previous)
+            for s, handler in self._previous.items():
+                signal.signal(s, handler)
             if self._got and self.reraise and exc[0] is None:
                 raise KeyboardInterrupt
 
@@ -156,6 +208,28 @@ def check_out(out: Path, overwrite: bool, flag: str = "--out") -> None:
         for folder in reversed(created):
             with contextlib.suppress(OSError):
                 folder.rmdir()
+
+
+def read_folder_record(out: Path, name: str, command: str) -> dict:
+    """The record `out/name` (a sweep's config.json, a bench's bench.json) of an existing, non-empty output
+    folder of `command`; EvalError telling a missing file, an unreadable one (named with its error: restore
+    it, or delete the folder to start over) and one of another command apart."""
+    path = Path(out) / name
+    if not path.exists():
+        raise EvalError(f"--out {str(out)!r} exists and does not hold a {command} (no {name}); choose another --out")
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise EvalError(
+            f"{path} is not readable ({type(exc).__name__}: {exc}); restore it from a backup, or delete "
+            f"{str(out)!r} to start over, or choose another --out"
+        ) from None
+    if not isinstance(record, dict) or record.get("command") != command:
+        raise EvalError(
+            f"--out {str(out)!r} exists and does not hold a {command} ({name} is not a {command}'s); choose "
+            f"another --out"
+        )
+    return record
 
 
 def resolve_out(out: str | Path | None, command: str) -> Path:

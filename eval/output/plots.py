@@ -7,6 +7,8 @@ p_c, error, action; see `eval.rollout`), one per policy, all of the same episode
   panel per policy (the paper's Fig. 2a and Fig. 3).
 * `plot_axis_errors`: E_x, E_y, E_z = r_d - r_a over time, one panel per policy (the paper's Fig. 2b).
 * `plot_error_norm`: ||r_d - r_a|| over time of every policy on one log axis, with the tolerance.
+
+A controller has one colour in every plot and a line style per knowledge class (`eval.output.styles`).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ matplotlib.use("Agg")  # no display needed; set before pyplot is imported anywhe
 import numpy as np
 from matplotlib.figure import Figure
 
-_COLORS = ("tab:blue", "tab:red", "tab:green", "tab:purple", "tab:orange", "tab:brown", "tab:pink", "tab:gray")
+from eval.output.styles import color_of, record_style, tolerance_line
 
 
 def _title(rec: dict) -> str:
@@ -40,7 +42,8 @@ def _grid(n: int) -> tuple[int, int]:
 
 
 def plot_paths_3d(records: Sequence[dict]) -> Figure:
-    """Desired (dashed) vs actual end-effector path and the platform trace p_c at z = 0, one panel per policy."""
+    """Desired (dashed black) vs actual end-effector path (the policy's colour and line style) and the platform
+    trace p_c at z = 0 (grey), one panel per policy."""
     n = max(1, len(records))
     rows, cols = _grid(n)
     fig = Figure(figsize=(4.6 * cols, 4.2 * rows))
@@ -48,8 +51,8 @@ def plot_paths_3d(records: Sequence[dict]) -> Figure:
         ax = fig.add_subplot(rows, cols, i + 1, projection="3d")
         r_d, r_a, p_c = (np.asarray(rec[k]) for k in ("r_d", "r_a", "p_c"))
         ax.plot(r_d[:, 0], r_d[:, 1], r_d[:, 2], "k--", lw=1.2, label="desired r_d")
-        ax.plot(r_a[:, 0], r_a[:, 1], r_a[:, 2], color="tab:blue", lw=1.4, label="actual r_a")
-        ax.plot(p_c[:, 0], p_c[:, 1], np.zeros(len(p_c)), color="tab:orange", lw=1.4, label="platform p_c")
+        ax.plot(r_a[:, 0], r_a[:, 1], r_a[:, 2], lw=1.4, label="actual r_a", **record_style(rec))
+        ax.plot(p_c[:, 0], p_c[:, 1], np.zeros(len(p_c)), color="0.55", lw=1.4, label="platform p_c")
         if len(r_a):
             ax.scatter(*r_a[0], color="k", s=12)
             ax.plot([p_c[0, 0], r_a[0, 0]], [p_c[0, 1], r_a[0, 1]], [0.0, r_a[0, 2]], color="0.6", lw=0.8)
@@ -78,7 +81,8 @@ def _equal_3d(ax, pts: np.ndarray) -> None:
 
 
 def plot_axis_errors(records: Sequence[dict]) -> Figure:
-    """E_x, E_y, E_z = r_d - r_a (mm) over time, one panel per policy (the paper's Fig. 2b)."""
+    """E_x, E_y, E_z = r_d - r_a (mm) over time, one panel per policy (the paper's Fig. 2b), in the policy's
+    colour: E_x solid, E_y dashed, E_z dotted."""
     n = max(1, len(records))
     rows, cols = _grid(n)
     fig = Figure(figsize=(4.6 * cols, 3.2 * rows), layout="constrained")
@@ -88,8 +92,9 @@ def plot_axis_errors(records: Sequence[dict]) -> Figure:
     for ax, rec in zip(axes, records):
         e = (np.asarray(rec["r_d"]) - np.asarray(rec["r_a"])) * 1e3
         t = np.asarray(rec["t"])
-        for j, (name, c) in enumerate(zip("xyz", ("tab:red", "tab:green", "tab:blue"))):
-            ax.plot(t, e[:, j], color=c, lw=1.1, label=f"E_{name}")
+        color = color_of(str(rec["policy"]))
+        for j, (name, ls) in enumerate(zip("xyz", ("-", "--", ":"))):
+            ax.plot(t, e[:, j], color=color, ls=ls, lw=1.1, label=f"E_{name}", gid=f"policy:{rec['policy']}")
         ax.axhline(0.0, color="0.7", lw=0.6)
         ax.set_xlabel("t (s)")
         ax.set_ylabel("error (mm)")
@@ -101,15 +106,15 @@ def plot_axis_errors(records: Sequence[dict]) -> Figure:
 
 
 def plot_error_norm(records: Sequence[dict], tolerance: float | None = None) -> Figure:
-    """||r_d - r_a|| (mm, log scale) over time for every policy, with the success tolerance."""
+    """||r_d - r_a|| (mm, log scale) over time for every policy, with the success tolerance (m) labelled."""
     fig = Figure(figsize=(7.5, 4.0), layout="constrained")
     ax = fig.add_subplot(1, 1, 1)
-    for i, rec in enumerate(records):
+    for rec in records:
         t = np.asarray(rec["t"])
         e = np.asarray(rec["error"]) * 1e3
-        ax.plot(t[1:], np.maximum(e[1:], 1e-6), color=_COLORS[i % len(_COLORS)], lw=1.2, label=_label(rec))
+        ax.plot(t[1:], np.maximum(e[1:], 1e-6), lw=1.2, label=_label(rec), **record_style(rec))
     if tolerance is not None:
-        ax.axhline(tolerance * 1e3, color="k", ls=":", lw=1.0, label=f"tolerance {tolerance * 1e3:g} mm")
+        tolerance_line(ax, tolerance)
     ax.set_yscale("log")
     ax.set_xlabel("t (s)")
     ax.set_ylabel("||r_d - r_a|| (mm)")

@@ -32,6 +32,7 @@ commit 2bb11a9 (gamma 10 for the oracles), the second at 626b74f (release 0.2 ba
 | `qp` | 2.7e-6 | 3.8e-8 | 4 |
 | `qp-oracle` | 8.5e-5 | 1.4e-7 | 4 |
 | `nnbc-plus` (626b74f) | 2.2e-6 | 0 | 4 |
+| `calib-qp` (6b8f08d) | 8.2e-5 (Circle; Line 5.0e-6) | 1.1e-7 | 4 |
 
 The median max error of `nnbc` over the first 40 episodes moved from 161 mm to 321 mm under this change.
 An entry may be a whole spec (`oracle:gamma=10`), looked up before the policy's name.
@@ -59,6 +60,7 @@ SIGNIFICANT_DIGITS: dict[str, int] = {
     "clik-full": 4,
     "qp": 4,
     "qp-oracle": 4,
+    "calib-qp": 4,
     "nnbc-plus": 4,
     "jmpi": 4,
     "jmpi-full": 4,

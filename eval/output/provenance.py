@@ -15,7 +15,36 @@ from pathlib import Path
 
 import numpy as np
 
-_VERSION_PACKAGES = ("mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "stable-baselines3", "torch")
+_VERSION_PACKAGES = (
+    "mobman",
+    "numpy",
+    "numba",
+    "gymnasium",
+    "pybullet",
+    "matplotlib",
+    "stable-baselines3",
+    "torch",
+)
+#: the modules whose compiled kernels define the numbers (`kernels()` hashes their source)
+KERNEL_MODULES = ("mobman_env.engine", "policies.kernels", "policies.nnbc")
+
+
+def kernels() -> dict[str, str | None]:
+    """SHA-256 (first 16 hex digits) of the source of each module of `KERNEL_MODULES`: the env's step and the
+    controllers' compiled laws. Two results whose kernel hashes (and versions) agree were computed by the same
+    arithmetic, whatever the machine's BLAS."""
+    import hashlib
+    import importlib.util
+
+    out: dict[str, str | None] = {}
+    for name in KERNEL_MODULES:
+        spec = importlib.util.find_spec(name)
+        origin = spec.origin if spec is not None else None
+        try:
+            out[name] = hashlib.sha256(Path(origin).read_bytes()).hexdigest()[:16] if origin else None
+        except OSError:
+            out[name] = None
+    return out
 
 
 def versions() -> dict[str, str | None]:
@@ -89,10 +118,12 @@ def provenance() -> dict:
     """Where results were produced: everything known to change floating-point results or their speed.
 
     `{"cpu", "machine", "cpu_count", "platform", "python", "numpy", "numpy_build", "blas", "env", "versions",
-    "git"}`: CPU model, architecture, core count, OS, Python, numpy's version and build-time BLAS, the BLAS
-    loaded at run time and its kernel (`blas_runtime`), the environment variables of `PROVENANCE_ENV_VARS`
-    (None when unset), the package versions and the git revision. Chaotic controllers' figures depend on the
-    BLAS kernel, so two results.json files with different `blas` entries are not expected to agree."""
+    "git", "kernels"}`: CPU model, architecture, core count, OS, Python, numpy's version and build-time BLAS, the
+    BLAS loaded at run time and its kernel (`blas_runtime`), the environment variables of `PROVENANCE_ENV_VARS`
+    (None when unset), the package versions, the git revision and the hashes of the compiled kernels' source
+    (`kernels`). The env and the controllers whose laws are compiled kernels (`nnbc`, `jmpi`, `clik`, `oracle`,
+    `qp`) do not use BLAS: their figures do not depend on the `blas` entries; the estimators still written in
+    numpy (`nnbc-plus`, `broyden`, `rls` before release 0.3's v4) and the SB3 agents may."""
     return {
         "cpu": cpu_model(),
         "machine": platform.machine(),
@@ -105,4 +136,5 @@ def provenance() -> dict:
         "env": {k: os.environ.get(k) for k in PROVENANCE_ENV_VARS},
         "versions": versions(),
         "git": git_rev(),
+        "kernels": kernels(),
     }

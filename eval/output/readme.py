@@ -13,6 +13,10 @@ A block is
 with the path relative to the file that holds the block and the section title after it (the rest of the line;
 `*` for the whole file). `render_generated(text, root)` regenerates every block; `mobman-eval readme FILE`
 writes the result, and a test keeps the README equal to it.
+
+A page copies only from its own repository (`source_path`): the path a block names, symlinks resolved, must lie
+inside the page's repository (the nearest folder above it holding `.git`, else the page's folder), so that a
+block naming `/etc/passwd` or `../../x` cannot copy a file from elsewhere into the page.
 """
 
 from __future__ import annotations
@@ -26,6 +30,29 @@ from eval.errors import EvalError
 GENERATED_BLOCK = re.compile(
     r"(<!-- generated:begin (?P<path>\S+) (?P<section>[^>]*?) -->\n)(?P<body>.*?)(<!-- generated:end -->)", re.S
 )
+
+
+def repository_of(folder: Path) -> Path:
+    """The repository of a page in `folder`: the nearest folder at or above it holding `.git` (a folder, or
+    the file of a git worktree), else `folder` itself; resolved."""
+    folder = Path(folder).resolve()
+    for candidate in (folder, *folder.parents):
+        if (candidate / ".git").exists():
+            return candidate
+    return folder
+
+
+def source_path(root: Path, rel: str, repo: Path | None = None) -> Path:
+    """The file a block names (`rel`, relative to `root`, the page's folder), resolved; EvalError when it
+    resolves outside `repo` (default: `repository_of(root)`)."""
+    repo = repository_of(root) if repo is None else Path(repo).resolve()
+    path = (Path(root) / rel).resolve()
+    if not path.is_relative_to(repo):
+        raise EvalError(
+            f"a generated block names {rel}, which resolves to {path}, outside the page's repository {repo}; "
+            f"a page copies only from its own repository: name a results file inside it"
+        )
+    return path
 
 
 def markdown_section(text: str, title: str) -> str:
@@ -42,15 +69,16 @@ def markdown_section(text: str, title: str) -> str:
     return (body if end < 0 else body[:end]).strip() + "\n"
 
 
-def render_generated(text: str, root: str | Path) -> tuple[str, list[str]]:
-    """`text` with every generated block rebuilt from the file it names (relative to `root`), and the paths of
-    those files (each once, in order). EvalError when a block names a missing file or section."""
+def render_generated(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
+    """`text` with every generated block rebuilt from the file it names (relative to `root`, inside `repo`:
+    `source_path`), and the paths of those files (each once, in order). EvalError when a block names a missing
+    file or section, or a file outside the repository."""
     root = Path(root)
     found: list[str] = []
 
     def sub(m: re.Match) -> str:
         rel = m.group("path")
-        path = root / rel
+        path = source_path(root, rel, repo)
         if not path.is_file():
             raise EvalError(f"a generated block names {rel}, which does not exist (relative to {root})")
         try:

@@ -4,7 +4,7 @@ Files of one run directory:
 
 | file | content |
 |---|---|
-| results.json | schema 2: config, versions, git, provenance, statistics, episodes (one record each), aggregate (one row per condition); SI |
+| results.json | schema 3: config, versions, git, provenance, statistics, episodes (one record each), aggregate (one row per condition); SI |
 | results.csv | one row per episode, one column per variable (SI units; axis errors split into x/y/z columns) |
 | summary.md | a table per env and dynamics mode, errors in mm |
 | config.json | the resolved config (what the run was asked to do) |
@@ -14,45 +14,53 @@ Files of one run directory:
 Every file is written to a temporary name in the same directory and renamed (`os.replace`), so a crash never
 leaves a half-written file and never destroys the previous version of a file before the new one is complete.
 
-## results.json, schema 2 (SI units: m, s, rad/s; NaN/inf are written as null)
+## results.json, schema 3 (SI units: m, s, rad/s; NaN/inf are written as null)
 
 ```
-{"schema": 2,
+{"schema": 3,
  "config": {...},            # the resolved EvalConfig (as config.json), plus "policy_objects" {name: class}
  "versions": {"python", "mobman", "numpy", "gymnasium", "pybullet", "matplotlib", "stable-baselines3", "torch"},
  "git": "<sha>[-dirty]" | "unknown",
  "provenance": {"cpu", "machine", "cpu_count", "platform", "python", "numpy", "numpy_build", "blas": [{
     "user_api", "internal_api", "version", "architecture", "threading_layer", "num_threads", ...}],
-    "env": {"OPENBLAS_CORETYPE", ...}, "versions", "git"},   # eval.output.provenance.provenance()
+    "env": {"OPENBLAS_CORETYPE", ...}, "versions", "git",
+    "kernels": {module: sha256[:16] of its source}},   # eval.output.provenance.provenance()
  "statistics": {"iqm", "ci", "bootstrap_resamples", "bootstrap_seed", "success_interval",
     "success_curve_tolerances_m": [31 tolerances, 1e-4 .. 0.1 m], "settle_time_s"},  # how aggregates are made
  "wall_s": float,            # time spent running the episodes
  "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
-   {"env", "policy", "episode": k, "seed": S + k, "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
+   {"env", "policy", "episode": k, "seed": S + k, "robot", "knowledge" (none | structure | nominal | true |
+    unknown), "artefacts" (files an SB3 agent loaded: [{"path", "sha256"}] | null), "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
     "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
     "status": "ok" | "failed" | "interrupted" (Ctrl-C: never finished), "error": traceback | null,
     "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
     "steady_max_error_m", "steady_rms_error_m",  # over t >= settle_time_s; null if failed or shorter
     "effort" (s, integral of ||a||^2), "peak_joint_speed", "peak_wheel_speed" (rad/s, commanded),
-    "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success",
+    "cmd_accel_rms" (rad/s^2), "cmd_jerk_rms" (rad/s^3),   # the commands' smoothness, from rest
+    "limit_margin_min" (rad), "converge_time_s" (null: ends outside the tolerance),
+    "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success", "clean_success",
     "predict_us_median", "predict_us_p99" (whole predict call, microseconds), "wall_s", "pid",
     "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
  "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
    {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
     "success_rate_ci95": [low, high],           # Wilson 95%; failed episodes count as failures
+    "clean_success_rate", "clean_success_rate_ci95": [low, high],   # successes without a joint-limit hit
     "success_curve": [rate at each of statistics.success_curve_tolerances_m],
+    "success_curve_ci95": [[low, high] at each tolerance],            # Wilson 95%, point by point
     "max_error_m" | "rms_error_m" | "final_error_m" | "steady_max_error_m" | "steady_rms_error_m" | "effort" |
-    "peak_joint_speed" | "peak_wheel_speed" | "predict_us_median" | "predict_us_p99":
-        {"median", "mean", "std", "min", "max"},  # over status-ok episodes
-    # max_error_m, steady_max_error_m, steady_rms_error_m also: "iqm", "iqm_ci95": [low, high]
+    "peak_joint_speed" | "peak_wheel_speed" | "cmd_accel_rms" | "cmd_jerk_rms" | "limit_margin_min" |
+    "converge_time_s" | "predict_us_median" | "predict_us_p99":
+        {"median", "mean", "std", "min", "max", "p90"},  # over status-ok episodes
+    # max_error_m, steady_max_error_m, steady_rms_error_m also: "iqm", "iqm_ci95": [low, high], "worst" (= max)
    }]}
 ```
 The statistics are defined in `eval.metrics` (IQM = scipy's trim_mean(x, 0.25), rliable's definition; 95%
 percentile bootstrap with a fixed seed; Wilson intervals).
 
 **Schema 1** (mobman 0.1) lacks `provenance`, `statistics`, the steady-state errors, the IQMs and intervals;
-`load_results` reads both and fills what schema 1 lacks with None (`"schema"` keeps the file's number), so code
-that reads results handles one shape.
+**schema 2** (mobman 0.2) lacks `robot`, the smoothness, limit-margin and convergence fields, `clean_success`,
+the tails (`p90`, `worst`) and the success curve's band. `load_results` reads all three and fills what an older
+schema lacks with None (`"schema"` keeps the file's number), so code that reads results handles one shape.
 Comparisons across workers or machines skip `wall_s`, `pid` and `predict_us_*`.
 """
 
@@ -79,10 +87,21 @@ from eval.output.files import (
 from eval.output.provenance import git_rev, provenance, versions
 from eval.output.tables import print_table, summary_markdown
 
-SCHEMA = 2
+SCHEMA = 3
 
 #: The schema numbers `load_results` reads.
-READABLE_SCHEMAS = (1, 2)
+READABLE_SCHEMAS = (1, 2, 3)
+#: per-episode fields schema 3 added (None in older files)
+_SCHEMA3_EPISODE = (
+    "robot",
+    "knowledge",
+    "artefacts",
+    "cmd_accel_rms",
+    "cmd_jerk_rms",
+    "limit_margin_min",
+    "converge_time_s",
+    "clean_success",
+)
 
 
 def statistics_block(settle_time: float | None = M.DEFAULT_SETTLE_TIME) -> dict:
@@ -100,7 +119,7 @@ def statistics_block(settle_time: float | None = M.DEFAULT_SETTLE_TIME) -> dict:
 
 
 def build_results(config: dict, records: list[dict], aggregate: list[dict], wall_s: float | None = None) -> dict:
-    """The results.json dict (schema 2) of `records` and their `aggregate`; the settle time is the config's."""
+    """The results.json dict (schema 3) of `records` and their `aggregate`; the settle time is the config's."""
     return to_jsonable(
         {
             "schema": SCHEMA,
@@ -117,9 +136,9 @@ def build_results(config: dict, records: list[dict], aggregate: list[dict], wall
 
 
 def upgrade_results(data: dict, source: str = "results") -> dict:
-    """A results dict of any readable schema in schema 2's shape: what schema 1 lacks is None (episodes:
-    steady-state errors; aggregate rows: intervals, success curve, IQMs; top level: provenance, statistics).
-    `"schema"` keeps the number the data had. EvalError for anything else."""
+    """A results dict of any readable schema in schema 3's shape: what an older schema lacks is None (episodes:
+    steady-state errors, schema 3's fields; aggregate rows: intervals, success curve and its band, IQMs, tails;
+    top level: provenance, statistics). `"schema"` keeps the number the data had. EvalError for anything else."""
     if not isinstance(data, dict) or "schema" not in data:
         raise EvalError(f"{source} is not a mobman results file (no 'schema' key)")
     schema = data["schema"]
@@ -133,19 +152,21 @@ def upgrade_results(data: dict, source: str = "results") -> dict:
     out = dict(data)
     out.setdefault("provenance", None)
     out.setdefault("statistics", None)
-    out["episodes"] = [
-        {**r, **{k: r.get(k) for k in ("steady_max_error_m", "steady_rms_error_m")}} for r in data.get("episodes", [])
-    ]
+    old = ("steady_max_error_m", "steady_rms_error_m", *_SCHEMA3_EPISODE)
+    out["episodes"] = [{**r, **{k: r.get(k) for k in old}} for r in data.get("episodes", [])]
     rows = []
     for a in data.get("aggregate", []):
         row = dict(a)
-        row.setdefault("success_rate_ci95", None)
-        row.setdefault("success_curve", None)
+        for key in ("success_rate_ci95", "success_curve", "success_curve_ci95", "clean_success_rate"):
+            row.setdefault(key, None)
+        row.setdefault("clean_success_rate_ci95", None)
         for name in M.SUMMARY_METRICS:
             stats = dict(row.get(name) or dict.fromkeys(("median", "mean", "std", "min", "max")))
+            stats.setdefault("p90", None)
             if name in M.IQM_METRICS:
                 stats.setdefault("iqm", None)
                 stats.setdefault("iqm_ci95", None)
+                stats.setdefault("worst", stats.get("max"))
             row[name] = stats
         rows.append(row)
     out["aggregate"] = rows
@@ -153,7 +174,8 @@ def upgrade_results(data: dict, source: str = "results") -> dict:
 
 
 def load_results(path: str | Path) -> dict:
-    """Read a results.json of schema 1 or 2 (`upgrade_results` gives both one shape)."""
+    """Read a results.json of schema 1, 2 or 3 (`upgrade_results` gives them one shape) as a dict;
+    `eval.load_results` wraps it for analysis (pandas DataFrames)."""
     path = Path(path)
     try:
         data = json.loads(path.read_text())
@@ -256,6 +278,7 @@ class ResultsView:
 #: an earlier run that match these and that it did not write itself (`eval.output.files.remove_stale`).
 RUN_OUTPUTS = (
     "config.json",
+    "episodes.jsonl",
     "results.json",
     "results.csv",
     "summary.md",

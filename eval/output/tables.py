@@ -8,6 +8,7 @@ errors their IQM with its bootstrap interval (schema 2; "-" where a schema-1 row
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from eval.output.precision import CHAOTIC_NOTE, format_mm, is_chaotic
 
@@ -176,13 +177,28 @@ def console_row(a: dict) -> list[str]:
     ]
 
 
+#: The console width off a terminal (a pipe, a log file): wide enough that no table is clipped or folded; a
+#: table takes only the width its columns need.
+OFF_TERMINAL_WIDTH = 1000
+
+
+def console() -> Any:
+    """The rich Console of the console tables: the terminal's width on a terminal; off one (stdout a pipe or
+    a file, where rich would assume 80 columns and clip the last ones, e.g. the timing) `OFF_TERMINAL_WIDTH`,
+    so every column is printed."""
+    import sys
+
+    from rich.console import Console
+
+    return Console(width=None if sys.stdout.isatty() else OFF_TERMINAL_WIDTH)
+
+
 def print_table(results: dict, out: Path | None = None) -> None:
     """A compact table per condition on stdout (errors in mm; summary.md has every column)."""
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
-    console = Console()
+    out_console = console()
     for (env, dyn, me, on), rows in _conditions(results["aggregate"]).items():
         table = Table(
             title=f"{env} — {dyn} (model_error {me}, obs_noise {on} m)",
@@ -200,6 +216,6 @@ def print_table(results: dict, out: Path | None = None) -> None:
                 table.add_column(h, justify="right", no_wrap=True)
         for a in rows:
             table.add_row(*console_row(a))
-        console.print(table)
+        out_console.print(table)
     if out is not None:
-        console.print(f"results in {out}")
+        out_console.print(f"results in {out}")

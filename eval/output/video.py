@@ -50,7 +50,8 @@ def encode(frames: list[np.ndarray], path_stem: Path, fps: float) -> Path:
 
         path = path_stem.with_name(path_stem.name + ".mp4")
         tmp = path.with_name(f".{path.name}.tmp.mp4")
-        with imageio.get_writer(tmp, fps=fps, codec="libx264", quality=7, macro_block_size=8) as w:
+        w = imageio.get_writer(tmp, fps=fps, codec="libx264", quality=7, macro_block_size=8)
+        with w:  # (imageio's stub types `with ... as w` as the base class, which has no append_data)
             for f in frames:
                 w.append_data(f)
         tmp.replace(path)

@@ -30,8 +30,9 @@ but not in the journal, so the next run tries them again; episodes that crashed 
 (status failed, traceback) and are skipped unless `--retry-failed`. The grid may grow between runs (more seeds,
 policies, noise levels); `env_kwargs`, `tolerance` and `settle_time` may not change (start a new --out).
 
-Modules: `config` (the YAML file -> `SweepConfig`), `journal` (the append-only episode journal), `run`
-(`run_sweep`), `report` (aggregate.csv, summary.md, the console summary), `plots`.
+Modules: `config` (the YAML file -> `SweepConfig`), `run`
+(`run_sweep`), `report` (aggregate.csv, summary.md, the console summary), `plots`; the append-only episode
+journal is `eval.output.journal` (a run keeps one too).
 
 May import: `eval.errors`, `eval.config`, `eval.metrics`, `eval.rollout`, `eval.checks`, `eval.execution`,
 `eval.output`; never `eval.cli`.

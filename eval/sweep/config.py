@@ -118,6 +118,26 @@ class SweepConfig:
 KEYS = tuple(f.name for f in fields(SweepConfig))
 
 
+@dataclass(frozen=True)
+class SweepRun:
+    """How a resumable grid runs this time (a sweep, or the sweeps of a bench): the keyword arguments of
+    `eval.sweep.run.run_sweep` and `eval.bench.run.run_bench` beside the backend's (`EvalConfig.backend`,
+    `address`, `workers`, `batch_size`)."""
+
+    out: str | None = None
+    """Output directory; an existing sweep (or bench) there is resumed. None: `runs/sweep-<config file stem>`
+    for a sweep, `runs/bench` for a bench."""
+    max_episodes: int | None = None
+    """Run at most this many episodes not yet done, then write the tables and stop (run the same command again
+    to go on); None: every episode left."""
+    retry_failed: bool = False
+    """Run again the episodes recorded as failed."""
+    plots: bool = True
+    """Write the PNG plots."""
+    progress: bool = True
+    """Show a progress bar (stderr) and the summary table (stdout)."""
+
+
 def load_sweep(path: str | Path) -> SweepConfig:
     """Read and validate a sweep YAML file."""
     import yaml

@@ -4,7 +4,8 @@ Each function takes aggregate rows (`eval.metrics.aggregate`: one per env, polic
 obs_noise) and returns a Figure (Agg backend). For one (env, dynamics) and a swept variable x (`model_error` or
 `obs_noise`): a column per value of the other variable; top row the success rate (%), bottom row the median
 of the per-episode max error (mm, log scale) with its min-max range over the episodes as a band and the
-tolerance as a dotted line; one line per policy.
+tolerance as a labelled line; one line per policy, in its colour and the line style of its knowledge class
+(`eval.output.styles`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ matplotlib.use("Agg")
 import numpy as np
 from matplotlib.figure import Figure
 
-from eval.output.plots import _COLORS
+from eval.output.styles import style_of, tolerance_line
 
 #: the swept variables and their axis labels
 VARIABLES = {
@@ -44,20 +45,21 @@ def plot_vs(rows: Sequence[dict], x: str, tolerance: float | None = None) -> Fig
     axes = fig.subplots(2, len(columns), squeeze=False, sharex=True)
     for j, ov in enumerate(columns):
         top, bottom = axes[0, j], axes[1, j]
-        for i, pol in enumerate(policies):
+        for pol in policies:
             pts = sorted((r for r in rows if r["policy"] == pol and r[other] == ov), key=lambda r: r[x])
             if not pts:
                 continue
-            color = _COLORS[i % len(_COLORS)]
+            st = style_of(str(pol), pts[0].get("knowledge"))
+            color = st["color"]
             xs = np.array([r[x] for r in pts]) * xscale
-            top.plot(xs, [100.0 * r["success_rate"] for r in pts], "o-", color=color, lw=1.4, ms=4, label=pol)
+            top.plot(xs, [100.0 * r["success_rate"] for r in pts], marker="o", lw=1.4, ms=4, label=pol, **st)
             med = np.array([_mm(r["max_error_m"]["median"]) for r in pts])
             lo = np.array([_mm(r["max_error_m"]["min"]) for r in pts])
             hi = np.array([_mm(r["max_error_m"]["max"]) for r in pts])
-            bottom.plot(xs, med, "o-", color=color, lw=1.4, ms=4, label=pol)
+            bottom.plot(xs, med, marker="o", lw=1.4, ms=4, label=pol, **st)
             bottom.fill_between(xs, lo, hi, color=color, alpha=0.15, lw=0)
         if tolerance is not None:
-            bottom.axhline(tolerance * 1e3, color="k", ls=":", lw=1.0, label=f"tolerance {tolerance * 1e3:g} mm")
+            tolerance_line(bottom, tolerance)
         top.set_ylim(-5, 105)
         top.set_ylabel("success rate (%)")
         top.set_title(f"{other} = {ov * oscale:g}" + (" mm" if other == "obs_noise" else ""), fontsize=10)

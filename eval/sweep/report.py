@@ -12,6 +12,7 @@ from eval.output.files import atomic_save_figure, atomic_write_json, atomic_writ
 from eval.output.precision import format_mm
 from eval.output.results import csv_text
 from eval.output.tables import chaotic_note, failed_episode_lines, iqm_text, markdown_table, seed_text, success_text
+from eval.output.tables import console as tables_console
 
 AGGREGATE_COLUMNS = (
     "env",
@@ -48,8 +49,8 @@ def aggregate_csv_text(aggregate: list[dict]) -> str:
             for s in stats:
                 row[f"{m}_{s}"] = st.get(s)
             if m in M.IQM_METRICS:
-                mci = st.get("iqm_ci95") or [None, None]
-                row[f"{m}_iqm"], row[f"{m}_iqm_ci95_low"], row[f"{m}_iqm_ci95_high"] = st.get("iqm"), *mci
+                low, high = st.get("iqm_ci95") or (None, None)
+                row[f"{m}_iqm"], row[f"{m}_iqm_ci95_low"], row[f"{m}_iqm_ci95_high"] = st.get("iqm"), low, high
         w.writerow({k: ("" if v is None else v) for k, v in row.items()})
     return buf.getvalue()
 
@@ -135,10 +136,9 @@ def write_tables(out: Path, results: dict, tolerance: float, plots: bool = True)
 
 def print_summary(result: Any) -> None:
     from rich import box
-    from rich.console import Console
     from rich.table import Table
 
-    console = Console()
+    console = tables_console()
     groups: dict[tuple, list[dict]] = {}
     for a in result.aggregate:
         groups.setdefault((a["env"], a["dynamics"]), []).append(a)

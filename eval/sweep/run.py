@@ -3,9 +3,7 @@ the package docstring)."""
 
 from __future__ import annotations
 
-import json
 import sys
-import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,13 +12,13 @@ from eval import metrics as M
 from eval.checks import check_all, check_user_policies
 from eval.config import EvalConfig
 from eval.errors import EvalError
-from eval.execution.dispatch import execute
 from eval.execution.tasks import Task
-from eval.output.files import atomic_write_json, check_out, slug, to_jsonable
+from eval.grid import run_tasks
+from eval.output.files import atomic_write_json, check_out, read_folder_record, slug
+from eval.output.journal import JOURNAL, Journal, episode_key
 from eval.output.results import ResultsView, build_results
 from eval.rollout import make_env
 from eval.sweep.config import SweepConfig
-from eval.sweep.journal import JOURNAL, Journal, episode_key
 from eval.sweep.report import write_tables
 from mobman_env.validation import integer
 
@@ -31,7 +29,7 @@ FIXED_KEYS = {"env_kwargs": {}, "tolerance": M.DEFAULT_TOLERANCE, "settle_time":
 
 def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
     """Every episode of the grid in table order: env, dynamics, model_error, obs_noise, policy, seed."""
-    tasks = []
+    tasks: list[Task] = []
     for env_id in sweep.envs:
         for dyn in sweep.dynamics:
             for me in sweep.model_error:
@@ -72,23 +70,18 @@ def run_sweep(
     progress: bool = True,
     policies: dict[str, Any] | None = None,
     source: str | None = None,
+    checked: tuple[EvalConfig, bytes | None, bool] | None = None,
 ) -> SweepResult:
     """Run the episodes of `sweep` not yet in `out`, then rebuild the table, summary and plots.
 
     `policies` adds the user's own objects ({name: object with predict/reset}) beside the specs; `source` is
-    the YAML file's path (recorded, and naming the default output directory)."""
+    the YAML file's path (recorded, and naming the default output directory); `checked` is what `check_sweep`
+    returned for these arguments, when the caller (a bench) checked them already."""
     user = dict(policies or {})
     out = Path(out) if out is not None else default_out(source)
     if max_episodes is not None:
         integer("max_episodes", max_episodes, low=0, error=EvalError)
-    base = _episode_config(sweep, out, backend, address, workers, batch_size)
-    base.validate()
-    if not sweep.policies and not user:
-        raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
-    user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
-    resuming = _check_out_dir(out, sweep, check_out)
-    check_all(base, user)
-    _check_conditions(sweep)
+    base, user_bytes, resuming = checked or check_sweep(sweep, out, backend, address, workers, batch_size, user)
 
     tasks = grid_tasks(sweep, list(sweep.policies) + list(user))
     cfg = {
@@ -124,21 +117,42 @@ def run_sweep(
                 f"{' (resuming)' if resuming else ''}, {len(todo)} to run now",
                 file=sys.stderr,
             )
-        collect = _Collector(journal, done, _progress_bar(len(todo)) if progress and todo else None)
-        t0 = time.perf_counter()
-        try:
-            if todo:
-                execute(base, user, todo, user_bytes, collect)
-        finally:  # interrupted or not: the table shows what the journal holds
-            if collect.bar is not None:
-                collect.bar.close()
-            records = _grid_records(tasks, done, collect.lost)
-            results = build_results(cfg, records, M.aggregate(records), wall_s=time.perf_counter() - t0)
-            write_tables(out, results, sweep.tolerance, plots)
+        grid = run_tasks(base, user, todo, user_bytes, journal, progress=progress, desc="sweep")
+        done.update({episode_key(r): r for r in grid.records.values()})
+        lost = {episode_key(r): r for r in grid.lost.values()}
+        records = _grid_records(tasks, done, lost)
+        results = build_results(cfg, records, M.aggregate(records), wall_s=grid.wall_s)
+        write_tables(out, results, sweep.tolerance, plots)  # interrupted or not: the table shows what finished
     finally:
         journal.close()
+    if grid.interrupted:
+        raise KeyboardInterrupt
     n_left = sum(episode_key(t) not in done for t in tasks)
-    return SweepResult(out=out, results=results, n_run=collect.n_run, n_skipped=n_skipped, n_left=n_left)
+    return SweepResult(out=out, results=results, n_run=grid.n_run, n_skipped=n_skipped, n_left=n_left)
+
+
+def check_sweep(
+    sweep: SweepConfig,
+    out: Path,
+    backend: str = "local",
+    address: str | None = None,
+    workers: int = 1,
+    batch_size: int = EvalConfig.batch_size,
+    user: dict[str, Any] | None = None,
+) -> tuple[EvalConfig, bytes | None, bool]:
+    """Every check of `run_sweep` before it writes anything (the settings, the output folder, every env and
+    policy of the grid): (the episodes' EvalConfig, the pickled user policies, whether `out` is resumed);
+    EvalError naming what is wrong. A bench checks all its conditions with it before writing bench.json."""
+    user = user or {}
+    base = _episode_config(sweep, out, backend, address, workers, batch_size)
+    base.validate()
+    if not sweep.policies and not user:
+        raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
+    user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
+    resuming = _check_out_dir(out, sweep, check_out)
+    check_all(base, user)
+    _check_conditions(sweep)
+    return base, user_bytes, resuming
 
 
 def _episode_config(
@@ -169,30 +183,6 @@ def _episode_config(
     )
 
 
-class _Collector:
-    """Takes each episode's record as it ends (in this process): journaled and counted; a record without a
-    result at all (dead worker, failed Ray task: `pid` None) is kept aside, not journaled, so the next run
-    tries that episode again."""
-
-    def __init__(self, journal: Journal, done: dict[tuple, dict], bar: Any):
-        self.journal, self.done, self.bar = journal, done, bar
-        self.lost: dict[tuple, dict] = {}
-        self.n_run = 0
-
-    def __call__(self, rec: dict) -> None:
-        rec = to_jsonable(rec)
-        key = episode_key(rec)
-        if rec.get("pid") is None:
-            self.lost[key] = rec
-        else:
-            self.journal.append(rec)
-            self.done[key] = rec
-            self.lost.pop(key, None)
-        self.n_run += 1
-        if self.bar is not None:
-            self.bar.update(1)
-
-
 def _plan(
     tasks: list[Task], done: dict[tuple, dict], retry_failed: bool, max_episodes: int | None
 ) -> tuple[list[Task], int]:
@@ -217,18 +207,10 @@ def _grid_records(tasks: list[Task], done: dict[tuple, dict], lost: dict[tuple, 
 
 def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
     """True if `out` holds a sweep to resume; EvalError if it holds something else or an incompatible sweep."""
-    cfg_path = out / "config.json"
     if not out.is_dir() or not any(out.iterdir()):
         check_out(out, overwrite=False)
         return False
-    try:
-        old = json.loads(cfg_path.read_text())
-    except (OSError, ValueError):
-        old = None
-    if not isinstance(old, dict) or old.get("command") != "sweep":
-        raise EvalError(
-            f"--out {str(out)!r} exists and does not hold a sweep (no sweep config.json); choose another --out"
-        )
+    old = read_folder_record(out, "config.json", "sweep")
     new = sweep.to_dict()
     changed = [k for k, before in FIXED_KEYS.items() if old.get(k, before) != new[k]]
     if changed:
@@ -252,12 +234,3 @@ def _check_conditions(sweep: SweepConfig) -> None:
                     f"cannot make {sweep.envs[0]!r} with model_error={me!r}, obs_noise={on!r}: {exc}"
                 ) from None
             env.close()
-
-
-def _progress_bar(total: int):
-    from tqdm import tqdm
-
-    tty = hasattr(sys.stderr, "isatty") and sys.stderr.isatty()
-    return tqdm(
-        total=total, desc="sweep", unit="ep", file=sys.stderr, dynamic_ncols=True, mininterval=0.1 if tty else 5.0
-    )

@@ -54,10 +54,9 @@ every non-zero `d`, then `tool`) through `scaled_lengths`, then the platform's r
 PUMA that is a2, a3, d3, d4, tool, r, b, d, today's `PERTURBED_FIELDS` in today's order, and a test shows the
 same normals give the same bits as `RobotParams.perturbed` (still check `mobman-eval paper` before and after).
 
-**Kinematics**: `mobman_env.kinematics.arm_point_and_jacobian(params, q)` is equal to
-`robots.kinematics.arm_point_and_jacobian(PUMA560, q)` to 1e-12 (tested), not bit for bit (different
-operation order). The integration kept the old numpy path (dense 4 x 4 products) as the generic path of both
-conventions, so the PUMA's operations are release 0.1's; `mobman-eval paper` was compared field by field.
+**Kinematics**: `robots.kinematics` (one arm) and `mobman_env.kinematics` (the arm on its platform) are the
+Python faces of `mobman_env.engine`, the one implementation of the chain (release 0.3); `link_frames` (dense
+4 x 4 products) is the independent reference the tests check it against.
 
 **What was PUMA-specific** (all of it is generic now; everything that assumes 6 arm joints or 8 actuators; `git grep` of 6, 8,
 `range(6)`, `[:6]`, `[6:]`, shapes, 2026-12-01):

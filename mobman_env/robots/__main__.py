@@ -6,8 +6,7 @@
 | `select` | the start search for the UR5 and the Panda (minutes) | `mobman_env.robots.starts` (`STARTS`) |
 | `acceptance` | the random arms' start-rule acceptance, seeds 0-999 and 10000-10999 | `mobman_env.robots.random_arms` |
 | `ceiling` | the acceptance under `kinematic_ceiling`, seeds 0-199 and 10000-10199 (minutes) | `mobman_env.robots.random_arms` |
-| `bench` | kinematics timing (machine-dependent) | `mobman_env.robots.kinematics` |
-| `report` | `table`, `acceptance` and `ceiling` as one Markdown file (minutes) | `docs/results/robots-v1/robots.md`, the README |
+| `report` | `table`, `acceptance` and `ceiling` as one Markdown file (minutes) | `docs/results/robots-v1/robots.md`, docs/tasks.md |
 
 May import: the standard library, `mobman_env.robots.*`.
 """
@@ -17,10 +16,10 @@ from __future__ import annotations
 import argparse
 from collections.abc import Sequence
 
-from mobman_env.robots import bench, random_arms, starts
+from mobman_env.robots import random_arms, starts
 from mobman_env.robots.catalogue import PANDA, UR5
 
-COMMANDS = ("table", "select", "acceptance", "ceiling", "bench", "report")
+COMMANDS = ("table", "select", "acceptance", "ceiling", "report")
 
 
 def _acceptance_lines() -> list[str]:
@@ -93,10 +92,8 @@ def main(argv: Sequence[str] | None = None) -> None:
         print("\n".join(_acceptance_lines()))
     elif args.command == "ceiling":
         print("\n".join(_ceiling_lines()))
-    elif args.command == "report":
-        print(report(), end="")
     else:
-        print(bench.table(bench.measure()))
+        print(report(), end="")
 
 
 if __name__ == "__main__":

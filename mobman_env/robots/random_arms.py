@@ -61,7 +61,7 @@ import numpy as np
 from mobman_env.robots.description import ArmDescription, rod_inertia, standard_segment
 from mobman_env.robots.kinematics import arm_point_and_jacobian
 
-__all__ = ["START_RULE", "RandomArm", "acceptance", "random_arm", "start_ok"]
+__all__ = ["SCALE_RANGE", "START_RULE", "RandomArm", "acceptance", "random_arm", "random_scaled_arm", "start_ok"]
 
 G = 9.81  # m/s^2
 JITTER = math.radians(10.0)  # rad, twist jitter
@@ -69,6 +69,9 @@ JITTER = math.radians(10.0)  # rad, twist jitter
 START_RULE = {"limit_margin": 0.2, "min_sigma": 0.15, "min_height": 0.45}
 BASE_HEIGHT = 0.6  # m, the PUMA's
 MOUNT_OFFSET = 0.1  # m, the PUMA's
+#: The scaled family (`random_scaled_arm`): every length of a family arm (DH a and d, tool) times one factor from
+#: this range, drawn per arm (protocol v2's held-out arm family: smaller and larger arms than any of the dev track)
+SCALE_RANGE = (0.7, 1.4)
 
 
 @dataclass(frozen=True)
@@ -190,6 +193,27 @@ def random_arm(
         f"no random arm accepted in {max_draws} draws ({passed_rule} passed the start rule {START_RULE}; the rest "
         f"were refused by accept={accept!r}); loosen the predicate or raise max_draws"
     )
+
+
+def random_scaled_arm(
+    rng: np.random.Generator,
+    accept: Callable[[RandomArm], bool] | None = None,
+    *,
+    max_draws: int = 10_000,
+) -> RandomArm:
+    """An arm of the scaled family: first a factor s from `SCALE_RANGE`, then `random_arm`'s draws, each design's
+    lengths (every DH a and d, the tool; not the mount) multiplied by s. The start rule is checked on the unscaled
+    design (so the start keeps its margins to the limits, which scaling does not move); `accept` sees the scaled
+    arm. Masses and inertias stay the unscaled design's: the family is for kinematic mode (a scaled body's
+    inertia would need its own model)."""
+    s = float(rng.uniform(*SCALE_RANGE))
+
+    def scaled(draw: RandomArm) -> RandomArm:
+        arm = draw.arm.scaled_lengths([s] * len(draw.arm.length_slots)).replace(name=f"{draw.arm.name}-x{s:.3f}")
+        return RandomArm(arm, draw.q0, draw.n_draws)
+
+    draw = random_arm(rng, None if accept is None else (lambda d: accept(scaled(d))), max_draws=max_draws)
+    return scaled(draw)
 
 
 def acceptance(seeds: range, accept: Callable[[RandomArm], bool] | None = None) -> tuple[float, float]:

@@ -9,6 +9,7 @@ the episode's nominal robot and start configuration drawn from the env's generat
 | `ur5` | `UR5` | `STARTS["ur5"]` | nothing |
 | `panda` | `PANDA` | `STARTS["panda"]` | nothing |
 | `random` | a new arm of `random_arm`'s family per reset | the draw's start | the design, its start and redraws |
+| `random-scaled` | a new arm of `random_scaled_arm`'s family per reset: a family arm with every length times one factor in [0.7, 1.4] | the draw's start | the factor, the design, its start and redraws |
 
 Every start has heading pi (`mobman_env.env.PAPER_BASE_POSE`); `mobman_env.robots.starts` says how the named
 starts were chosen. A random arm is accepted when it passes the start rule of `random_arms` and the kinematic
@@ -25,20 +26,28 @@ May import: numpy, the standard library, `mobman_env.params`, `mobman_env.robots
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from mobman_env.params import RobotParams
 from mobman_env.robots.catalogue import ROBOTS
 from mobman_env.robots.description import ArmDescription
-from mobman_env.robots.random_arms import random_arm
+from mobman_env.robots.random_arms import random_arm, random_scaled_arm
 from mobman_env.robots.starts import STARTS, kinematic_ceiling
 
 __all__ = ["ROBOT_NAMES", "RobotSource", "robot_source"]
 
+#: the memo of `RobotSource.draw`: (family, generator state) -> (nominal robot, start, generator state after)
+_DRAWS: dict[tuple[str, str], tuple[RobotParams, tuple[float, ...], Any]] = {}
+#: draws kept (least recently used dropped first)
+MAX_MEMO = 1024
+#: The drawn families: `robot` name -> the function drawing (arm, start) from the env's generator.
+FAMILIES = {"random": random_arm, "random-scaled": random_scaled_arm}
 #: The accepted values of the env's `robot` argument.
-ROBOT_NAMES = (*ROBOTS, "random")
+ROBOT_NAMES = (*ROBOTS, *FAMILIES)
 
 
 @dataclass(frozen=True)
@@ -58,7 +67,7 @@ class RobotSource:
         """The nominal robot before the first reset (for the random family: a placeholder of the family)."""
         if self.arm is not None:
             return RobotParams.nominal(self.arm)
-        return RobotParams.nominal(random_arm(np.random.default_rng(0)).arm)
+        return RobotParams.nominal(FAMILIES[self.name](np.random.default_rng(0)).arm)
 
     @property
     def default_start(self) -> tuple[float, ...] | None:
@@ -67,11 +76,26 @@ class RobotSource:
 
     def draw(self, rng: np.random.Generator) -> tuple[RobotParams, tuple[float, ...]] | None:
         """The episode's nominal robot and its start (rad) drawn from `rng`; None for a fixed arm (nothing is
-        drawn: the constructor's nominal robot and start hold)."""
+        drawn: the constructor's nominal robot and start hold).
+
+        A draw is a pure function of the generator's state (its candidates and their ceiling checks, about 0.2 s
+        each, use `rng` only), so it is memoised on that state: the same state gives the same arm and leaves the
+        generator where the draw left it, without drawing again (a bench resets the same seeds for every
+        controller and condition: one draw per seed per process, `_DRAWS`)."""
         if self.arm is not None:
             return None
-        draw = random_arm(rng, kinematic_ceiling)
-        return RobotParams.nominal(draw.arm), draw.q0
+        key = (self.name, json.dumps(rng.bit_generator.state, sort_keys=True, default=str))
+        hit = _DRAWS.get(key)
+        if hit is None:
+            draw = FAMILIES[self.name](rng, kinematic_ceiling)
+            hit = (RobotParams.nominal(draw.arm), draw.q0, rng.bit_generator.state)
+            _DRAWS[key] = hit
+            while len(_DRAWS) > MAX_MEMO:
+                _DRAWS.pop(next(iter(_DRAWS)))
+        else:
+            _DRAWS[key] = _DRAWS.pop(key)  # most recently used last
+            rng.bit_generator.state = hit[2]
+        return hit[0], hit[1]
 
 
 def robot_source(name: str) -> RobotSource:

@@ -45,14 +45,14 @@ rounded to 0.01 rad and checked again (the table below is for the rounded values
 
 Reading it: the UR5's and the Panda's circles stay within 53% and 64% of the reach, so the arm alone tracks them
 (< 0.04 mm, no joint limit met, sigma_min never below 0.21 m/rad along the way). The PUMA's "circle max" is the
-README's "1.022 m of 1.074 m" (95.1%) over the true reach, 1.077 m (the README's formula keeps the tool along
+docs' "1.022 m of 1.074 m" (95.1%, docs/tasks.md) over the true reach, 1.077 m (that formula keeps the tool along
 the forearm; pointing it away from the shoulder reaches 2.6 mm farther). The PUMA's arm alone cannot follow the
 paper's circle from theta(0): plain DLS drives joints 1 and 5 into their limits (111 mm error); the platform's
 yaw is needed, and with it all four tasks are tracked within 0.3 mm. These are kinematic checks of the starts,
 not results: `qp-oracle` in the integrated env is the ceiling that counts.
 
 May import: numpy, the standard library, `mobman_env.robots.*`, `mobman_env.paths`, `mobman_env.params` (the
-platform's wheel numbers).
+platform's wheel numbers), `mobman_env.engine` (`track` steps the env's own kinematics).
 """
 
 from __future__ import annotations
@@ -63,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mobman_env import engine
 from mobman_env.params import RobotParams
 from mobman_env.paths import path_from_spec
 from mobman_env.robots.catalogue import ROBOTS
@@ -206,39 +207,28 @@ def track(
     q0 = np.array(start.q0, dtype=float)
     q = q0.copy()
     pose = np.array([0.0, 0.0, start.heading])
-    r0 = ee_world(arm, q, pose)
-    path = path_from_spec(spec, r0, np.random.default_rng(path_seed))
+    rows = engine.packed([RobotParams.nominal(arm)])  # the env's kernels on the nominal robot (platform: _PLATFORM's)
+    J = np.empty((1, 3, n + 2))
+    ee, pc = np.empty((1, 3)), np.empty((1, 2))
+    row0 = np.zeros(1, dtype=np.intp)
+    engine.model(*rows, row0, q[None], pose[None], True, ee, pc, J)
+    path = path_from_spec(spec, ee[0], np.random.default_rng(path_seed))
     n_steps = int(round(path.duration / DT))
+    m = n + 2 if whole_body else n
     scale = np.array([*arm.speed_limit, *([_PLATFORM.wheel_speed_limit] * 2 if whole_body else [])])
     rw, b = _PLATFORM.wheel_radius, _PLATFORM.half_track
     max_err, hits, min_sig, min_margin = 0.0, 0, math.inf, math.inf
     for k in range(n_steps + 1):
         t = k * DT
-        yaw = pose[2]
-        R = _rot_z(yaw)
-        f, Ja = arm_point_and_jacobian(arm, q)
-        g = R @ f
-        c, s = math.cos(yaw), math.sin(yaw)
-        r = np.array(
-            [pose[0] + arm.mount_offset * c + g[0], pose[1] + arm.mount_offset * s + g[1], arm.base_height + g[2]]
-        )
+        engine.model(*rows, row0, q[None], pose[None], True, ee, pc, J)
         r_d, v_d = path.position_velocity(t)
-        err = r_d - r
+        err = r_d - ee[0]
         max_err = max(max_err, float(np.linalg.norm(err)))
-        min_sig = min(min_sig, float(np.linalg.svd(Ja, compute_uv=False)[-1]))
+        min_sig = min(min_sig, float(np.linalg.svd(J[0, :, :n], compute_uv=False)[-1]))  # R(yaw) keeps the svd
         min_margin = min(min_margin, float(np.min(np.minimum(q - lo, hi - q))))
         if k == n_steps:
             break
-        J = R @ Ja
-        if whole_body:
-            # wheel columns: platform translation of P_c and the yaw acting on g and on the mount offset
-            dphi = np.array([-0.5 * rw / b, 0.5 * rw / b])
-            dv = np.array([0.5 * rw, 0.5 * rw])
-            Jw = np.zeros((3, 2))
-            Jw[:2] = np.outer([c, s], dv) + arm.mount_offset * np.outer([-s, c], dphi)
-            Jw += np.outer([-g[1], g[0], 0.0], dphi)
-            J = np.hstack([J, Jw])
-        Js = J * scale
+        Js = J[0, :, :m] * scale
         pinv = Js.T @ np.linalg.inv(Js @ Js.T + DAMPING**2 * np.eye(3))
         a = pinv @ (v_d + GAIN * err)
         if posture_gain > 0.0:
@@ -254,17 +244,8 @@ def track(
         hits += int(np.any(clipped != q_new))
         q = clipped
         if whole_body:
-            wl, wr = u[n], u[n + 1]
-            v, w = 0.5 * rw * (wl + wr), 0.5 * rw / b * (wr - wl)
-            if abs(w * DT) < 1e-9:
-                mid = yaw + 0.5 * w * DT
-                pose = np.array([pose[0] + v * DT * math.cos(mid), pose[1] + v * DT * math.sin(mid), yaw + w * DT])
-            else:
-                y1 = yaw + w * DT
-                rho = v / w
-                pose = np.array(
-                    [pose[0] + rho * (math.sin(y1) - math.sin(yaw)), pose[1] - rho * (math.cos(y1) - math.cos(yaw)), y1]
-                )
+            dl, dr = u[n] * DT, u[n + 1] * DT
+            pose = np.array(engine.arc(pose[0], pose[1], pose[2], 0.5 * rw * (dl + dr), 0.5 * rw / b * (dr - dl)))
     return {"max_error": max_err, "limit_hits": hits, "min_sigma": min_sig, "min_margin": min_margin}
 
 

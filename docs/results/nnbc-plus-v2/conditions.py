@@ -35,7 +35,7 @@ Usage (from the repository root; seeds 0-999 for development, >= 10,000 for repo
         --title "Ablation v2.1" --out docs/results/nnbc-plus-v2/ablation21.md
 
 `run` writes one record per episode (condition, task, mode, seed, max error, success, predict time, joint-limit
-hits); `summary` writes summary.md next to it (the README's generated block copies its sections).
+hits); `summary` writes summary.md next to it (the generated blocks of docs/nnbc-plus-v3.md copy its sections).
 """
 
 from __future__ import annotations

@@ -1,0 +1,158 @@
+"""`mobman-eval bench --against DIR`: benchmark only your own controller against a committed scorecard.
+
+A researcher wants their controller's row beside the built-in ones, not hours of re-running baselines that were
+run already. So:
+
+1. the committed scorecard (`DIR/scorecard.json`) names its protocol; the bench asked for must be the same
+   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset);
+2. a fixed sample of the committed baseline episodes (`SAMPLE_SIZE`, spread over the conditions and controllers:
+   `samples`) is run again here; their metric fields must equal the committed ones **bit for bit** (the engine
+   and the compiled laws do not depend on the BLAS kernel: `mobman_env.engine`). If they do, the committed rows
+   of the baselines are reused as they are; if one does not, the baselines are run again too, and the bench says
+   which sample differed, by how much, and the kernel hashes of both sides (`provenance.kernels`);
+3. only the new controllers run the protocol's grid; the scorecard joins their rows to the baselines' (the
+   probability of improvement against the references uses the committed references' episodes).
+
+The output folder holds the new controllers' episodes (`conditions/*/`) and the joined scorecard; bench.json
+records the committed scorecard it was run against (path and sha256) and the sample check.
+
+Imports `eval.bench.*`, `eval.metrics`, `eval.rollout`, `eval.output`.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from eval import metrics as M
+from eval.bench import scorecard as S
+from eval.bench.config import CONDITIONS
+from eval.errors import EvalError
+
+#: committed episodes re-run to check that this machine reproduces them
+SAMPLE_SIZE = 8
+#: protocol fields that must equal the committed scorecard's
+SAME = ("version", "track", "seed_start", "kinematic_seeds", "physics_seeds", "tolerance", "settle_time", "env_kwargs")
+
+
+def load_against(path: str | Path) -> tuple[dict, str]:
+    """The committed scorecard of `path` (a bench folder or its scorecard.json) and its sha256."""
+    path = Path(path)
+    file = path / "scorecard.json" if path.is_dir() else path
+    sc = S.load_scorecard(file)
+    return sc, hashlib.sha256(file.read_bytes()).hexdigest()
+
+
+def check_protocol(committed: dict, protocol: dict) -> None:
+    """EvalError naming every difference that makes the committed rows incomparable with this bench's."""
+    old = committed["protocol"]
+    diff = [f"{k}: {old.get(k)!r} there, {protocol.get(k)!r} here" for k in SAME if old.get(k) != protocol.get(k)]
+    missing = [c for c in protocol["conditions"] if c not in old["conditions"]]
+    if missing:
+        diff.append(f"conditions {missing} are not in the committed scorecard")
+    for c in protocol["conditions"]:
+        if c in old["conditions"] and old["conditions"][c].get("envs") != protocol["conditions"][c]["envs"]:
+            diff.append(f"condition {c!r} runs other robots or tasks there")
+    if diff:
+        raise EvalError(
+            "--against: this bench is not the committed scorecard's protocol (" + "; ".join(diff) + "); run the "
+            "bench with the same --track, --seeds, --physics-seeds, --seed, --tolerance and --settle-time "
+            "as the scorecard (bench.json there lists them)"
+        )
+
+
+def pick_samples(committed: dict, baselines: list[str], conditions: list[str]) -> list[dict]:
+    """`SAMPLE_SIZE` committed episodes of the baselines, spread evenly over the (condition, controller) pairs in
+    a fixed order (kinematic first: they cost less), so every machine checks the same ones."""
+    pool = [s for s in committed["samples"] if s["policy"] in baselines and s["condition"] in conditions]
+    pool.sort(key=lambda s: (CONDITIONS[s["condition"]].dynamics != "kinematic", s["condition"], s["policy"]))
+    if len(pool) <= SAMPLE_SIZE:
+        return pool
+    step = len(pool) / SAMPLE_SIZE
+    return [pool[int(i * step)] for i in range(SAMPLE_SIZE)]
+
+
+def rerun_sample(sample: dict, tolerance: float, settle_time: float, env_kwargs: dict) -> dict:
+    """The metric fields of one committed episode run again here (its condition's env with the bench's extra
+    `env_kwargs`, the spec, the seed)."""
+    import policies
+    from eval.rollout import make_env, rollout
+
+    c = CONDITIONS[sample["condition"]]
+    env = make_env(sample["env"], c.dynamics, c.model_error, c.obs_noise, {**env_kwargs, **dict(c.env_kwargs)})
+    try:
+        pol = policies.make(sample["policy"], env, seed=None)
+        rec, _ = rollout(env, pol, int(sample["seed"]), tolerance=tolerance, settle_time=settle_time)
+    finally:
+        env.close()
+    return {k: rec.get(k) for k in S.SAMPLE_FIELDS}
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Equal after the JSON round trip the committed file went through (floats bit for bit)."""
+    return json.loads(json.dumps(a)) == json.loads(json.dumps(b))
+
+
+def check_samples(committed: dict, samples: list[dict]) -> tuple[bool, list[str]]:
+    """(all equal, one line per sample: what matched or how it differed), each sample run under the committed
+    protocol's tolerance, settle time and extra env arguments."""
+    p = committed["protocol"]
+    lines = []
+    ok = True
+    for s in samples:
+        got = rerun_sample(s, p["tolerance"], p["settle_time"], dict(p.get("env_kwargs") or {}))
+        diff = [k for k in S.SAMPLE_FIELDS if not _same(got.get(k), s["fields"].get(k))]
+        where = f"{s['policy']} on {s['env']} ({s['condition']}), seed {s['seed']}"
+        if diff:
+            ok = False
+            lines.append(
+                f"{where}: differs in "
+                + ", ".join(f"{k} {s['fields'].get(k)!r} committed, {got.get(k)!r} here" for k in diff)
+            )
+        else:
+            lines.append(f"{where}: equal bit for bit")
+    if not ok:
+        from eval.output.provenance import kernels
+
+        lines.append(
+            f"kernels committed {(committed.get('provenance') or {}).get('kernels')}, here {kernels()}; git "
+            f"committed {committed.get('git')}"
+        )
+    return ok, lines
+
+
+def merge(committed: dict, new: dict, baselines: list[str], track_eps: dict[str, list[dict]]) -> dict:
+    """The scorecard of the new controllers (`new`, built from their episodes) joined with the committed rows of
+    `baselines`; the probability of improvement of every new controller against the committed references' episodes
+    (`track_eps`: the new controllers' episodes of each track, each with its `cell`)."""
+    out = dict(new)
+    for key in ("rows", "pooled", "by_robot", "tracks", "ladder", "entries", "samples"):
+        keep = [r for r in committed.get(key, []) if r.get("policy", r.get("spec")) in baselines]
+        out[key] = keep + list(new.get(key, []))
+    refs = committed.get("reference_episodes", {})
+    prob = [r for r in committed.get("prob_improvement", []) if r["policy"] in baselines]
+    for track, eps in track_eps.items():
+        mine: dict[str, dict[str, list[float]]] = {}
+        for r in eps:
+            mine.setdefault(str(r["policy"]), {}).setdefault(r["cell"], []).append(S._max_error(r))
+        for ref, by_cond in refs.items():
+            ref_cells = {f"{c}:{env}": v for c, envs in by_cond.items() for env, v in envs.items()}
+            for pol, cells in mine.items():
+                common = [c for c in cells if c in ref_cells]
+                res = M.probability_of_improvement(
+                    [cells[c] for c in common],
+                    [[v if v is not None else math.inf for v in ref_cells[c]] for c in common],
+                )
+                if res is not None:
+                    prob.append({"track": track, "policy": pol, "reference": ref, "p": res[0], "ci95": res[1]})
+    out["prob_improvement"] = prob
+    out["reference_episodes"] = refs
+    out["protocol"] = {**new["protocol"], "policies": list(dict.fromkeys([*baselines, *new["protocol"]["policies"]]))}
+    base_rows = [r for r in committed.get("rows", []) if r["policy"] in baselines]
+    out["n_episodes"] = new["n_episodes"] + sum(int(r["n"]) for r in base_rows)
+    out["n_expected"] = new["n_expected"] + sum(int(r["n"]) for r in base_rows)
+    out["n_failed"] = new["n_failed"] + sum(int(r["n_failed"]) for r in base_rows)
+    return out

@@ -1,0 +1,134 @@
+"""`mobman-eval picture`: the README's picture, a rendered frame of the robot at the end of an episode with the
+desired path (green), the end-effector's trace (orange) and the platform's (dark grey, on the ground) drawn into
+the world.
+
+One episode runs through the same loop as every evaluation (`eval.rollout.rollout`, with `render_mode=
+"rgb_array"`), the trace is the true end-effector (`info["ee_pos_true"]`) every `TRACE_EVERY` control steps, and
+the frame is PyBullet's TinyRenderer (headless, no GPU): the same image on every machine that runs the same
+PyBullet. Next to the PNG, `<stem>.json` records the command, the episode's figures and the provenance.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from eval.errors import EvalError
+from eval.output.files import atomic_write_bytes, atomic_write_json
+from eval.output.provenance import provenance
+
+#: the defaults: the headline controller on the Line (the platform drives 2 m), in physics mode, on the first
+#: reported seed
+DEFAULT_ENV = "WheeledPuma-Line-v0"
+DEFAULT_POLICY = "nnbc-plus"
+DEFAULT_SEED = 10_000
+#: control steps between two trace markers (0.05 s at 100 Hz)
+TRACE_EVERY = 5
+#: the camera: degrees about the vertical and below the horizon
+CAMERA_YAW, CAMERA_PITCH = 30.0, -30.0
+#: the accepted image sizes, pixels per side
+SIZE_RANGE = (64, 4096)
+
+
+@dataclass(frozen=True)
+class PictureConfig:
+    """What one `mobman-eval picture` renders, and where it writes the PNG and its JSON record."""
+
+    out: str = "docs/assets/robot.png"
+    """The PNG file to write (its record goes beside it, with the suffix .json)."""
+    env: str = DEFAULT_ENV
+    """The env id of the episode."""
+    policy: str = DEFAULT_POLICY
+    """The policy spec that drives the robot (a built-in name, sb3:PATH or module:attr)."""
+    seed: int = DEFAULT_SEED
+    """The episode's seed (reported seeds start at 10000)."""
+    dynamics: str = "physics"
+    """The env's dynamics mode: physics (PyBullet contact dynamics) or kinematic."""
+    width: int = 960
+    """Image width, pixels (64-4096)."""
+    height: int = 540
+    """Image height, pixels (64-4096)."""
+
+    def command(self) -> str:
+        """The command line that renders this picture."""
+        return (
+            f"mobman-eval picture --out {self.out} --env {self.env} --policy {self.policy} --seed {self.seed} "
+            f"--dynamics {self.dynamics} --width {self.width} --height {self.height}"
+        )
+
+    def validate(self) -> None:
+        """Raise EvalError naming an `out` that is not a .png file or a size out of range, with the fix."""
+        if Path(self.out).suffix.lower() != ".png":
+            raise EvalError(f"picture: --out {self.out!r} must name a .png file, e.g. --out docs/assets/robot.png")
+        low, high = SIZE_RANGE
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if not low <= v <= high:
+                raise EvalError(f"picture: --{name} {v} is out of range; accepted: {low}..{high} pixels")
+
+
+def _camera(points: np.ndarray, base_xy: np.ndarray) -> tuple[np.ndarray, float]:
+    """Where to look and from how far: the middle of the box holding the path, the trace and the platform."""
+    pts = np.vstack([points, [base_xy[0], base_xy[1], 0.0], [base_xy[0], base_xy[1], 1.0]])
+    target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    return target, 0.6 + 0.9 * float(np.ptp(pts, axis=0).max())
+
+
+def render_picture(config: PictureConfig | None = None) -> dict:
+    """Run one episode of `config.policy` on `config.env` (seed `config.seed`) and write its last frame, path and
+    trace drawn, as the PNG `config.out`; returns the record written beside it (`out` with suffix `.json`)."""
+    import pybullet
+
+    from eval.rollout import make_env, make_policy, rollout
+
+    c = config or PictureConfig()
+    c.validate()
+    out, env_id, policy, seed = Path(c.out), c.env, c.policy, c.seed
+    env = make_env(env_id, dynamics=c.dynamics, render_mode="rgb_array")
+    try:
+        pol = make_policy(policy, env, seed=seed)
+        u = env.unwrapped
+        wheels: list[np.ndarray] = []  # the platform's trace: the point between the wheels, on the ground
+
+        def on_step(k: int) -> None:
+            if k % TRACE_EVERY == 0:
+                wheels.append(np.array([*u.state().base_pose[:2], 0.004]))
+
+        rec, arrays = rollout(env, pol, seed=seed, on_step=on_step)
+        if arrays is None or rec["status"] != "ok":
+            raise EvalError(f"picture: the episode of {policy!r} on {env_id} failed: {rec['error']}")
+        trace = arrays["r_a"][::TRACE_EVERY]
+        env.render()  # the body where the episode ended (kinematic mode shows the engine's state)
+        sim = u.sim
+        assert sim is not None
+        for pts, rgba in ((trace, [0.95, 0.45, 0.05, 1]), (wheels, [0.2, 0.2, 0.25, 1])):
+            shape = sim.client.createVisualShape(pybullet.GEOM_SPHERE, radius=0.009, rgbaColor=rgba)
+            for p in pts:
+                sim.client.createMultiBody(baseMass=0, baseVisualShapeIndex=shape, basePosition=[float(v) for v in p])
+        points = np.vstack([arrays["r_d"], trace, wheels])
+        base = u.state().base_pose[:2]
+        target, distance = _camera(points, base)
+        img = sim.render(target, distance, width=c.width, height=c.height, yaw=CAMERA_YAW, pitch=CAMERA_PITCH)
+    finally:
+        env.close()
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", optimize=True)
+    atomic_write_bytes(out, buf.getvalue())
+    record = {
+        "command": c.command(),
+        "env": env_id,
+        "policy": policy,
+        "seed": seed,
+        "dynamics": c.dynamics,
+        "size": [c.width, c.height],
+        "rms_error_mm": round(1000.0 * float(rec["rms_error_m"]), 1),
+        "success": bool(rec["success"]),
+        "provenance": provenance(),
+    }
+    atomic_write_json(out.with_suffix(".json"), record)
+    return record

@@ -1,0 +1,243 @@
+"""`RobotBatch`: the episode state of N robots in the engine's arrays, and everything numpy does around the kernels.
+
+The single env (`mobman_env.env.WheeledPumaEnv`) holds a batch of one robot, the vector env (`mobman_env.vector`)
+a batch of N; both reset a row with `begin` + `set_path` and step through `mobman_env.engine`'s kernels, so robot
+i of a vector env is a single env reset with seed S + i by construction: the same code on the same numbers.
+
+Per row it keeps what the kernels do not need: the episode's true robot (`params0`, a `RobotParams`; wear
+drifts the lengths from it), the path object, the hash of the robot and the row's noise plan (which entries of
+the readings are noisy, in the order the noise is drawn from the row's generator: ee_pos (3) and arm_base_pos
+(2) for `obs_noise`, ee_vel (3) and arm_base_vel (2) for `obs_noise_vel`, joint_vel (n + 2) for
+`obs_noise_joint_vel`, base_yaw (1) for `obs_noise_yaw`; one `standard_normal` call per row and step, nothing
+drawn for a noise-free row). The kernels scale the draws by the stds.
+
+Imports numpy and `mobman_env` modules only.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from mobman_env import engine as E
+from mobman_env.params import RobotParams
+from mobman_env.paths import path_from_spec
+
+#: the per-episode conditions a row holds (constructor arguments and reset options of the env)
+CONDITIONS = (
+    "model_error",
+    "obs_noise",
+    "obs_noise_vel",
+    "obs_noise_joint_vel",
+    "obs_noise_yaw",
+    "obs_delay",
+    "wear_rate",
+    "actuator_tau",
+)
+
+
+@dataclass
+class RobotState:
+    """What the sensors see (noise-free), world frame, SI units."""
+
+    ee_pos: np.ndarray  # (3,) m
+    ee_vel: np.ndarray  # (3,) m/s
+    arm_base_pos: np.ndarray  # (2,) m, p_c
+    arm_base_vel: np.ndarray  # (2,) m/s
+    base_pose: np.ndarray  # (3,) x, y of P_0 (m), yaw (rad, continuous)
+    joint_pos: np.ndarray  # (n + 2,) rad: n arm joints, left wheel, right wheel
+    joint_vel: np.ndarray  # (n + 2,) rad/s
+    roll_pitch: tuple[float, float]  # rad, of the platform
+
+
+def noise_plan(m: int, cond: dict) -> np.ndarray | None:
+    """The `io` columns of the row's standard normals, in draw order (see the module docstring); None when every
+    std is 0."""
+    base = E.io_noise(m)
+    cols: list[int] = []
+    if cond["obs_noise"] > 0.0:
+        cols += [0, 1, 2, 6, 7]
+    if cond["obs_noise_vel"] > 0.0:
+        cols += [3, 4, 5, 8, 9]
+    if cond["obs_noise_joint_vel"] > 0.0:
+        cols += list(range(11 + m, 11 + 2 * m))
+    if cond["obs_noise_yaw"] > 0.0:
+        cols += [10]
+    return np.array(cols, dtype=np.intp) + base if cols else None
+
+
+class RobotBatch:
+    """The state of N robots' episodes (see the module docstring).
+
+    Args:
+        num: N.
+        n_joints: n, the arm joints of every row (m = n + 2 actuators).
+        dt: the control period, s.
+        reward_weights: {"tracking": w_t, "effort": w_e}.
+        error_bound: terminate a row when its error exceeds this (m); None: never.
+    """
+
+    def __init__(self, num: int, n_joints: int, dt: float, reward_weights: dict, error_bound: float | None):
+        self.num = num
+        self.m = m = n_joints + 2
+        self.dt = float(dt)
+        self.arm = np.zeros((num, E.ARM_ROWS, m))
+        self.prm = np.zeros((num, E.P_LEN))
+        self.st = np.zeros((num, E.s_len(m)))
+        self.io = np.zeros((num, E.io_len(m)))
+        self.hist = np.zeros((num, 1, E.n_sensor(m)), dtype=np.float32)
+        self.prm[:, E.P_WT] = reward_weights["tracking"]
+        self.prm[:, E.P_WE] = reward_weights["effort"]
+        self.prm[:, E.P_BOUND] = math.inf if error_bound is None else error_bound
+        self.prm[:, E.P_PATH + 3] = 1.0  # a path duration before the first reset (never 0: the timing divides)
+        self.out = E.io_out(m)
+        self.rows = np.arange(num)
+        self.params0: list[Any] = [None] * num  # each row's true robot at t = 0
+        self.wear = np.zeros(num)
+        self.paths: list[Any] = [None] * num
+        self.hashes: list[str] = [""] * num
+        self._noise: list[np.ndarray | None] = [None] * num
+        self.noisy: list[int] = []  # rows with a noise plan
+
+    # --- episodes -----------------------------------------------------------------------------------------
+    def begin(self, i: int, params: RobotParams, q0: np.ndarray, pose: np.ndarray, cond: dict) -> None:
+        """Start row i's episode: true robot `params` at joint angles q0 (m) and platform pose (x, y, yaw) at rest,
+        under the conditions `cond` (`CONDITIONS`); its path comes with `set_path`."""
+        m = self.m
+        E.pack_robot(self.arm, self.prm, i, params)
+        self.params0[i] = params
+        self.hashes[i] = params.hash()
+        p = self.prm[i]
+        p[E.P_WEAR] = self.wear[i] = cond["wear_rate"]
+        p[E.P_TAU] = cond["actuator_tau"]
+        p[E.P_DELAY] = cond["obs_delay"]
+        p[E.P_SPOS] = cond["obs_noise"]
+        p[E.P_SVEL] = cond["obs_noise_vel"]
+        p[E.P_SJV] = cond["obs_noise_joint_vel"]
+        p[E.P_SYAW] = cond["obs_noise_yaw"]
+        plan = self._noise[i] = noise_plan(m, cond)
+        p[E.P_NOISY] = 0.0 if plan is None else 1.0
+        self.noisy = [r for r in range(self.num) if self._noise[r] is not None]
+        s = self.st[i]
+        s[:] = 0.0
+        s[E.s_q(m) : E.s_q(m) + m] = q0
+        s[E.s_pose(m) : E.s_pose(m) + 3] = pose
+        delay = int(cond["obs_delay"])
+        if delay + 1 > self.hist.shape[1]:
+            grown = np.zeros((self.num, delay + 1, self.hist.shape[2]), dtype=np.float32)
+            grown[:, : self.hist.shape[1]] = self.hist
+            self.hist = grown
+
+    def begin_episode(
+        self, i: int, rng: np.random.Generator, source: Any, nominal: RobotParams, q0: Any, pose: Any, cond: dict
+    ) -> tuple[RobotParams, np.ndarray]:
+        """Draw row i's episode from its generator, in the env's fixed order (the arm and its start for a drawn
+        robot family, then the worn true robot), and `begin` it; returns (the episode's nominal robot, its start
+        (m angles)). The path (its seed is drawn next) comes with `set_path` once the start point is known."""
+        drawn = source.draw(rng)
+        if drawn is not None:
+            nominal, start = drawn
+            q0 = np.concatenate([start, [0.0, 0.0]])
+        params = nominal.perturbed(rng, cond["model_error"])
+        self.begin(i, params, q0, pose, cond)
+        return nominal, np.asarray(q0, dtype=float)
+
+    def task(self, i: int, start: Any, q0: Any, pose: Any) -> dict:
+        """Row i's `info["task"]` at its reset: the path spec, its start, the joint vector, the base pose, the
+        duration and the number of steps."""
+        path = self.paths[i]
+        return {
+            "path": path.to_spec(),
+            "start": [float(v) for v in start],
+            "arm_joint_pos": [float(v) for v in q0],
+            "base_pose": [float(v) for v in pose],
+            "duration": float(path.duration),
+            "n_steps": self.n_steps(i),
+        }
+
+    def set_path(self, i: int, spec: dict, start: Any, rng: np.random.Generator, control_freq: float) -> Any:
+        """Row i's path from `spec`, anchored at `start` (a random spec without a seed draws one from `rng`);
+        returns it. The episode lasts round(duration x control_freq) steps (at least 1)."""
+        path = path_from_spec(spec, start, rng)
+        self.paths[i] = path
+        self.prm[i, E.P_PATH :] = path.coef
+        self.prm[i, E.P_NSTEPS] = max(1, int(round(path.duration * control_freq)))
+        return path
+
+    def n_steps(self, i: int) -> int:
+        return int(self.prm[i, E.P_NSTEPS])
+
+    def steps(self, i: int) -> int:
+        return int(self.st[i, E.s_pose(self.m) + 3])
+
+    def true_params(self, i: int) -> RobotParams:
+        """Row i's true robot at its current time (the episode's, drifted by its wear rate)."""
+        p0 = self.params0[i]
+        if self.wear[i] == 0.0:
+            return p0
+        return p0.scaled(1.0 + self.wear[i] * (self.steps(i) * self.dt))
+
+    def draw_noise(self, rows: Any, rngs: Any) -> None:
+        """The standard normals of this step's noise of the noisy rows among `rows` (each from its generator,
+        `rngs[i]`), in each row's draw order."""
+        if not self.noisy:
+            return
+        io = self.io
+        rowset = None if len(rows) == self.num else set(np.asarray(rows).tolist())
+        for i in self.noisy:
+            cols = self._noise[i]
+            if cols is not None and (rowset is None or i in rowset):
+                io[i, cols] = rngs[i].standard_normal(len(cols))
+
+    # --- kinematic mode -----------------------------------------------------------------------------------------
+    def ee_kinematic(self, rows: np.ndarray) -> np.ndarray:
+        """r_a (k, 3) of the rows `rows` at their current state (a reset's start point, before its path is set)."""
+        E.kinematic(self.arm, self.prm, self.st, self.io, self.new_obs(), self.hist, self.dt, rows, E.READ)
+        return self.io[rows, self.out + E.O_EE : self.out + E.O_EE + 3].copy()
+
+    def ee_physics(self, rows: np.ndarray) -> np.ndarray:
+        """r_a (k, 3) of the rows `rows` from the PyBullet state in `io` (a reset's start point)."""
+        E.physics(self.arm, self.prm, self.st, self.io, self.new_obs(), self.hist, self.dt, rows, E.READ)
+        return self.io[rows, self.out + E.O_EE : self.out + E.O_EE + 3].copy()
+
+    def observe_kinematic(self, rows: np.ndarray, obs: np.ndarray) -> None:
+        """The observations of the rows `rows` at their current state into `obs` (a reset)."""
+        E.kinematic(self.arm, self.prm, self.st, self.io, obs, self.hist, self.dt, rows, E.OBSERVE)
+
+    def step_kinematic(self, rows: np.ndarray, obs: np.ndarray) -> int:
+        """One step of the rows `rows` (their actions in `io[:, :m]`); -1, or the first row with a non-finite
+        action (then nothing moved)."""
+        return E.kinematic(self.arm, self.prm, self.st, self.io, obs, self.hist, self.dt, rows, E.STEP)
+
+    def observe_physics(self, rows: np.ndarray, obs: np.ndarray, step: bool) -> None:
+        """The observations of the rows `rows` from the PyBullet state in `io` into `obs`, after a step or at a
+        reset."""
+        E.physics(self.arm, self.prm, self.st, self.io, obs, self.hist, self.dt, rows, E.STEP if step else E.OBSERVE)
+
+    def state(self, i: int) -> RobotState:
+        """Row i's noise-free readings of the last kernel call (a reset or a step) as arrays."""
+        m = self.m
+        v = self.io[i, E.io_vals(m) : E.io_vals(m) + E.n_sensor(m)].copy()
+        sp = E.s_pose(m)
+        return RobotState(
+            ee_pos=v[0:3],
+            ee_vel=v[3:6],
+            arm_base_pos=v[6:8],
+            arm_base_vel=v[8:10],
+            base_pose=self.st[i, sp : sp + 3].copy(),
+            joint_pos=v[11 : 11 + m],
+            joint_vel=v[11 + m : 11 + 2 * m],
+            roll_pitch=(float(self.st[i, sp + 6]), float(self.st[i, sp + 7])),
+        )
+
+    # --- results ------------------------------------------------------------------------------------------------
+    def outputs(self, i: int) -> list[float]:
+        """Row i's results of the last kernel call, `engine.O_*` order from `O_REWARD` to `O_TIPPED`."""
+        return self.io[i, self.out : self.out + E.O_TIPPED + 1].tolist()
+
+    def new_obs(self) -> np.ndarray:
+        """A fresh (N, obs) float32 array for a kernel to fill (observations handed out are never reused)."""
+        return np.empty((self.num, E.obs_size(self.m)), dtype=np.float32)

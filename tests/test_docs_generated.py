@@ -1,0 +1,44 @@
+"""Every page that holds generated blocks (the docs pages and the packages' READMEs, beside the top README which
+tests/test_readme_generated.py and tests/test_readme_bench.py hold) equals what `mobman-eval readme PAGE`
+renders from the committed results it names, and those results come from reported seeds (>= 10,000) only."""
+
+import json
+import re
+from pathlib import Path
+
+import pytest
+
+from eval.bench.scorecard import load_scorecard
+from eval.cli.readme import render
+
+ROOT = Path(__file__).resolve().parents[1]
+BLOCK = re.compile(r"<!-- (generated|bench):begin ")
+
+
+def _pages() -> list[Path]:
+    """The hand-written Markdown pages holding a block: docs/ outside docs/results/ (whose files mobman
+    writes) and each package's README."""
+    pages = [p for p in sorted((ROOT / "docs").rglob("*.md")) if "results" not in p.relative_to(ROOT / "docs").parts]
+    pages += sorted(ROOT.glob("*/README.md"))
+    return [p for p in pages if BLOCK.search(p.read_text(encoding="utf-8"))]
+
+
+def test_some_docs_page_holds_generated_blocks():
+    assert _pages(), "no docs page holds a generated block: the figures of the docs would be typed by hand"
+
+
+@pytest.mark.parametrize("page", _pages(), ids=lambda p: str(p.relative_to(ROOT)))
+def test_docs_page_blocks_equal_the_committed_results(page):
+    text = page.read_text(encoding="utf-8")
+    rendered, used = render(text, page.parent)
+    for rel in used:
+        src = (page.parent / rel).resolve()
+        assert src.is_relative_to(ROOT), f"{page}: {rel} lies outside the repository"
+        if src.suffix == ".json":
+            seeds = load_scorecard(src)["protocol"]["seeds"]
+        elif src.with_name("results.json").is_file():
+            seeds = [r["seed"] for r in json.loads(src.with_name("results.json").read_text())["episodes"]]
+        else:
+            continue
+        assert min(seeds) >= 10_000, f"{page}: {rel}: the figures of a page come from reported seeds only"
+    assert rendered == text, f"{page.relative_to(ROOT)} differs from its results; run `mobman-eval readme {page}`"
