@@ -4,7 +4,7 @@ Every built-in policy class declares `knowledge`, one of `KNOWLEDGE_CLASSES` (DE
 
 | class | what the policy knows | built-in policies |
 |---|---|---|
-| `none` | no kinematic parameter and no structure | `nnbc`, `nnbc-full`, `broyden`, `rls`, `zero`, `random`, every `sb3:` agent; `nnbc-plus:formulation=whole_body` or `=paper` |
+| `none` | no kinematic parameter and no structure | `nnbc`, `nnbc-full`, `nnbc-plus-wb`, `broyden`, `rls`, `zero`, `random`, every `sb3:` agent; `nnbc-plus:formulation=whole_body` or `=paper` |
 | `structure` | the kind of chain and platform (which joints, a planar base, a sensed mount), no parameter value | `nnbc-plus` (its default structured estimate), `calib-qp` (it learns every worn length; the catalogue's values are only its prior) |
 | `nominal` | the catalogue's parameters | `jmpi`, `jmpi-full`, `clik`, `clik-full`, `qp`; `nnbc:j0=nominal` |
 | `true` | the worn robot's parameters | `oracle`, `oracle-full`, `qp-oracle` |
@@ -17,7 +17,7 @@ by the class; "model-free" is said only of class `none`.
 ```python
 import policies
 policies.knowledge_of("nnbc-plus")                        # "structure"
-policies.knowledge_of("nnbc-plus:formulation=whole_body")  # "none"
+policies.knowledge_of("nnbc-plus-wb")                     # "none" (formulation=whole_body)
 policies.knowledge_of(policies.make("qp-oracle", env))     # "true"
 ```
 

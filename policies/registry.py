@@ -79,6 +79,14 @@ _REGISTRY: dict[str, _Entry] = {
         {},
         "none",
     ),
+    "nnbc-plus-wb": _Entry(
+        "nnbc-plus with its whole-body estimate instead of the structured one: knows no structure (class none)",
+        "policies.nnbc_plus",
+        "NNBCPlus",
+        "NNBCPlusConfig",
+        {"formulation": "whole_body"},
+        "none",
+    ),
     "broyden": _Entry(
         "model-free: Broyden's secant Jacobian update in nnbc-plus's probe / excitation / control law",
         "policies.broyden_rls",

@@ -17,6 +17,7 @@ EXPECTED = {
     "nnbc": "none",
     "nnbc-full": "none",
     "nnbc-plus": "structure",
+    "nnbc-plus-wb": "none",
     "broyden": "none",
     "rls": "none",
     "jmpi": "nominal",
