@@ -61,18 +61,11 @@ class KalmanEstimator:
     (m/rad/s)^2. meas_std: measurement noise of one y component, m/s. innov_clip, innov_rate: robust update
     (an innovation longer than innov_clip x the running RMS is shortened; innov_rate weights the newest one in
     that running mean square; innov_clip = 0 turns it off). p0_jacobian, p0_rate: initial covariances.
-    forgetting: covariance divided by it per step (1 = off), with the trace bounded by p_max per state.
     midpoint: the measurement is a finite difference over the last step, which holds at the interval's
     middle, so the regressor gets -dt/2 x on the rate states. noise_rate > 0: the measurement noise R is
     estimated online by covariance matching (a running mean, with that per-step weight, of the (clipped)
     innovation's mean square per component minus its predicted part h P h^T), never below meas_std^2; 0 keeps
-    R = meas_std^2. innov_gate > 0: innovation consistency gate (0 = off): a pair whose innovation's mean square
-    per component exceeds innov_gate^2 (h P h^T + R), its predicted variance, is not learnt (the step is
-    predicted only); after gate_steps rejections in a row the next pair is learnt anyway, with P multiplied by
-    gate_inflate first (a real change of J, not a transient). gate_rms > 0: the same gate against gate_rms times
-    the running RMS the clip keeps. R's statistics see every innovation, gated or not; the clip's RMS only the
-    accepted ones. rate_time > 0: the rate decays, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t)
-    (a first-order Gauss-Markov rate instead of a constant one; 0 = constant).
+    R = meas_std^2.
     """
 
     def __init__(
@@ -87,25 +80,16 @@ class KalmanEstimator:
         innov_rate: float,
         p0_jacobian: float,
         p0_rate: float,
-        forgetting: float,
-        p_max: float,
         midpoint: bool,
         sym_phase: int = 0,
         noise_rate: float = 0.0,
-        innov_gate: float = 0.0,
-        gate_rms: float = 0.0,
-        gate_steps: int = 10,
-        gate_inflate: float = 1.0,
-        rate_time: float = 0.0,
     ):
         self._n = n
         self._dt = dt
         ns = 2 * n
-        self._inv_lambda = 1.0 / forgetting
         self._r0 = self._r = meas_std**2
         self._noise_rate = noise_rate
         self._r_est = self._r0
-        self._trace_max = p_max * ns
         self._midpoint = midpoint
         self._h = np.zeros(ns)
         q = np.r_[np.full(n, q_jacobian), np.full(n, q_rate)]
@@ -113,14 +97,6 @@ class KalmanEstimator:
         self._clip = innov_clip
         self._clip2 = innov_clip**2
         self._rate = innov_rate
-        self._rate_decay = float(np.exp(-dt / rate_time)) if rate_time > 0 else 1.0
-        self._gate2 = 3.0 * innov_gate**2  # on the squared norm of the 3-component innovation
-        self._gate_rms2 = gate_rms**2
-        self._gate_steps = gate_steps
-        self._gate_inflate = gate_inflate
-        self._rejected = 0
-        self.n_rejected = 0  # updates skipped by the gate since the reset (a diagnostic)
-        self.nis = 0.0  # the last innovation's mean square per component over h P h + R (with the gate on)
         # [X; P] in one (3 + 2n) x 2n array (`X` and `P` are views of it): the constant-rate prediction of X and
         # the column step of F P F^T are then one operation (the same per-entry arithmetic as two)
         self._M0 = np.zeros((3 + ns, ns))
@@ -155,15 +131,13 @@ class KalmanEstimator:
         self._innov_ms = INNOV_MS0
         self._r = self._r_est = self._r0
         self._m = 0
-        self._rejected = 0
-        self.n_rejected = 0
 
     def init(self, J0: np.ndarray) -> None:
         self._M[:3, : self._n] = J0
         self._M[:3, self._n :] = 0.0
 
     def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Predict [J | J_dot] one step (constant rate, process noise, forgetting), then update all rows with
+        """Predict [J | J_dot] one step (constant rate, process noise), then update all rows with
         y = J x (the same regressor h for the three rows: one gain). P is updated in place: F P F^T by the
         block structure of F = [[I, dt I], [0, I]] (rows, then columns), the process noise on its diagonal."""
         n = self._n
@@ -173,14 +147,7 @@ class KalmanEstimator:
         X = M[:3]
         P = M[3:]
         P[:n] += dt * P[n:]  # the rows of F P
-        a = self._rate_decay
-        if a != 1.0:  # a decaying rate (first-order Gauss-Markov): F = [[I, dt I], [0, a I]]
-            P[n:] *= a
         M[:, :n] += dt * M[:, n:]  # X's constant-rate prediction and the columns of (F P) F^T
-        if a != 1.0:
-            M[:, n:] *= a
-        if self._inv_lambda != 1.0:
-            P *= self._inv_lambda
         if self._q is not None:
             diag = P.reshape(-1)[:: 2 * n + 1]  # a view of P's diagonal (made here: a kept view would not
             diag += self._q  # survive copy.deepcopy or pickling of the estimator)
@@ -192,25 +159,8 @@ class KalmanEstimator:
         hPh = float(h.dot(Ph))
         innov = y - X.dot(h)
         n2 = float(innov.dot(innov))
-        reject = False
-        if self._gate2 > 0.0 or self._gate_rms2 > 0.0:
-            # consistency gate: |innov|^2 / 3 against its predicted variance h P h + R (innov_gate), or |innov|^2
-            # against the running mean square of the recent innovations (gate_rms)
-            self.nis = n2 / (3.0 * (hPh + self._r))  # normalised innovation (a diagnostic)
-            if (self._gate2 > 0.0 and n2 > self._gate2 * (hPh + self._r)) or (
-                self._gate_rms2 > 0.0 and n2 > self._gate_rms2 * self._innov_ms
-            ):
-                self._rejected += 1
-                reject = self._rejected <= self._gate_steps
-                if not reject and self._gate_inflate != 1.0:
-                    # gate_steps rejections in a row: y = J x has really changed; learn it, with P widened
-                    P *= self._gate_inflate
-                    Ph = P.dot(h)
-                    hPh = float(h.dot(Ph))
-            if not reject:
-                self._rejected = 0
         K = Ph / (hPh + self._r)
-        if self._clip > 0 and not reject:
+        if self._clip > 0:
             lim2 = self._clip2 * self._innov_ms
             if n2 > lim2:
                 innov *= (lim2 / n2) ** 0.5
@@ -219,18 +169,11 @@ class KalmanEstimator:
         if self._noise_rate > 0:  # covariance matching: E[innov_i^2] = h P h + R per component
             self._r_est += self._noise_rate * (n2 / 3.0 - hPh - self._r_est)
             self._r = max(self._r0, self._r_est)
-        if reject:  # the noise statistics see every innovation; the state does not learn this one
-            self.n_rejected += 1
-            return
         X += innov[:, None] * K
         P -= K[:, None] * Ph
         if (self._m + self._sym_phase) % 64 == 0:  # P is symmetric in exact arithmetic; remove the round-off
             P += P.T.copy()
             P *= 0.5
-        if self._inv_lambda != 1.0:
-            tr = P.trace()
-            if tr > self._trace_max:
-                P *= self._trace_max / tr
 
 
 class BroydenEstimator:

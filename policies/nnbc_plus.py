@@ -1,262 +1,140 @@
-"""`nnbc-plus`: a model-free controller that keeps NNBC's promise (no kinematic model, only measurements) and
-tracks every task: the Jacobian is a moving state estimated by Kalman filters, not a rank-one ZNN update, and
-(v3) it is estimated in two parts, the arm's and the platform's, so that platform slip never enters it.
+"""`nnbc-plus`: end-effector tracking with an online Kalman estimate of the Jacobian, from measurements only.
 
-Why the paper's NNBC fails
---------------------------
-u = J_hat^+ v lies in the row space of J_hat, and eq. (15) adds only multiples of u^T to J_hat, so the row
-space fixed by J_hat(0) never changes: only the direction of the current u is ever re-learnt, the others go
-stale as the arm moves, and J_hat's smallest singular value collapses while the true one does not.
+It keeps NNBC's promise (no kinematic parameter: it is built from `EnvFacts` and reads observations) and tracks
+where the paper's NNBC does not. NNBC's command u = J_hat^+ v lies in J_hat's row space and its update (eq. (15))
+adds only multiples of u^T, so the row space fixed by J_hat(0) never changes and J_hat's smallest singular value
+collapses while the true one does not. `nnbc-plus` treats J as a moving state of a Kalman filter instead, excited
+in every direction. Its design notes, the measurements behind its defaults and what was tried and did not work are
+in the docs page "nnbc-plus: design notes and what did not work" (`docs/nnbc-plus.md`).
 
-What this controller does (per control step: numpy on the 3 x n and 2n x 2n matrices, floats for 3-vectors)
---------------------------------------------------------------------------------------------------------
-n = len(facts.action_scale) (8 on the PUMA and the UR5, 9 on the Panda): n - 2 arm joints, then the left and
-right wheel. Nothing else about the robot is assumed.
+What it estimates
+-----------------
+The Jacobian J (3 x n, m/rad) of one linear equation per control step, y = J x: x the measured actuator speeds
+(`joint_vel`, rad/s), y the measured end-effector velocity (`ee_vel`, m/s). Nothing is differentiated, so
+position noise never reaches the estimate. n = len(facts.action_scale): n - 2 arm joints, then the left and right
+wheel (8 on the PUMA and the UR5, 9 on the Panda). Three formulations (`formulation`):
 
-1. **Measure** one linear equation per task axis: y = J(t_k) x, with x the measured actuator speeds
-   (`joint_vel`, n) and y the measured end-effector velocity (`ee_vel`, 3; minus `[arm_base_vel; 0]` in the
-   paper's formulation). Nothing is differentiated, so position noise never reaches the estimator. With
-   `measurement="position"` they are finite differences of `joint_pos` and `ee_pos` over the last step
-   instead (y = (r_a(t_k) - r_a(t_k-1))/dt against x = (q(t_k) - q(t_k-1))/dt, which holds at the interval's
-   middle), for sensor sets without velocities; that variant needs clean positions (1 mm of noise on ee_pos
-   is 0.14 m/s on y).
-2. **Estimate** J in two parts (v3, `formulation="structured"`, the default; `policies.structured`): the arm's
-   Jacobian in the platform's frame, learnt from y minus the platform's measured motion ([p_c_dot; 0] +
-   omega z x (r_a - p_c), from `arm_base_vel`, the heading's rate and the lever `ee_pos - arm_base_pos`), and
-   the constant map from the two wheel speeds to the platform's motion, learnt by a small Kalman filter of its
-   own; J_hat is composed from them and the measured heading. Why: on a fast path in physics mode the platform
-   slips (its wheels turn, the ground does not follow), y = J x fails for about ten steps, and a filter that
-   learns the whole-body J from y learns the slip into every column (below, "The 5 s circle"); slip moves p_c
-   and the heading, which are measured, so it never reaches the arm's part, and the wheel map is a long average
-   a few steps of slip barely move. The arm's part (and, with `formulation="whole_body"`, v2's whole-body J) is
-   learnt as follows: J and its time rate J_dot jointly: each of the 3 rows of [J | J_dot] is the state of a linear
-   Kalman filter with a constant-velocity model (J(t + dt) = J(t) + dt J_dot(t)) driven by random-walk process
-   noise (`q_jacobian`, `q_rate`); the three rows see the same regressor, so they share one 2n x 2n covariance
-   and one gain. Every direction of J follows the arm, not only the current u's. A robust update
-   (`innov_clip`) shortens single-step outliers of the innovation. **The measurement noise is estimated, not
-   told** (`noise_rate`, v2): R is a slow running mean of the innovations' mean square minus its predicted part
-   h P h^T (covariance matching), never below `meas_std`^2. Without noise R stays at meas_std^2 = 1e-6 (m/s)^2
-   and J follows fast changes; with 0.01 m/s on `ee_vel` (or 0.01 rad/s on `joint_vel`, which reaches y as
-   J times it) R rises to about 1e-4 and the filter averages over more steps, instead of following the noise
-   (v1 with a fixed R lost most physics episodes with velocity noise: `v1-dev.md`, condition `noise`). Exponential `forgetting` is
-   available instead of (or with) the process noise; it was measured worse in physics mode.
-3. **Excite** the directions the task does not use: a random-sign dither (`dither`, rad/s) projected into the
-   null space of J_hat, so it moves the actuators but (when J_hat is right) not the end-effector. Without it the
-   unexcited directions of J go stale and the estimate fails (measured). `task_dither` excites J's row space
-   too, with a zero-mean two-step task-space excitation (+d on one step, -d on the next, so the end-effector
-   comes back).
-4. **Control** with the estimate extrapolated half a step (the command is held over [t_k, t_k+1]):
-   u = z + J_c^+ (v - J_c z), v = r_d_dot(t_k + dt/2) + gamma (r_d - r_hat_a), J_c = J_hat + dt/2 J_dot_hat,
-   J_c^+ a damped (`damping`) pseudo-inverse, z the null-space motion: dither plus a pull of the n - 2 arm
-   joints back to their angles at the episode start (`posture_gain`; keeps joint 1 off its stop and lets the
-   platform drive). r_hat_a is the measured ee_pos after a complementary filter (`pos_filter`) that advances
-   it by the measured motion and pulls it towards the measurement (attenuates `obs_noise` in the feedback).
-   * **Singularities seen through the estimate** (v2, `sing_threshold`, `sing_damping`): the controller cannot
-     compute the true manipulability, but it has J_c: the smallest eigenvalue of J_c W J_c^T is estimated for
-     free from the 3 x 3 solve's cofactors (det / e2, a lower bound, tight near a singularity), and when
-     sigma_min(J_c) falls below `sing_threshold` the damping grows (Nakamura/Chiaverini's singularity-robust
-     inverse). Near the stretched-arm configurations of a 0.5 m circle the undamped law commands wheel and
-     wrist speeds the physics cannot follow (wheel slip, y = J x breaks, the estimate and the episode
-     diverge); the extra damping bounds those speeds at the price of a few mm in the weak direction.
-   * **Wheel weight** (`wheel_weight`, an option, off by default): u = z + W J_c^T (J_c W J_c^T)^-1 (...) with
-     W = diag(1, ..., 1, w, w). With W = I the minimum-norm solution puts most of a long motion on the arm,
-     whose columns are several times longer than a wheel's (r/2 = 0.1 m/rad of translation on the PUMA
-     platform): on a 3 m line the arm drifts from its start until a joint reaches its stop (random arms on
-     Line-v0: 6/10 development seeds, up to 0.5 m, hundreds of stop hits). w = 16 lets the platform drive
-     (development seeds: random-arm Line-v0 4/4, UR5 Line-v0 0.2 mm without a stop hit, the PUMA's physics
-     random starts that reached a stop, seed 2: 9.6 and 21 mm -> 1.1 and 2.0 mm, 0.5 m physics circle 5.1 ->
-     0.4 mm), but with velocity noise in physics mode it lost a Circle-v0 episode by 2.6 m (development seed 0;
-     w = 1: 2.9 mm) and w = 4 lost a 0.5 m physics circle: not the default until that is understood.
-   * **Joint stops** (`block_release`, `block_every`): an actuator that is commanded but does not move is
-     taken out of the pseudo-inverse (weight `BLOCK_WEIGHT`) and never commanded further into its stop until
-     the pull has moved it `block_release` away. It is checked every step (v2.1; v2: every 4th step, and the
-     8 steps until a stop was seen cost 5-9 mm when the UR5's elbow reached its stop on Line-v0: 1/10 reported,
-     1/10 development episodes; every step: 10/10 development, 1.5-2.8 mm). Ablation: `block_every=4`.
-   * **Delay compensation** (v2, `max_delay`, `delay_rate`): with observations d steps old, the measured x
-     equals the command issued d + 1 steps before. The controller keeps its last max_delay + 1 commands,
-     tracks the running mismatch of each lag with x and takes the best lag as d (`delay_estimate`); the fed-back
-     position and arm angles are predicted forward by J_hat times the d commands issued since the observation.
-     The (x, y) pairs stay consistent (both are equally old), so the estimator needs no change.
-5. **Probe while tracking** (`probe_tracking`, v2): J_hat(0) comes from a 2n-step probe (each actuator in turn
-   at +probe_speed for one step, then -probe_speed: back to where it was). v1 stood still during it, and a 5 s
-   circle left the 6 mm tolerance during those 16 steps in every v1 episode (`v1-dev.md`). v2 runs the control law during the probe with the ridge-regularised
-   least-squares fit of the pairs so far (an actuator not probed yet has a zero column, so the pseudo-inverse
-   does not use it) and adds the probe on top; at the end the fit (tiny ridge) is J_hat(0), J_dot_hat(0) = 0,
-   and the Kalman filter takes over. `j0_noise` perturbs J_hat(0) by a random matrix of that fraction of its
-   Frobenius norm, drawn from the controller's own RNG (robustness test).
+* `"structured"`, the default (`policies.structured`): J is composed from the arm's Jacobian A in the platform's
+  frame and the constant map M from the two wheel speeds to the platform's velocity, with the measured heading
+  `base_yaw` and lever `ee_pos - arm_base_pos`. A is learnt from y minus the platform's measured motion
+  (`arm_base_vel` and the heading's rate), M by a small Kalman filter of its own (`q_platform`,
+  `platform_std`), so platform slip (it moves measured quantities) never reaches A.
+* `"whole_body"`: one filter learns the whole-body J from y directly.
+* `"paper"`: J maps u to r_a_dot - [p_c_dot; 0] (the paper's eq. (6)); the measured p_c_dot is subtracted in
+  the law.
 
-The controller reads only `EnvFacts` (dt, action scale) and observations: no `RobotParams`, no kinematics, no
-sensor settings (noise and delay are estimated).
+The filter (`policies.estimators.KalmanEstimator`, for A or the whole J): each of the three rows of [J | J_dot]
+is the state of a linear Kalman filter with a constant-rate model J(t + dt) = J(t) + dt J_dot(t) and random-walk
+process noise (`q_jacobian`, `q_rate`); the rows see the same regressor, so they share one 2n x 2n covariance and
+one gain. An innovation longer than `innov_clip` times the running RMS of the recent ones is shortened. The
+measurement noise R is estimated from the innovations (covariance matching, `noise_rate`), never below
+`meas_std`^2: the controller is not told the sensors' noise. With `measurement="position"` x and y are finite
+differences of `joint_pos` and `ee_pos` over the last step (for sensor sets without velocities; it needs clean
+positions).
 
-What it does not do yet (measured on development seeds with v2.1's whole-body estimate unless noted)
-------------------------------------------------------------------------------------------------------
-v3 against v2.1 on development seeds 0-4, every condition of issue 16, both modes
-(`docs/results/nnbc-plus-v2/dev-structured.md`): no cell worse; physics 5 s circle 5/5 against 0/5, joint-speed
-noise 20/20 against 19/20, 30% wear 18/20 against 16/20. Still lost there: physics random starts 18/20 (as v2.1),
-30% wear in physics 18/20 (one episode by 112 mm), random arms 16/20 (as v2.1). The reported-seed figures are in
-`summary.md`.
+The law
+-------
+The command is held over [t_k, t_k + dt], so it is computed for the step's middle (`lookahead`):
 
-* **The 10 s circle in physics mode (v3)**: reported seeds 13/20; development seeds 0-29: 21/30, v2.1's
-  whole-body estimate 19/30, `sing_damping` 0.001 23/30, the known-model `qp-oracle` 27/30 (`dev-circle10s.json`).
-  On development seed 7 (`trace-circle10s.md`) the estimate is right (smallest singular value 0.045 against a
-  true 0.055 m/rad at step 700) but the path passes that near a singularity of the whole-body J: joint 1
-  saturates at 3 rad/s, the platform slips 286-660 mm/s and the error reaches 22 mm. Keeping off such
-  configurations needs more than the damping (a posture that the estimate can rate, not tried yet).
-* **The 5 s circle in physics mode, and why v3 estimates J in two parts.** What v2.1 did (peak speed 0.79
-  m/s): `docs/results/nnbc-plus-v2/trace.py` traces development seed 0 (`trace-circle5s*.md`). Over steps
-  100-320 J_hat's error (0.12-0.46 m/rad) lies in J's row space (0.11-0.46 of it: the null-space dither never
-  excites the row space and the path excites one direction of it at a time), and the filter's covariance ranks
-  it right (its top standard deviation 0.15-0.23 m/rad against an actual 0.06-0.26 along that direction; along
-  the commanded direction the error stays below 0.002 m/rad). From step 325 the platform slips: its mount moves
-  10-36 mm/s unlike the wheel speeds say over steps 325-340 (slip column), |y - J x| (J the true Jacobian)
-  follows, and the slip grows to 74-210 mm/s as the episode diverges. The directed excitation `info_dither` =
-  0.05 keeps the error at 0.03-0.12 m/rad over steps 100-320, and the episode is still lost: the slip, learnt
-  into J_hat, is what diverges. `qp-oracle` slips as well (15-61 mm/s over steps 0-360, seeds 0-2,
-  `trace-circle5s-qp-oracle.md`) and tracks (1.5-3.7 mm), because its J is not learnt; v3 slips up to 21 mm/s
-  on seed 0 and tracks within 0.9 mm (`trace-circle5s-structured.md`).
-  The excitation options did not lift the cell (`dev-excite.json`, seeds 0-9, physics; the default 0/10 on the
-  5 s circle, 9/10 on the 10 s one, 10/10 on the 0.5 m one, 36/40 with noise): `info_dither` 0.05: 0/10, 10/10,
-  5/10, 32/40; as a 5 Hz sinusoid: 0/10, 8/10, 8/10, 29/40; `dither_freq=2` (a smooth dither: slower actuator
-  changes than random signs' 10 rad/s^2): 0/10, 5/10, 5/10, 27/40; with `accel_time=0.25`: 3/10, 8/10, 5/10,
-  23/40; `info_dither` 0.05 with `accel_time=0.25`: 1/10, 7/10, 7/10, 31/40 (run at b73970b, before v3: the
-  same specs now need `formulation=whole_body`). v3's structured estimate: 5/5 on seeds 0-4 (max 2.3 mm). What v2.1's docstring recorded before: It is
-  feasible: the known-model `qp-oracle` tracks it in
-  physics (seeds 0-2: 3/3, 2.5 mm median, 3.8 mm max) and under its commands y = J x holds within 1 mm/s all
-  along. `nnbc-plus` tracks it within 0.5 mm for 3 s, but the fast path excites few directions of J: at its
-  peak speed J_hat's columns are off by 0.1-0.36 m/rad while its residual |y - J_hat x| is 0.1 mm/s. Around
-  step 330 (seed 0) its wrist command grows to 3 rad/s, the platform is jolted, |y - J x| jumps from below 1 to
-  16-440 mm/s, the filter learns the jolt and the episode diverges (0.3-2.5 m). Tried on seeds 0-2 (successes
-  of 3): `posture_gain` 5: 1, 10: 3 (but 10 costs the 20 s Circle-v0 5.1 mm kinematic, 46 mm physics, seed 0),
-  `accel_time` 0.2 and 0.5: 0, `dither` 0.15 and 0.3: 0, `q_rate` 5e-4: 1, `task_dither` 0.01: 0, a capped
-  posture pull: 0-3 with no trend. Kinematic mode tracks it (1.3-1.5 mm).
-* **Physics episodes that reach a joint stop** (random starts, seed 2: Circle-v0 9.6 mm, Random-v0 21 mm). The
-  impact and the step change of the command when the stuck joint leaves the pseudo-inverse (joint 1 jumps to
-  1.4 rad/s) break y = J x for about 10 steps (|y - J x| up to 0.2 m/s); the filter learns it (relative error
-  of J_hat 1.2-1.6 afterwards). `accel_time=0.3` tracks both (3.5, 4.4 mm) but loses the physics noise
-  condition (seed 0: 2.9 and 3.4 mm -> 6.4 and 10.4 mm); a slower innovation clip (`innov_rate` 0.01, 0.005)
-  loses other episodes by 0.4-1.3 m; `wheel_weight=16` tracks both (1.1, 2.0 mm) but loses a physics noise
-  Circle-v0 (2.6 m).
-* **The Line with velocity noise in physics mode** (reported seeds: 13/20; development seeds 0-19: 14/20, the five
-  failures by 1.3-10 m with 14-85 stop hits). On development seed 7 the arm carries much of the 3 m drive (the
-  minimum-norm solution favours its long columns over the wheels' 0.1 m/rad): by step 1,000 joint 3 has drifted from
-  0 to -1.4 rad and the wrist (joint 5) from -0.79 rad to 0, where joints 4 and 6 line up; the estimate, fed noisy
-  velocities, no longer keeps up, the commands saturate (0.38 m of error at step 1,100) and the episode diverges.
-  `wheel_weight=4` drives with the platform instead and tracks the Line (development seeds 0-19: 19/20, max 6.4 mm),
-  but over every condition on development seeds 0-3 (physics) it loses more than it wins: velocity noise 10/16
-  (Circle-v0 0/4) against 16/16 at the default, joint-speed noise 12/16 against 15/16, the 0.5 m circle 0/4 against
-  4/4, 30% wear 11/16 against 12/16; it gains the 5 s circle 2/4 against 0/4 and random starts 16/16 against 14/16,
-  the random arm (kinematic) 15/16 against 12/16 (the other kinematic conditions: no difference). On the Line,
-  `wheel_weight=16` gives 18/20 and `posture_gain=5` 18/20. A milder `wheel_weight=2` (18/20 on the Line; with
-  `posture_gain=3` 19/20) still loses the physics circles (development seeds 0-3, physics: velocity noise 12/16 and
-  14/16, the 0.5 m circle 1/4 and 0/4, 30% wear 12/16 and 12/16). No setting found yet holds on every condition
-  (records, with their commands: `docs/results/nnbc-plus-v2/dev-line-noise.json`, `dev-wheel-weight2.json`,
-  `dev-wheel-weight.json`, the last stopped after 717 of 1,560 episodes, seeds 0-3 complete).
-* **The 0.5 m circle** (reported seeds: 18/20 kinematic, 12/20 physics). The singularity damping that keeps the
-  physics episodes from diverging costs accuracy in the weak direction near the stretched arm: the median max error
-  is 4.5 mm in both modes (development seeds 0-19: 19/20 and 19/20), close to the 6 mm tolerance. On those seeds no
-  other damping did better: `sing_threshold` 0.07: 19/20 and 16/20, 0.15: 17/20 and 16/20; `sing_damping` 0.00025:
-  19/20 and 17/20, 0.001: 6/20 and 6/20 (kinematic and physics; `docs/results/nnbc-plus-v2/dev-sing.json`).
-  A higher task-space gain shrinks the weak direction's lag in kinematic mode (gamma 30: 40/40, median 3.27 mm,
-  development seeds 0-39, against 39/40 and 4.52 mm at 20; gamma 40: 39/40, one episode lost by 108 mm) and loses
-  nothing on the other kinematic conditions (seeds 0-4), but in physics mode it loses the 0.5 m circle (16/20
-  against 19/20, seeds 0-19) and velocity noise (14/16 against 16/16, seeds 0-3); and the benchmark fixes one
-  gain, 20, for every closed-loop law (`docs/results/nnbc-plus-v2/dev-gamma.json`).
-* **The 10 s circle in kinematic mode** (development seeds 0-39: 38/40; 71 mm on seed 19, 6.8 mm on seed 22). On
-  seed 19 the whole-body Jacobian nears a singularity (true sigma_min 0.22 -> 0.05 between steps 640 and 700) while
-  joint 1 swings fast; the estimate lags (relative error 0.09 -> 0.40), the commands saturate (joint 1 at its
-  3 rad/s) and the error reaches 71 mm before the arm recovers. Saturation in the null space (Flacco, De Luca and
-  Khatib 2012: the actuator furthest beyond its limit is fixed there and the task solved again with the others)
-  gave 65 mm on seed 19 and 9.7 mm on seed 22: the loss is the singularity and the estimate's lag, not the clip.
-* **Gates, a decaying rate, a platform-frame estimate** (options, all off by default; development seeds 0-9,
-  physics, cells circle-5s / circle-10s / circle-0.5m / noise, the default: 0/10, 9/10, 10/10, 36/40). None helps:
-  * `innov_gate` (a pair whose innovation is outside innov_gate x its predicted standard deviation
-    sqrt(h P h^T + R) is not learnt, at most `gate_steps` in a row): 3: 0/10, 8/10, 10/10, 2/40; 4: 0/10, 9/10,
-    10/10, 6/40; 3 with `gate_inflate=10`: 0/10, 8/10, 10/10, 15/40 (`dev-gate.json`). The jolts of the 5 s
-    circle pass it: the predicted standard deviation sqrt(h P h^T) grows with the commanded speeds (seed 0:
-    2.5-7.5 mm/s over steps 100-330, 37 mm/s at step 340), and with `innov_gate=4` no pair was rejected before
-    step 341 although |y - J x| was 19-220 mm/s from step 325; after that it rejects the pairs of an episode
-    already diverging. With velocity noise R starts at meas_std^2 and is learnt from the innovations, so the
-    gate rejects the noise while R is still low.
-  * `gate_rms` (the same gate against the running RMS of the innovations): 4: 0/10, 5/10, 7/10, 22/40
-    (kinematic: circle-10s 6/10, circle-0.5m 3/10, noise 30/40, against 10/10, 10/10, 40/40); 6: 0/10, 8/10,
-    10/10, 36/40 (kinematic 9/10, 8/10, 39/40) (`dev-gate-rms-body.json`).
-  * Diagnostics, not options: with the TRUE Jacobian written into the estimate every step (J_dot 0) the same
-    law tracks the 5 s physics circle (seeds 0-4: 5/5, 0.7-4.7 mm after the probe; |y - J x| reaches 3-11 mm/s
-    on seed 0); an oracle gate
-    that skips every pair with |y - J x| > 5 mm/s (J the true Jacobian) still loses it (seeds 0-5: 6/6, 0.16-1.7
-    m) and tracks one of six circle-10s episodes the default loses (seed 21: 1.7 mm; seed 7: 17 mm, four lost by
-    0.9-1.8 m). So the jolts are not outliers to ignore (in physics they are part of the plant J_hat must
-    follow); what fails is the estimate before them: on seed 0, at steps 320-324, J_hat's arm columns are off by
-    0.07-0.14 m/rad and its smallest singular value is 0.145 against 0.216; the same J_hat tracks in kinematic
-    mode, but in physics its commands (the right wheel from 1.7 to 0 rad/s in 8 steps, joint 1 at -2.5 rad/s)
-    jolt the platform (|y - J x| 19-220 mm/s over steps 325-344).
-  * `rate_time` (J_dot decays with that time constant instead of staying constant): 0.05 s: 5/10, 5/10, 2/10;
-    0.1 s: 3/10, 4/10, 3/10; 0.2 s: 1/10, 7/10, 4/10 (`dev-rate-time.json`): the constant-rate extrapolation is
-    what carries J_hat's weak direction away on the 5 s circle, and also what keeps J_hat up with the others.
-  * `body_frame` (J estimated in the platform's frame, ee_vel rotated by -base_yaw): 0/10, 9/10, 8/10, 34/40
-    (kinematic: 10/10, 10/10, 7/10, 40/40 against 10/10, 10/10, 10/10, 40/40): the heading's rotation is not what
-    the estimate fails to follow.
-  * Existing options (`dev-explore16.json`): `q_rate=0.01,q_jacobian=1e-5`, seeds 0-39: circle-10s 31/40
-    against 28/40, but circle-0.5m 34/40 against 39/40 (kinematic 38/40 both and 38/40 against 39/40);
-    `dither` 0.02: circle-5s 2/10, circle-10s 9/10, 0.01: 1/10, 7/10; `accel_time=0.1`: 0/10, 9/10.
-* **A wheel weight that grows with the arm's drift** (`wheel_drift`, off by default; for the Line with velocity
-  noise, where the arm drifts until a joint reaches its stop): physics `noise`, development seeds 0-19 (Circle /
-  Lemniscate / Line / Random), the default 20 / 18 / 14 / 20 (72/80); `wheel_drift` 0.3 rad: 1 / 17 / 20 / 17 (55/80),
-  0.6: 13 / 18 / 20 / 19 (70/80), 1.0: 18 / 16 / 19 / 20 (73/80), 1.5: 20 / 17 / 13 / 20 (70/80). Like a fixed
-  `wheel_weight` it fixes the Line and costs the circles with noise. 1.0 beside the default on the physics circle
-  cells (seeds 0-9): circle-5s 0/10 and 0/10, circle-10s 10/10 (max 0.6 mm) against 9/10, circle-0.5m 6/10
-  against 10/10; on the check grid (seeds 0-3, four tasks): physics default 16/16 both, noise 14/16 against 16/16,
-  joint-speed noise 16/16 against 15/16, random starts 15/16 against 14/16, 30% wear 11/16 against 12/16,
-  kinematic default and noise 16/16 both (`dev-wheel-drift.json`). Not the default.
+    u = z + J_c^+ (v - J_c z),   J_c = J_hat + dt/2 J_dot_hat,   v = r_d_dot(t_k + dt/2) + gamma (r_d - r_hat_a)
 
-Ablation (development seeds) and conditions (reported seeds)
--------------------------------------------------------------
-v3's structured estimate against v2.1's whole-body one, every condition, development seeds 0-4:
-`docs/results/nnbc-plus-v2/dev-structured.md` (from `dev-structured.json`). Every v2 mechanism was switched off
-on the condition it targets, on development seeds, both dynamics modes:
-`docs/results/nnbc-plus-v2/ablation.md` (from `ablation.json`; command in its header), copied into the README
-by `mobman-eval readme`. The v1 baseline on the same development seeds is `v1-dev.json`; the reported-seed
-sweep over every condition of issue 16 is `results.json` / `summary.md` in the same folder (the conditions
-and the random-start rule are defined in `docs/results/nnbc-plus-v2/conditions.py`).
+* J_c^+ = W J_c^T (J_c W J_c^T + (damping + d) I)^-1, solved in floats by cofactors. d, the singularity-robust
+  damping, grows up to `sing_damping` while the estimate's smallest singular value (a lower bound read from the
+  3 x 3 solve) is below `sing_threshold`. W = I, except for an actuator that is commanded and does not move (a
+  joint stop, `block_release`, `block_every`): its weight drops to `BLOCK_WEIGHT` and it is never commanded
+  further into the stop until the posture pull has moved it away.
+* z, the null-space motion: a random-sign dither of every actuator (`dither`, new signs every step: it moves the
+  actuators, not the end-effector, and keeps the directions the path does not use from going stale) plus a pull
+  of the arm joints back to their angles at the episode start (`posture_gain`).
+* v: the target velocity half a step ahead (extrapolated from the last two observations), the feedback on the
+  filtered position r_hat_a (the measured `ee_pos` advanced by the measured motion and pulled towards the
+  measurement by `pos_filter`), and a zero-mean task-space dither (`task_dither`: +d on one step, -d on the next)
+  that excites J's row space.
+* Observation delay: the lag d <= `max_delay` whose issued command best matches the measured actuator speeds
+  (running mean squares, `delay_rate`) is taken as the delay (`delay_estimate`); the fed-back position and arm
+  angles are predicted forward by J_hat times the d commands issued since. The (x, y) pairs are equally old, so
+  the estimator needs no change.
+* Start: a 2n-step probe, each actuator at +`probe_speed` for one step, then at -`probe_speed` (back), on top of
+  the tracking (`probe_tracking`), which uses the ridge-regularised least-squares fit of the pairs so far (an
+  actuator not probed yet has a zero column). At its end the fit is J_hat(0) (perturbed by `j0_noise` in
+  robustness tests), J_dot_hat(0) = 0, and the filter takes over.
+
+Options
+-------
+The fields of `NNBCPlusConfig`: those of the scaffolding (`ModelFreeConfig`, shared with `broyden` and `rls`),
+then the Kalman filters'. Each field's docstring says what it does and the measurement behind its default
+(development seeds 0-999 only). Spec keys: `nnbc-plus:gamma=15,dither=0.03`.
+
+| option | default | unit | what it sets |
+|---|---|---|---|
+| `gamma` | 20.0 | 1/s | task-space feedback gain |
+| `formulation` | "structured" | - | what J_hat is: "structured", "whole_body" or "paper" |
+| `measurement` | "velocity" | - | learn from measured velocities, or from position differences ("position") |
+| `damping` | 0.0003 | m^2/rad^2 | damping of the pseudo-inverse |
+| `dither` | 0.05 | rad/s | null-space random-sign excitation per actuator (0: off) |
+| `task_dither` | 0.002 | m/s | zero-mean two-step task-space excitation (0: off) |
+| `posture_gain` | 2.0 | 1/s | null-space pull of the arm joints to their start (0: off) |
+| `probe_speed` | 0.05 | rad/s | amplitude of the start probe |
+| `probe_tracking` | True | - | track while probing |
+| `j0_noise` | 0.0 | - | relative perturbation of J_hat(0) (robustness tests) |
+| `pos_filter` | 0.1 | - | weight of the measured position in the fed-back one (1: raw) |
+| `lookahead` | True | - | control for the step's middle (J_c, r_d_dot half a step ahead) |
+| `sing_threshold` | 0.1 | m/rad | smallest singular value below which the extra damping acts (0: off) |
+| `sing_damping` | 0.0005 | m^2/rad^2 | largest extra damping near a singularity of the estimate |
+| `block_release` | 0.05 | rad | joint-stop handling: release distance (0: off) |
+| `block_every` | 1 | steps | control steps between two joint-stop checks |
+| `max_delay` | 3 | steps | largest observation delay looked for (0: no compensation) |
+| `delay_rate` | 0.05 | - | per-step weight of the newest mismatch in the delay estimate |
+| `q_jacobian` | 1e-06 | (m/rad)^2 | process noise of each J_hat entry per step |
+| `q_rate` | 0.002 | (m/rad/s)^2 | process noise of each J_dot_hat entry per step |
+| `meas_std` | 0.001 | m/s | floor of the measurement noise R |
+| `innov_clip` | 4.0 | - | innovations longer than this times their running RMS are shortened (0: off) |
+| `noise_rate` | 0.003 | - | per-step weight of the estimated measurement noise (0: R fixed) |
+| `innov_rate` | 0.05 | - | per-step weight of the innovations' running mean square |
+| `p0_jacobian` | 1.0 | (m/rad)^2 | initial covariance of each J_hat entry |
+| `p0_rate` | 1.0 | (m/rad/s)^2 | initial covariance of each J_dot_hat entry |
+| `q_platform` | 1e-07 | (m/rad)^2 | "structured": process noise of the wheel map per step |
+| `platform_std` | 0.01 | m/s | "structured": measurement noise of the platform's velocity |
+
+Knowledge class
+---------------
+`knowledge` (`policies.knowledge`) follows `formulation`. With the structured estimate (the default) it is
+`structure`: it knows which actuators are the arm's and that the platform moves in the plane with a sensed mount
+position, velocity and heading, and no parameter value. With the whole-body or the paper's estimate it knows no
+structure: class `none`. `nnbc-plus-wb` is registered as `nnbc-plus` with `formulation="whole_body"`, the
+class-none variant reported beside it.
+
+Use
+---
+```python
+import gymnasium as gym
+import mobman_env  # registers the ids
+import policies
+
+env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
+policy = policies.make("nnbc-plus", env)  # or "nnbc-plus-wb", "nnbc-plus:gamma=15"
+obs, info = env.reset(seed=0)
+policy.reset(obs, info, seed=policies.policy_seed(0))
+action, _ = policy.predict(obs)  # normalised actuator speeds
+```
+
+or `mobman-eval run --policy nnbc-plus --policy nnbc-plus-wb`. The controller reads only `EnvFacts` (dt,
+action scale) and the observation keys in `USES_KEYS` (with "structured" also `base_yaw`): no `RobotParams`, no
+kinematics, no sensor settings (noise and delay are estimated). After each step `J_hat` and `Jdot_hat` are the
+estimate, `jacobian_estimate` a copy of it in the frame `jacobian_kind` names ("whole_body" or "paper"; None
+during the probe), `delay_estimate` the delay it compensates, `P` and `X` the filter's covariance and state.
 
 One scaffolding, several estimators
 -----------------------------------
-Steps 1, 3, 4 and 5 (measurement, excitation, control law, probe) are `EstimatingController`; step 2 is an
-estimator object behind the interface of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`,
-`Jdot`). `nnbc-plus` is the scaffolding with the Kalman filter (`KalmanEstimator`); `broyden` and `rls`
-(`policies.broyden_rls`) are the same scaffolding with Broyden's secant update and recursive least squares, so
-comparisons between them isolate the estimator. The shared options are the fields of `ModelFreeConfig`;
-`NNBCPlusConfig` adds the Kalman filter's.
-
-Cost of one `predict`
----------------------
-v3's structured estimate costs more than v2's whole-body one: a second filter (the wheel map, in floats), J and
-J_dot composed from four arrays every step, and three more observation keys converted. `mobman-eval speed`
-(`docs/results/speed/speed.md`, a slow phase of the machine: `nnbc` 63 us there against 37 us in the previous
-file) gives `nnbc-plus` 109 us, 1.7x `nnbc`; the previous file gave v2.1 45 us, 1.2x `nnbc`. Issue 16's 40 us is
-not met. What follows was measured on v2 (the whole-body estimate, still `formulation="whole_body"`): PUMA,
-kinematic Circle-v0, development seed 0, on the project's shared 2-core machine with other jobs running
-(so absolute figures are high; ratios are measured against the previous version in the same process).
-Replaying the episode's 2,000 observations to both versions back to back: median 61.5 -> 41.1 us (load average
-3.3; 5 rounds). Inside eval's rollout loop (`eval.rollout.rollout` on `eval.speed`'s env, 6 alternating
-episodes): 67.6 -> 49.2 us (load 3.4). The previous version's 48 us on a quiet machine (README, `mobman-eval
-speed`) scales by these ratios to 32-35 us. Where it goes (replay, load 3.5, each part timed separately): the
-Kalman update 39% (about 16 numpy operations on the 19 x 16 array [X; P], each one needed in that order for
-the same rounding), the conversion of the six observation keys to float64 10%, the 3 x 3 solve 5%, the rest of
-the law (J_c, three products, the pull, the clip) about 40%. The delay refresh (first 200 steps, then every
-10th) adds about 9 us to those steps. The 3-vectors (v, r_d, the filtered r_hat_a, the task dither) are Python
-floats, every operation the one the array code did: the actions equal the previous version's bit for bit (46
-development-seed episodes, 92,000 steps: four tasks, both dynamics, noise, delays 1-2, the UR5 and the Panda,
-option variants, `broyden` and `rls`).
-
-The estimate is exposed as `jacobian_estimate` (3 x n, m/rad: joint_vel in rad/s to task velocity in m/s):
-the whole-body Jacobian d r_a / d u (formulation "whole_body") or the paper's J of eq. (6), the map to
-r_a_dot - [p_c_dot; 0] ("paper"); `jacobian_kind` says which. None during the probe.
+The measurement, excitation, control law and probe are `EstimatingController`; the estimate is an object behind
+the interface of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`, `Jdot`). `nnbc-plus` is the
+scaffolding with the Kalman filter; `broyden` and `rls` (`policies.broyden_rls`) are the same scaffolding with
+Broyden's secant update and recursive least squares, so comparisons between them isolate the estimator. The
+shared options are the fields of `ModelFreeConfig`; `NNBCPlusConfig` adds the Kalman filters'.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields
 from typing import Any
 
@@ -265,7 +143,7 @@ import numpy as np
 from mobman_env.validation import number
 from policies.base import ControllerPolicy, EnvFacts
 from policies.estimators import JacobianEstimator, KalmanEstimator
-from policies.structured import StructuredEstimator, rotate_z
+from policies.structured import StructuredEstimator
 
 FORMULATIONS = ("whole_body", "paper", "structured")
 MEASUREMENTS = ("velocity", "position")
@@ -288,91 +166,102 @@ BLOCK_CHECKS = 2  # consecutive checks
 BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
 DELAY_SETTLE = 200  # steps during which the delay estimate is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
-WHEEL_DRIFT_MAX = 16.0  # largest wheel weight of `wheel_drift`
 
 
 @dataclass(frozen=True)
 class ModelFreeConfig:
-    """Options of the shared scaffolding (probe, excitation, control law) of `nnbc-plus`, `broyden` and `rls`;
-    defaults tuned on development seeds 0-999 only (see the module docstring)."""
+    """Options of the shared scaffolding (probe, excitation, control law) of `nnbc-plus`, `broyden` and `rls`.
+
+    Defaults were tuned with `nnbc-plus` on development seeds 0-999 only; each field says the measurement behind
+    its default, with the version of `nnbc-plus` it ran (v1; v2 and v2.1: the whole-body estimate; v3: the
+    structured one) and the record, in `docs/results/nnbc-plus-v2/` unless named otherwise. Where no measurement
+    of a value was recorded, the field says so. The records and what else was tried: `docs/nnbc-plus.md`."""
 
     gamma: float = 20.0
-    """Task-space feedback gain, 1/s: v = r_d_dot + gamma (r_d - r_a) (the paper's gamma)."""
+    """Task-space feedback gain, 1/s: v = r_d_dot + gamma (r_d - r_a) (the paper's gamma). 20 is the one gain the
+    benchmark gives every closed-loop law. Higher (v2.1, `dev-gamma.json`): 30 tracks the kinematic 0.5 m circle
+    closer (development seeds 0-39: 40/40, median 3.27 mm, against 39/40 and 4.52 mm) but loses it in physics
+    mode (16/20 against 19/20, seeds 0-19) and velocity noise (14/16 against 16/16, seeds 0-3); 40 lost a
+    kinematic 0.5 m circle by 108 mm."""
     formulation: str = "whole_body"
     """"whole_body": J_hat maps u to the whole r_a_dot (the platform's translation is learnt, so it can drive);
     "paper": J_hat maps u to r_a_dot - [p_c_dot; 0] and the measured p_c_dot is subtracted in the control law, as
-    in the paper's eq. (11); "structured" (`nnbc-plus` only): the whole-body J composed from an arm Jacobian in
-    the platform's frame, learnt from the end-effector velocity minus the platform's measured motion, and a learnt
-    map from the wheel speeds to the platform's motion (`policies.structured`: platform slip is not learnt)."""
+    in the paper's eq. (11); "structured" (`nnbc-plus` only, its default: see `NNBCPlusConfig.formulation`): the
+    whole-body J composed from an arm Jacobian in the platform's frame, learnt from the end-effector velocity
+    minus the platform's measured motion, and a learnt map from the wheel speeds to the platform's motion
+    (`policies.structured`: platform slip is not learnt)."""
     measurement: str = "velocity"
     """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "position": from
-    finite differences of ee_pos (arm_base_pos) against joint_pos over the last step (for sensor sets without
-    velocities)."""
+    finite differences of ee_pos (arm_base_pos) against joint_pos over the last step, for sensor sets without
+    velocities. "velocity" is the default because nothing is differentiated: with "position", 1 mm of noise on
+    ee_pos is 0.14 m/s on y."""
     damping: float = 3e-4
     """Damping of the pseudo-inverse, m^2/rad^2: added to J_c W J_c^T before inversion (bounds the speeds near a
-    singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity)."""
+    singularity of J_hat; it costs at most damping / sigma_min^2 of the commanded task velocity). The first
+    version's value: no recorded measurement varies it (the singularity-robust part is `sing_damping`)."""
     dither: float = 0.05
     """Amplitude of the random-sign excitation, rad/s per actuator, projected into J_hat's null space by the
-    control law (it moves the actuators, not the end-effector); new signs every step (0 turns it off)."""
+    control law (it moves the actuators, not the end-effector); new signs every step (0 turns it off). Without it
+    the directions of J the path does not use go stale and the estimate fails (v1). Other amplitudes on the
+    physics circles (v2.1, development seeds 0-9, `dev-explore16.json`; the default 0/10 on the 5 s circle and
+    9/10 on the 10 s one): 0.02: 2/10 and 9/10, 0.01: 1/10 and 7/10; 0.15 and 0.3 lost the 5 s circle on seeds
+    0-2 as the default did."""
     task_dither: float = 0.002
     """Amplitude of a zero-mean task-space excitation, m/s: a random direction (each component +-task_dither)
     added to v on one step and subtracted on the next, so the end-effector comes back (displacement <=
-    task_dither * dt) while the directions of J's row space that the path does not use are still excited."""
-    dither_freq: float = 0.0
-    """Smooth dither, Hz (0 turns it off, the default: new random signs every step): each actuator's dither is
-    dither * sin(2 pi f_j t + phi_j), the n frequencies f_j spread evenly over [dither_freq, 2 dither_freq], the
-    phases drawn from the controller's RNG at the first step after the probe. The random-sign dither changes each
-    actuator's speed by up to 2 dither per step (10 rad/s^2 at the default); the sinusoid by at most
-    dither 2 pi f_j dt. See the module docstring for what it measured."""
-    wheel_weight: float = 1.0
-    """Pseudo-inverse weight of the two wheels relative to the arm joints (W = diag(1, ..., 1, w, w) times the
-    `weighting`): above 1 the platform takes more of the motion and the arm stays nearer its start. Measured on
-    development seeds (module docstring, "Wheel weight"): 16 keeps random arms off their stops on Line-v0 but
-    lost a physics episode with velocity noise; 4 lost a 0.5 m physics circle; 1 (the default) is v2."""
-    wheel_drift: float = 0.0
-    """Drift-dependent wheel weight, rad (0 turns it off, the default): the wheels' pseudo-inverse weight is
-    multiplied by 1 + (d / wheel_drift)^2, at most `WHEEL_DRIFT_MAX`, d the largest distance of an arm joint from
-    its angle at the episode start: the platform takes over a long motion once the arm has drifted."""
+    task_dither * dt) while the directions of J's row space that the path does not use are still excited. At
+    2 mm/s it cost no measurable tracking error and kept the row-space estimate within a few percent of the true
+    J, where the path's own motion left 20-50% errors (v1, when it became the default)."""
     posture_gain: float = 2.0
-    """Null-space pull of the n - 2 arm joints back to their angles at the episode start, 1/s (0 turns it off)."""
-    weighting: str = "none"
-    """Actuator weights W of the pseudo-inverse u = W J^T (J W J^T + damping I)^-1 v: "none" (W = I) or
-    "scale" (W = diag(action_scale^2) / max: fast actuators, i.e. the wheels, take more of the motion; measured
-    much worse: the platform's slow-to-steer motion then does most of the tracking)."""
+    """Null-space pull of the n - 2 arm joints back to their angles at the episode start, 1/s (0 turns it off):
+    keeps joint 1 off its stop and lets the platform drive. Larger gains (v2.1): on the physics 5 s circle
+    (development seeds 0-2) 5 tracked 1/3 and 10 3/3 against 0/3, but 10 costs the 20 s Circle-v0 (seed 0:
+    5.1 mm kinematic, 46 mm physics); on the physics Line with velocity noise (seeds 0-19) 5 tracked 18/20
+    against 14/20 (`dev-line-noise.json`)."""
     probe_speed: float = 0.05
-    """Probe amplitude, rad/s (one step at + then one at - per actuator)."""
+    """Probe amplitude, rad/s (one step at + then one at - per actuator). The first version's value: no recorded
+    measurement varies it."""
     probe_tracking: bool = True
     """Track while probing: during the 2n probe steps the control law runs with the least-squares fit of the
     pairs so far (an actuator not probed yet has a zero column, so it is not used) and the probe is added on
-    top; False stands still during the probe, as v1 did (a fast path then runs away during it)."""
+    top; False stands still during the probe, as v1 did. Off (v2, development seeds 0-4, `ablation.md`): the
+    5 s circle 0/4 in kinematic mode against 4/4 (6.34 mm: it runs 6.3 mm away during the 16 steps)."""
     j0_noise: float = 0.0
-    """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F (robustness
-    test); drawn from the controller's RNG."""
+    """Perturb the probed J_hat(0) by a random Gaussian matrix scaled to j0_noise * ||J_hat(0)||_F, drawn from
+    the controller's RNG: a robustness test, not a gain (0: the probe's fit as it is; at 0.5 the Circle-v0
+    episodes of `tests/test_nnbc_plus.py` are still tracked within 6 mm)."""
     pos_filter: float = 0.1
     """Weight of the measured position in the fed-back end-effector position, 0 < pos_filter <= 1: each step
     the estimate is advanced by the measured motion (dt * ee_vel, or J_hat dq with `measurement="position"`) and
     pulled by pos_filter towards the measured ee_pos (a complementary filter; 1 = raw measurement). Below 1 it
-    filters sensor noise (`obs_noise`) out of the feedback."""
+    filters sensor noise (`obs_noise`) out of the feedback: with 1 mm of position noise the raw measurement's
+    RMS error is larger (`tests/test_nnbc_plus.py`); 0.1 was tuned in v1, no figures recorded."""
     lookahead: bool = True
-    """Control with J_hat and r_d_dot extrapolated half a step (the command is held for the whole step)."""
+    """Control with J_hat and r_d_dot extrapolated half a step: the command is held for the whole step, so it is
+    computed for the step's middle. Off, the maximum error moves by less than 0.03 mm (development seeds 0-4,
+    four tasks, both modes: `tests/test_mutants_nnbc_plus.py`, which checks the command itself)."""
     sing_threshold: float = 0.1
     """Singularity-robust damping, m/rad: when the smallest singular value of the estimate J_c (its estimate
     sqrt(det / e2) of J_c W J_c^T) falls below sing_threshold, up to `sing_damping` more damping is added,
-    growing as (1 - sigma_min^2 / sing_threshold^2) (0 turns it off)."""
+    growing as (1 - sigma_min^2 / sing_threshold^2) (0 turns it off). Off (v2, seeds 0-4, `ablation.md`): the
+    physics 0.5 m circle 1/4 against 4/4. Beside 0.1 on the 0.5 m circle (v2.1, development seeds 0-19,
+    kinematic and physics, `dev-sing.json`): 0.1 19/20 and 19/20, 0.07 19/20 and 16/20, 0.15 17/20 and 16/20."""
     sing_damping: float = 0.0005
     """Largest extra damping near a singularity of the estimate, m^2/rad^2 (see `sing_threshold`). Chosen on
     development seeds 0-2 (condition `circle-0.5m`, both modes): 0.0005 beside 0.002 and 0.01, whose damping
-    leaves a steady error of several mm in the weak direction."""
-    accel_time: float = 0.0
-    """Bounded acceleration, s: the command may change per step by at most action_scale * dt / accel_time
-    (the time from standstill to full speed; 0 turns it off)."""
+    leaves a steady error of several mm in the weak direction. On seeds 0-19 (v2.1, `dev-sing.json`) 0.00025
+    tracks the 0.5 m circle 19/20 and 17/20, 0.001 6/20 and 6/20, against 19/20 and 19/20; 0.001 tracks the
+    physics 10 s circle 23/30 against 21/30 (v3, seeds 0-29)."""
     block_release: float = 0.05
     """Blocked actuators (joint stops), rad: an actuator that was commanded (at least `BLOCK_SPEED` rad/s, for
     `BLOCK_CHECKS` checks in a row, one check every `block_every` steps) but did not move (measured speed in
     the commanded direction below a tenth of the command) is marked blocked in that direction: its weight in
     the pseudo-inverse drops to `BLOCK_WEIGHT` (the other actuators take over the task) and it is never
     commanded further into the stop, so the null-space pull moves it away; it is released once it has moved
-    block_release away from where it stopped (0 turns the mechanism off)."""
+    block_release away from where it stopped (0 turns the mechanism off). Off (v2, seeds 0-4, `ablation.md`):
+    random starts 14/16 kinematic (max 43 mm) against 16/16, 15/16 physics against 14/16; on a Lemniscate-v0
+    start with joint 4 near its stop, 5.8 mm and 531 stop hits against 1.9 mm and 21 (`tests/test_nnbc_plus.py`).
+    The release distance itself: no recorded measurement varies it."""
     block_every: int = 1
     """Control steps between two checks for blocked actuators (see `block_release`). Until the stop is detected
     the task loses that actuator's share of the motion: with a check every 4 steps (v2's first version) a UR5
@@ -382,23 +271,17 @@ class ModelFreeConfig:
     """Largest observation delay the controller looks for, control steps (0 turns the compensation off): the
     measured actuator speeds are compared with the last max_delay + 1 commands, the best-matching lag is taken
     as the delay d, and the fed-back position and joint angles are predicted forward by the d commands issued
-    since the observation was taken."""
+    since the observation was taken. Off (v2, seeds 0-4, `ablation.md`): a 2-step delay 4/16 kinematic and 0/16
+    physics against 16/16 and 16/16."""
     delay_rate: float = 0.05
-    """Per-step weight of the newest mismatch in the running mean squares that pick the delay."""
-    body_frame: bool = False
-    """Estimate J in the platform's frame (off by default): the measured task velocity is rotated by the measured
-    heading `base_yaw` (-phi about z) before the estimator sees it, and J_hat is rotated back (by phi, half a step
-    ahead with the lookahead) for the control law. The whole-body Jacobian of a manipulator on a platform that
-    turns about z is R(phi) J_b(q): in the platform's frame the estimator no longer has to follow the rotation
-    of every column with the heading, only the arm's motion. Needs `measurement="velocity"`."""
+    """Per-step weight of the newest mismatch in the running mean squares that pick the delay. No recorded
+    measurement varies it."""
 
     def __post_init__(self):
         if self.formulation not in FORMULATIONS:
             raise ValueError(f"formulation must be one of {FORMULATIONS}, got {self.formulation!r}")
         if self.measurement not in MEASUREMENTS:
             raise ValueError(f"measurement must be one of {MEASUREMENTS}, got {self.measurement!r}")
-        if self.weighting not in ("none", "scale"):
-            raise ValueError(f"weighting must be 'none' or 'scale', got {self.weighting!r}")
         name = type(self).__name__
         for f in fields(self):
             if f.type in ("float", float):  # spec strings may give ints ("gamma=20"): stored as float
@@ -407,13 +290,11 @@ class ModelFreeConfig:
         number(f"{name}.delay_rate", self.delay_rate, low=0.0, open_low=True, high=1.0)
         if isinstance(self.block_every, bool) or not isinstance(self.block_every, int) or self.block_every < 1:
             raise ValueError(f"{name}.block_every must be an integer >= 1 (control steps), got {self.block_every!r}")
-        if self.formulation == "structured" and (self.measurement != "velocity" or self.body_frame):
+        if self.formulation == "structured" and self.measurement != "velocity":
             raise ValueError(
-                f"{name}.formulation='structured' needs measurement='velocity' and body_frame=False, got "
-                f"measurement={self.measurement!r}, body_frame={self.body_frame!r}"
+                f"{name}.formulation='structured' needs measurement='velocity' (it reads the measured platform "
+                f"velocity), got measurement={self.measurement!r}"
             )
-        if self.body_frame and self.measurement != "velocity":
-            raise ValueError(f"{name}.body_frame needs measurement='velocity', got {self.measurement!r}")
         if isinstance(self.max_delay, bool) or not isinstance(self.max_delay, int) or not 0 <= self.max_delay <= 10:
             raise ValueError(
                 f"{name}.max_delay must be an integer from 0 to 10 (control steps), got {self.max_delay!r}"
@@ -422,29 +303,32 @@ class ModelFreeConfig:
 
 @dataclass(frozen=True)
 class NNBCPlusConfig(ModelFreeConfig):
-    """Gains of `NNBCPlus`: the scaffolding's (`ModelFreeConfig`) and the Kalman filter's; defaults tuned on
-    development seeds 0-999 only (see the module docstring)."""
+    """Gains of `NNBCPlus`: the scaffolding's (`ModelFreeConfig`) and the Kalman filters'; defaults tuned on
+    development seeds 0-999 only, each with the measurement behind it (see `ModelFreeConfig`)."""
 
     formulation: str = "structured"
-    """As in `ModelFreeConfig`, but `nnbc-plus`'s default is "structured" (v3: platform slip is not learnt; the
-    whole-body estimate of v2 is "whole_body")."""
-    forgetting: float = 1.0
-    """Exponential forgetting of the Kalman filter per control step (0 < forgetting <= 1): the covariance is
-    divided by it at every prediction, so old data fade with a time constant of dt / (1 - forgetting); 1 = off
-    (the default: the process noise below keeps the estimate fresh instead). 0.92 (without process noise)
-    measured as good with the default excitation; without the task-space dither it lost a physics episode
-    (development seed 93, Random-v0) that the process-noise model kept."""
+    """As in `ModelFreeConfig`, but `nnbc-plus`'s default is "structured" (v3): beside v2.1's "whole_body" on
+    every condition of issue 16 (development seeds 0-4, both modes, `dev-structured.md`) no cell is worse, and the
+    physics 5 s circle goes from 0/5 to 5/5, physics joint-speed noise from 19/20 to 20/20 and physics 30% wear
+    from 16/20 to 18/20: platform slip is not learnt into J."""
     q_jacobian: float = 1e-6
     """Process noise: variance added to each J_hat entry per step, (m/rad)^2 (J_hat may drift about 1 mm/rad per
-    step beyond what its rate predicts)."""
+    step beyond what its rate predicts). Random-walk process noise replaced exponential forgetting (v1):
+    forgetting 0.92 without process noise and without the task dither lost a physics episode (development seed
+    93, Random-v0) that the process-noise model kept. `q_rate=0.01` with `q_jacobian=1e-5` (v2.1, physics,
+    seeds 0-39, `dev-explore16.json`): the 10 s circle 31/40 against 28/40, the 0.5 m circle 34/40 against
+    39/40."""
     q_rate: float = 2e-3
     """Process noise: variance added to each J_dot_hat entry per step, (m/rad/s)^2 (the rate may change by about
-    0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2)."""
+    0.045 m/rad/s per step, i.e. J_ddot up to a few m/rad/s^2). Beside `q_jacobian`'s figures: 5e-4 tracked the
+    physics 5 s circle 1/3 against the default's 0/3 (v2.1, development seeds 0-2), where v3's structured
+    estimate now tracks it 5/5 at the default."""
     meas_std: float = 1e-3
-    """Standard deviation assumed for one measured end-effector velocity component, m/s (the Kalman filter's R).
-    Set it to the velocity sensor's noise: with `obs_noise_vel` = 0.01 m/s, 1e-3 fails in physics mode and 0.01
-    tracks (measured); without velocity noise 0.01 makes J_hat lag when J changes fast (a physics Lemniscate-v0
-    episode lost, development seed 134) and leaves 10-20% row-space errors instead of 1-5%."""
+    """Standard deviation assumed for one measured end-effector velocity component, m/s: the floor of the
+    Kalman filter's R, which `noise_rate` raises to the noise it estimates. With a fixed R (v1) the sensor's
+    noise had to be set here (with `obs_noise_vel` = 0.01 m/s, 1e-3 failed in physics mode and 0.01 tracked);
+    without velocity noise 0.01 makes J_hat lag when J changes fast (a physics Lemniscate-v0 episode lost,
+    development seed 134) and leaves 10-20% row-space errors instead of 1-5%."""
     innov_clip: float = 4.0
     """Robust update: an innovation (measured minus predicted task velocity) longer than innov_clip times the
     running RMS of the recent innovations is shortened to that length before it updates J_hat (0 turns it off).
@@ -457,60 +341,29 @@ class NNBCPlusConfig(ModelFreeConfig):
     as R when it exceeds meas_std^2 (0 turns it off: R = meas_std^2). The controller is not told the sensor's
     noise; with `obs_noise_vel` = 0.01 m/s the estimate tends to (0.01 m/s)^2 with a time constant of
     1 / noise_rate steps. Chosen on development seeds 0-2 (condition `noise`, four tasks, both modes): 0.003
-    beside 0.01 (faster, follows its own innovation bursts)."""
+    beside 0.01 (faster, follows its own innovation bursts). Off (v2, seeds 0-4, `ablation.md`): velocity noise
+    12/16 kinematic and 1/16 physics against 20/20 and 20/20, joint-speed noise 14/16 and 10/16 against 17/17
+    and 15/16."""
     innov_rate: float = 0.05
-    """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses."""
+    """Per-step weight of the newest (clipped) innovation in the running mean square that `innov_clip` uses.
+    Slower rates (0.01, 0.005) lost other episodes by 0.4-1.3 m (v2.1, physics episodes that reach a joint stop,
+    development seeds)."""
     p0_jacobian: float = 1.0
-    """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted."""
+    """Initial covariance of each J_hat entry, (m/rad)^2: how far the probed J_hat(0) is trusted. No recorded
+    measurement varies it."""
     p0_rate: float = 1.0
-    """Initial covariance of each J_dot_hat entry, (m/rad/s)^2."""
-    p_max: float = 1.0
-    """Upper bound on the covariance trace (divided by the 2n states), applied when forgetting < 1: stops the
-    forgetting from winding it up when the excitation is poor (the process noise alone keeps P bounded)."""
-
-    innov_gate: float = 0.0
-    """Innovation consistency gate (0 turns it off, the default): a measurement whose innovation's mean square per
-    component exceeds innov_gate^2 times its predicted variance h P h^T + R is not learnt (the filter only
-    predicts that step), so a transient where y = J x does not hold (a platform jolt, a joint hitting its stop)
-    does not move J_hat; after `gate_steps` rejections in a row the next measurement is learnt anyway (J has
-    really changed), with P multiplied by `gate_inflate` first. See the module docstring for what it measured."""
-    gate_rms: float = 0.0
-    """Innovation gate against the recent innovations instead (0 turns it off, the default): a measurement whose
-    innovation is longer than gate_rms times the running RMS that `innov_clip` keeps is not learnt (and does not
-    enter that RMS); same `gate_steps` bound and `gate_inflate` as `innov_gate`."""
-    gate_steps: int = 10
-    """Largest number of consecutive measurements `innov_gate` may reject (control steps, >= 0)."""
-    gate_inflate: float = 1.0
-    """Factor on the Kalman covariance P when `innov_gate` accepts a measurement after `gate_steps` rejections in
-    a row (1: none)."""
-    rate_time: float = 0.0
-    """Time constant of the rate model, s (0 turns it off, the default: a constant rate, J_dot(t + dt) =
-    J_dot(t)): above 0, J_dot(t + dt) = exp(-dt / rate_time) J_dot(t), so a rate the measurements no longer
-    support decays instead of carrying J_hat away in the directions the path does not excite."""
+    """Initial covariance of each J_dot_hat entry, (m/rad/s)^2. No recorded measurement varies it."""
     q_platform: float = 1e-7
     """`formulation="structured"`: process noise of the wheel map's entries per step, (m/rad)^2 (the map is a
-    constant of the platform; this lets it follow wear)."""
+    constant of the platform; this lets it follow wear). No recorded measurement varies it (the structured
+    estimate's figures are `formulation`'s)."""
     platform_std: float = 0.01
     """`formulation="structured"`: smallest measurement noise assumed for the platform's velocity, m/s (the
-    wheel map is learnt over many steps, so a slip or a noisy reading moves it little)."""
-    info_dither: float = 0.0
-    """Directed excitation, rad/s (0 turns it off, the default): added to the command (after the control law, so
-    not projected into J_hat's null space) along the direction of the actuator space in which the filter is least
-    sure of J (the top eigenvector of the covariance of one row of J_hat, followed by one power-iteration step
-    per use), with a random sign on even steps and the opposite sign on the next (zero mean: the end-effector
-    comes back), or as a sinusoid (`info_freq`). The null-space dither never excites J's row space, and a path
-    excites one direction of it at a time. See the module docstring for what it measured."""
-    info_freq: float = 0.0
-    """Frequency of `info_dither` as a sinusoid, Hz (0: the two-step +-info_dither)."""
+    wheel map is learnt over many steps, so a slip or a noisy reading moves it little). No recorded measurement
+    varies it (the structured estimate's figures are `formulation`'s)."""
 
     def __post_init__(self):
-        number("NNBCPlusConfig.forgetting", self.forgetting, low=0.0, open_low=True, high=1.0)
         super().__post_init__()
-        if isinstance(self.gate_steps, bool) or not isinstance(self.gate_steps, int) or self.gate_steps < 0:
-            raise ValueError(
-                f"NNBCPlusConfig.gate_steps must be an integer >= 0 (control steps), got {self.gate_steps!r}"
-            )
-        number("NNBCPlusConfig.gate_inflate", self.gate_inflate, low=1.0)
         # (the wheel map divides by h P h + platform_std^2: 0 could divide by zero once P has collapsed)
         number("NNBCPlusConfig.platform_std", self.platform_std, low=0.0, open_low=True)
 
@@ -590,29 +443,18 @@ class EstimatingController(ControllerPolicy):
         self.n_arm = n - 2
         self.n_probe = 2 * n
         self._dt = facts.dt
-        self._w0 = self._scale**2 / np.max(self._scale**2) if c.weighting == "scale" else np.ones(n)
-        if c.wheel_weight != 1.0:
-            self._w0 = self._w0.copy()
-            self._w0[-2:] *= c.wheel_weight
+        self._w0 = np.ones(n)  # pseudo-inverse weights: 1, or BLOCK_WEIGHT for a blocked actuator (`_w`)
         self._w = self._w0
         self._half_dt = 0.5 * self._dt
         self._eps2 = c.sing_threshold**2
-        self._du = self._scale * (self._dt / c.accel_time) if c.accel_time > 0 else None
         self._whole = c.formulation != "paper"  # (the structured estimate is a whole-body J too)
         self._structured = c.formulation == "structured"
         self._use_vel = c.measurement == "velocity"
         self.jacobian_kind = "whole_body" if self._whole else "paper"
         # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
         self.uses_keys = USES_KEYS if not self._whole else tuple(k for k in USES_KEYS if not k.startswith("arm_base"))
-        self._body = c.body_frame
         if self._structured:
             self.uses_keys = (*USES_KEYS, "base_yaw")
-        if self._body:
-            self.uses_keys = (*self.uses_keys, "base_yaw")
-        self._J_world: np.ndarray | None = None  # body_frame: the last J_hat rotated to the world frame
-        self._unit_w = not (self._w0 != 1.0).any()  # W = I: the weighting product is skipped
-        self._info_a = float(getattr(c, "info_dither", 0.0))  # (Kalman options: it reads the covariance P)
-        self._info_f = float(getattr(c, "info_freq", 0.0))
         self.estimator: JacobianEstimator = self._make_estimator()
         if self._structured and not hasattr(self.estimator, "observe"):
             raise ValueError(
@@ -634,8 +476,6 @@ class EstimatingController(ControllerPolicy):
 
     @property
     def J_hat(self) -> np.ndarray:
-        if self._body and self._J_world is not None:
-            return self._J_world  # (world frame; the estimator's J is the platform frame's)
         return self._J_probe if self._k <= self.n_probe else self.estimator.J
 
     @property
@@ -685,12 +525,6 @@ class EstimatingController(ControllerPolicy):
         self._block_q = np.zeros(n)
         self._any_blocked = False
         self._w = self._w0
-        self._phase: np.ndarray | None = None  # dither_freq: the sinusoids' phases, drawn at the first block
-        self._dither_t = 0  # dither_freq: steps of sinusoid drawn so far
-        self._info_v = np.full(n, 1.0 / math.sqrt(n))  # info_dither: the power iteration's vector
-        self._info_s = 0.0  # info_dither: the signed amplitude of the current two-step pair
-        self._J_world = None
-        self._prev_psi = float(obs["base_yaw"][0]) if self._body else 0.0
         self.estimator.reset()
 
     def _task_pos(self, obs: dict) -> np.ndarray:
@@ -783,32 +617,6 @@ class EstimatingController(ControllerPolicy):
             J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
         self.estimator.init(J0)
 
-    def _sinusoids(self) -> np.ndarray:
-        """The next `_SIGN_BLOCK` rows of the smooth dither (`dither_freq`)."""
-        c = self.config
-        n = self.n_act
-        if self._phase is None:
-            self._phase = self.rng.uniform(0.0, 2.0 * math.pi, n)
-        f = c.dither_freq * (1.0 + np.arange(n) / (n - 1))
-        t = (self._dither_t + np.arange(_SIGN_BLOCK))[:, None] * self._dt
-        self._dither_t += _SIGN_BLOCK
-        return c.dither * np.sin(2.0 * math.pi * f * t + self._phase)
-
-    def _directed(self, k: int) -> np.ndarray:
-        """This step's `info_dither` (n): along the power-iterated top eigenvector of the covariance of a row of J
-        (the part of the Kalman filter's P that belongs to J)."""
-        a, freq = self._info_a, self._info_f
-        if freq <= 0.0 and k % 2 == 1:
-            return -self._info_s * self._info_v  # the second step of the pair: back
-        n = self.n_act
-        vec = self.estimator.P[:n, :n].dot(self._info_v)  # type: ignore[attr-defined]
-        vec /= np.linalg.norm(vec)
-        self._info_v = vec
-        if freq > 0.0:
-            return (a * math.sin(2.0 * math.pi * freq * k * self._dt)) * vec
-        self._info_s = a if self.rng.random() < 0.5 else -a
-        return self._info_s * vec
-
     # --- one step --------------------------------------------------------------------------------------
     def _act(self, obs: dict) -> np.ndarray:
         k = self._k
@@ -823,11 +631,6 @@ class EstimatingController(ControllerPolicy):
         x, y = self._measure(obs, probing)
         if self._structured:  # the platform's measurements (every step: the wheel map learns from the probe too)
             est.observe(obs)  # type: ignore[attr-defined]
-        if self._body:  # the estimator works in the platform's frame: y rotated by -phi
-            psi = float(obs["base_yaw"][0])
-            cs, sn = math.cos(psi), math.sin(psi)
-            y0, y1, y2 = y.tolist()
-            y = np.array([cs * y0 + sn * y1, cs * y1 - sn * y0, y2])
         n_seen = k + 1  # steps counted, this one included (the count the delay refresh is scheduled on)
         if c.max_delay > 0 and n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
             self._track_delay(x, self._lags[ring])
@@ -851,12 +654,6 @@ class EstimatingController(ControllerPolicy):
             p0, p1, p2 = self._prev_vd
             v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2  # r_d_dot half a step ahead
         self._prev_vd = vd
-        if self._body:  # back to the world frame; Jc at the heading half a step ahead (lookahead)
-            psi_c = psi + 0.5 * (psi - self._prev_psi) if c.lookahead and not probing else psi
-            self._prev_psi = psi
-            J = rotate_z(J, cs, sn)
-            Jc = rotate_z(Jc, math.cos(psi_c), math.sin(psi_c)) if Jc is not J else J
-            self._J_world = J
         d0, d1, d2 = obs["target_pos"].tolist()
         if not self._whole:
             pc, pv = obs["arm_base_pos"].tolist(), obs["arm_base_vel"].tolist()
@@ -883,7 +680,7 @@ class EstimatingController(ControllerPolicy):
             i = self._sign_i
             if i >= len(self._dtd):  # random signs, one row per step: n for the dither, 3 for the task dither
                 signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
-                self._dz = c.dither * signs[:, : self.n_act] if c.dither_freq <= 0 else self._sinusoids()
+                self._dz = c.dither * signs[:, : self.n_act]
                 self._dtd = (c.task_dither * signs[:, self.n_act :]).tolist()
                 i = 0
             self._sign_i = i + 1
@@ -902,27 +699,16 @@ class EstimatingController(ControllerPolicy):
         if probing and not c.probe_tracking:
             v0 = v1 = v2 = 0.0
             z = np.zeros(self.n_act)
-        if c.wheel_drift > 0:  # the wheels' weight grows with the arm's drift from its start
-            drift = float(np.abs(self._q0 - q_arm).max()) / c.wheel_drift
-            w = self._w.copy()
-            w[-2:] *= min(1.0 + drift * drift, WHEEL_DRIFT_MAX)
-            JW = Jc * w
-        else:
-            JW = Jc if self._unit_w and not self._any_blocked else Jc * self._w
+        JW = Jc * self._w if self._any_blocked else Jc  # W = I unless an actuator is blocked
         # (.dot: the same BLAS calls as @, at about half numpy's per-call overhead; equal bit for bit)
         r0, r1, r2 = Jc.dot(z).tolist()
         lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)
         u = z + JW.T.dot(lam)
-        if self._info_a > 0.0 and not probing:
-            u = u + self._directed(k)
         if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
             u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
         if self._any_blocked:  # never further into a stop
             b = self._blocked
             u = np.where(b * u > 0.0, 0.0, u)
-        if self._du is not None:  # bounded acceleration: u moves from the last command by at most _du
-            last = self.last_u
-            u = np.minimum(np.maximum(u, last - self._du), last + self._du)
         return u
 
 
@@ -949,16 +735,9 @@ class NNBCPlus(EstimatingController):
             innov_rate=c.innov_rate,
             p0_jacobian=c.p0_jacobian,
             p0_rate=c.p0_rate,
-            forgetting=c.forgetting,
-            p_max=c.p_max,
             midpoint=not self._use_vel,
             sym_phase=self.n_probe + 1,
             noise_rate=c.noise_rate,
-            innov_gate=c.innov_gate,
-            gate_rms=c.gate_rms,
-            gate_steps=c.gate_steps,
-            gate_inflate=c.gate_inflate,
-            rate_time=c.rate_time,
         )
         if c.formulation == "structured":
             return StructuredEstimator(

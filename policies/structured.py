@@ -128,7 +128,7 @@ class StructuredEstimator:
     @property
     def P(self) -> np.ndarray:
         """2n x 2n: the arm filter's covariance of A's entries in the arm block and the wheel map's in the wheel
-        block (per row; `info_dither` reads the J part)."""
+        block (per row; every other entry is zero)."""
         na, n = self._na, self._n
         P = self._P
         P[:na, :na] = self.arm.P[:na, :na]

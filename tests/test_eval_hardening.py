@@ -441,7 +441,7 @@ def test_video_without_imageio_falls_back_to_a_gif(tmp_path):
 def test_the_console_table_is_whole_through_a_pipe(tmp_path):
     """stdout a pipe (a log file, `| tee`): rich would assume 80 columns and drop the timing column; every
     column and the whole policy spec are printed."""
-    spec = "nnbc-plus:info_dither=0.001,info_freq=2"
+    spec = "nnbc-plus:task_dither=0.001,probe_speed=0.04"
     args = ["run", "--policy", spec, "--policy", "zero", "--seeds", "1", "--dynamics", "kinematic"]
     proc = subprocess.run(
         [sys.executable, "-m", "eval", *args, "--env-kwargs", K, "--no-plots", "--out", str(tmp_path / "o")],
