@@ -63,7 +63,7 @@ Options
 -------
 The fields of `NNBCPlusConfig`: those of the scaffolding (`ModelFreeConfig`, shared with `broyden` and `rls`),
 then the Kalman filters'. Each field's docstring says what it does and the measurement behind its default
-(development seeds 0-999 only). Spec keys: `nnbc-plus:gamma=15,dither=0.03`.
+(development seeds 0-999 only), or that none was recorded. Spec keys: `nnbc-plus:gamma=15,dither=0.03`.
 
 | option | default | unit | what it sets |
 |---|---|---|---|
