@@ -16,8 +16,8 @@ Spec grammar (one string, as the CLI takes it):
   module is loaded from there; the working directory is not put on `sys.path`). `mymod.py:Ctrl` is refused
   with the fix (drop the .py).
 
-Who gets what: model-free controllers (`nnbc`, `nnbc-full`, `nnbc-plus`, `broyden`, `rls`, `zero`, `random`) are built from
-`EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
+Who gets what: the controllers that read no parameter (`nnbc`, `nnbc-full`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
+`rls`, `zero`, `random`) are built from `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
 `nominal_params`, read at each episode start (a random-arm env draws a new nominal robot per reset); so does
 `calib-qp`, for which the nominal robot is only the prior it calibrates from (its knowledge class is
 `structure`, `policies.knowledge`). The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
@@ -72,7 +72,7 @@ _REGISTRY: dict[str, _Entry] = {
         "none",
     ),
     "nnbc-plus": _Entry(
-        "improved model-free controller beside the paper's NNBC (see policies.nnbc_plus)",
+        "NNBC improved: no kinematic parameter, but the structured estimate knows the chain's kind (class structure; see policies.nnbc_plus)",
         "policies.nnbc_plus",
         "NNBCPlus",
         "NNBCPlusConfig",
