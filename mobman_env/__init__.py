@@ -31,6 +31,7 @@ from __future__ import annotations
 import importlib
 import inspect
 import math
+import sys
 from typing import Any
 
 from gymnasium.envs.registration import register, registry
@@ -105,6 +106,11 @@ class RobotEntry:
         self.prefix, self.robot, self.target = prefix, robot, target
         self.metadata = WheeledPumaEnv.metadata
         self.__signature__ = inspect.signature(WheeledPumaEnv)
+
+    def __reduce__(self) -> tuple:
+        # pickled by the class this module holds now, so an entry registered before `importlib.reload(mobman_env)`
+        # still pickles (pickle refuses a class that is no longer the module's attribute)
+        return (sys.modules[__name__].RobotEntry, (self.prefix, self.robot, self.target))
 
     def __call__(self, *args: Any, **kwargs: Any) -> Any:
         given = kwargs.get("robot", "puma560")

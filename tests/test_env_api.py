@@ -296,6 +296,11 @@ def test_registration_twice_is_harmless_and_silent():
 
         importlib.reload(mobman_env)
     assert {k: gym.registry[k].kwargs for k in ENV_IDS} == {k: before[k].kwargs for k in ENV_IDS}
+    # the entries registered before the reload still pickle (an async vector env sends the spec to its workers)
+    import pickle
+
+    for k in ENV_IDS:
+        assert pickle.loads(pickle.dumps(gym.spec(k))).kwargs == before[k].kwargs
 
 
 def test_make_without_prior_import_and_import_is_light():
