@@ -316,7 +316,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         else f"overrides {run['hyperparams_overrides']} of the defaults of `train/algos.py`"
     )
     eval_cmd = (
-        f"mobman-eval run --env {results['env_id']} --policy sb3:{alias} --policy nnbc-plus --episodes "
+        f"mobman-eval run --env {results['env_id']} --policy sb3:{alias} --policy nnbc-plus --seeds "
         f"{cfg['episodes']} --seed {cfg['seed']} --dynamics {dyn} --model-error {ck['model_error']!r}"
     )
     walls = [r["wall_s"] for r in results["runs"] if r["family"] == family and r["status"] == "done"]
