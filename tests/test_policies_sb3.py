@@ -359,3 +359,30 @@ def test_artefacts_name_every_file_loaded_with_its_sha256(tmp_path, env):
         assert policies.make("clik", venv).artefacts == []
     finally:
         venv.close()
+
+
+def test_episode_records_hold_the_files_loaded_and_the_robot(tmp_path):
+    """The record of an evaluated episode says which files its agent loaded (path and SHA-256, as read at load
+    time) and which robot ran; a controller's record has no artefacts."""
+    import hashlib
+
+    from eval.rollout import rollout
+
+    d = _shipped_copy(tmp_path)
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE)
+    try:
+        rec, _ = rollout(env, policies.make(f"sb3:{d}", env), 10000)
+        assert rec["status"] == "ok" and rec["robot"] == "puma560" and rec["knowledge"] == "none"
+        assert rec["artefacts"] == [
+            {"path": str(d / name), "sha256": hashlib.sha256((d / name).read_bytes()).hexdigest()}
+            for name in ("model.zip", "vecnormalize.pkl", "config.json")
+        ]
+    finally:
+        env.close()
+    env = gym.make("WheeledUR5-Circle-v0", dynamics="kinematic", path=SHORT_CIRCLE)
+    try:
+        rec, _ = rollout(env, policies.make("clik", env), 10000)
+        assert rec["status"] == "ok" and rec["robot"] == "ur5" and rec["artefacts"] is None
+        assert rec["knowledge"] == "nominal"
+    finally:
+        env.close()
