@@ -17,7 +17,7 @@ from eval.output.analysis import flatten
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA1 = ROOT / "tests/fixtures/schema1/run/results.json"
-SCHEMA2 = ROOT / "docs/results/rl-v2/evals/controllers-kinematic"  # a run folder (results.json inside)
+SCHEMA2 = ROOT / "tests/fixtures/schema2"  # a run folder (results.json inside) of release 0.2
 
 
 def _schema3(tmp_path: Path) -> Path:
