@@ -441,6 +441,31 @@ def test_against_reuses_the_committed_baselines_after_a_bit_for_bit_sample(tmp_p
     assert again.n_run == 6 and any("baselines were run again" in n for n in again.scorecard["notes"])
 
 
+def test_against_alone_runs_the_committed_protocol(tmp_path, capsys):
+    """`mobman-eval bench --against DIR --policy X`: the seeds, first seed, tolerance, settle time and env
+    arguments the command line leaves out are the committed scorecard's, so the bench is comparable as written
+    (before, the defaults of 5 / 2 seeds were refused against a committed bench of 10 / 5); one given that
+    differs is still refused, naming it."""
+    run_bench(
+        _small(conditions=("default",), policies=("zero",), tasks=("circle",), seeds=3),
+        tmp_path / "c",
+        progress=False,
+        plots=False,
+    )
+    args = ["bench", "--robots", "puma", "--tasks", "circle", "--conditions", "default", "--quiet", "--no-plots"]
+    assert main([*args, "--against", str(tmp_path / "c"), "--policy", "jmpi", "--out", str(tmp_path / "m")]) == 0
+    bench = json.loads((tmp_path / "m" / "bench.json").read_text())
+    assert bench["kinematic_seeds"] == 3 and bench["env_kwargs"] == SHORT and bench["against"]["samples_equal"]
+    capsys.readouterr()
+    assert (
+        main(
+            [*args, "--against", str(tmp_path / "c"), "--policy", "jmpi", "--seeds", "2", "--out", str(tmp_path / "n")]
+        )
+        == 2
+    )
+    assert "kinematic_seeds: 3 there, 2 here" in capsys.readouterr().err
+
+
 def test_against_refuses_another_protocol(tmp_path):
     run_bench(
         _small(conditions=("default",), policies=("zero",), tasks=("circle",)),

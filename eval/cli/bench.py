@@ -20,7 +20,7 @@ from eval.bench.config import CONDITIONS, DEFAULT_CONDITIONS, ROBOTS, TASKS, TRA
 from eval.bench.run import DEFAULT_OUT, run_bench
 from eval.bench.scorecard import load_scorecard, readme_markdown, render_readme
 from eval.cli.common import EXECUTION, RESUMABLE, add_execution, policy_help, policy_option
-from eval.cli.options import Opt, add_options, build, values
+from eval.cli.options import Opt, add_options, build, given, values
 from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.output.files import atomic_rewrite_text
@@ -40,7 +40,8 @@ class BenchActions:
     exit."""
     against: str | None = None
     """A committed bench (e.g. docs/results/bench-v2-dev): re-run a sample of its baselines bit for bit, reuse
-    their rows, and run only the controllers given with --policy (yours)."""
+    their rows, and run only the controllers given with --policy (yours), on the committed protocol (its track,
+    seeds, first seed, tolerance, settle time and env arguments unless given)."""
 
 
 #: what is run (`BenchConfig`'s fields)
@@ -70,6 +71,28 @@ ACTIONS = (
     Opt("markdown", metavar="SCORECARD"),
     Opt("render_readme", metavar="README"),
 )
+
+
+#: BenchConfig field <- the committed scorecard's protocol key, for `--against` (what makes two benches comparable)
+AGAINST_FIELDS = {
+    "track": "track",
+    "seeds": "kinematic_seeds",
+    "physics_seeds": "physics_seeds",
+    "seed_start": "seed_start",
+    "tolerance": "tolerance",
+    "settle_time": "settle_time",
+    "env_kwargs": "env_kwargs",
+}
+
+
+def _against_protocol(against: str, cli: dict) -> dict:
+    """The committed scorecard's track, seeds, tolerance, settle time and env arguments for each of them the
+    command line did not give: `--against DIR` alone runs the committed protocol (a value given that differs is
+    refused by the protocol check, naming it)."""
+    from eval.bench.against import load_against
+
+    protocol = load_against(against)[0]["protocol"]
+    return {f: protocol[k] for f, k in AGAINST_FIELDS.items() if f not in cli and k in protocol}
 
 
 def add_parser(sub) -> None:
@@ -119,7 +142,8 @@ def main(args) -> int:
         print(f"tasks: {', '.join(TASKS)}; robots: {', '.join(ROBOTS)}")
         print(f"default controllers: {', '.join(default_policies())}")
         return 0
-    config = build(BenchConfig, args, PROTOCOL)
+    fixed = _against_protocol(actions.against, given(args, PROTOCOL)) if actions.against else {}
+    config = build(BenchConfig, args, PROTOCOL, **fixed)
     how = build(SweepRun, args, RESUMABLE)
     try:
         result = run_bench(config, **asdict(how), against=actions.against, **values(args, EvalConfig, EXECUTION))
