@@ -93,6 +93,23 @@ def test_readme_copies_only_from_the_pages_repository(tmp_path, capsys, kind, so
     assert "Traceback" not in err and page.read_text() == before
 
 
+def test_a_source_tree_without_git_is_its_pages_repository(tmp_path, capsys):
+    """An unpacked sdist has no .git: its pyproject.toml marks the repository, so docs/rl/page.md may copy from
+    ../results/ (CI runs the suite from the sdist), and a block naming a file above the tree is still refused."""
+    tree = tmp_path / "mobman-0.3.0"
+    (tree / "docs" / "results").mkdir(parents=True)
+    (tree / "pyproject.toml").write_text("[project]\nname = 'x'\n")
+    (tree / "docs" / "results" / "summary.md").write_text("## Table\n\n| x |\n")
+    (tree / "docs" / "rl").mkdir()
+    page = tree / "docs" / "rl" / "page.md"  # as docs/rl/index.md names ../results/rl-v2/summary.md
+    page.write_text("<!-- generated:begin ../results/summary.md Table -->\nold\n<!-- generated:end -->\n")
+    assert main(["readme", str(page)]) == 0 and "| x |" in page.read_text()
+    (tmp_path / "outside.md").write_text("## Table\n\nsecret\n")
+    page.write_text("<!-- generated:begin ../../../outside.md Table -->\nold\n<!-- generated:end -->\n")
+    assert main(["readme", str(page)]) == 2
+    assert f"outside the page's repository {tree}" in capsys.readouterr().err
+
+
 @pytest.mark.parametrize("argv", [["readme"], ["bench", "--render-readme"]])
 def test_readme_keeps_a_symlinked_page_and_its_mode(tmp_path, argv):
     (tmp_path / ".git").mkdir()

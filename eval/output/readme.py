@@ -15,8 +15,8 @@ with the path relative to the file that holds the block and the section title af
 writes the result, and a test keeps the README equal to it.
 
 A page copies only from its own repository (`source_path`): the path a block names, symlinks resolved, must lie
-inside the page's repository (the nearest folder above it holding `.git`, else the page's folder), so that a
-block naming `/etc/passwd` or `../../x` cannot copy a file from elsewhere into the page.
+inside the page's repository (the nearest folder above it holding `.git` or `pyproject.toml`, else the page's
+folder), so that a block naming `/etc/passwd` or `../../x` cannot copy a file from elsewhere into the page.
 """
 
 from __future__ import annotations
@@ -32,12 +32,17 @@ GENERATED_BLOCK = re.compile(
 )
 
 
+#: what marks a repository's top folder: a git checkout (`.git`, a folder or a worktree's file), or a source tree
+#: without git, such as an unpacked sdist (its `pyproject.toml`)
+REPOSITORY_MARKERS = (".git", "pyproject.toml")
+
+
 def repository_of(folder: Path) -> Path:
-    """The repository of a page in `folder`: the nearest folder at or above it holding `.git` (a folder, or
-    the file of a git worktree), else `folder` itself; resolved."""
+    """The repository of a page in `folder`: the nearest folder at or above it holding one of
+    `REPOSITORY_MARKERS`, else `folder` itself; resolved."""
     folder = Path(folder).resolve()
     for candidate in (folder, *folder.parents):
-        if (candidate / ".git").exists():
+        if any((candidate / marker).exists() for marker in REPOSITORY_MARKERS):
             return candidate
     return folder
 
