@@ -24,6 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +35,18 @@ from eval.errors import EvalError
 
 #: committed episodes re-run to check that this machine reproduces them
 SAMPLE_SIZE = 8
+#: `BenchConfig` field -> its protocol key, for the fields that must equal the committed scorecard's
+CONFIG_KEYS = {
+    "track": "track",
+    "seed_start": "seed_start",
+    "seeds": "kinematic_seeds",
+    "physics_seeds": "physics_seeds",
+    "tolerance": "tolerance",
+    "settle_time": "settle_time",
+    "env_kwargs": "env_kwargs",
+}
 #: protocol fields that must equal the committed scorecard's
-SAME = ("version", "track", "seed_start", "kinematic_seeds", "physics_seeds", "tolerance", "settle_time", "env_kwargs")
+SAME = ("version", *CONFIG_KEYS.values())
 
 
 def load_against(path: str | Path) -> tuple[dict, str]:
@@ -44,6 +55,15 @@ def load_against(path: str | Path) -> tuple[dict, str]:
     file = path / "scorecard.json" if path.is_dir() else path
     sc = S.load_scorecard(file)
     return sc, hashlib.sha256(file.read_bytes()).hexdigest()
+
+
+def committed_settings(path: str | Path, given: Iterable[str]) -> dict[str, Any]:
+    """The committed scorecard's value of every `CONFIG_KEYS` field not in `given` (the fields the command line
+    set): `--against DIR` alone runs the committed protocol, and a value given that differs is refused by
+    `check_protocol`, naming it."""
+    protocol = load_against(path)[0]["protocol"]
+    given = set(given)
+    return {f: protocol[k] for f, k in CONFIG_KEYS.items() if f not in given and k in protocol}
 
 
 def check_protocol(committed: dict, protocol: dict) -> None:

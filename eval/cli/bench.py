@@ -16,6 +16,7 @@ import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from eval.bench.against import committed_settings
 from eval.bench.config import CONDITIONS, DEFAULT_CONDITIONS, ROBOTS, TASKS, TRACKS, BenchConfig, default_policies
 from eval.bench.run import DEFAULT_OUT, run_bench
 from eval.bench.scorecard import load_scorecard, readme_markdown, render_readme
@@ -73,28 +74,6 @@ ACTIONS = (
 )
 
 
-#: BenchConfig field <- the committed scorecard's protocol key, for `--against` (what makes two benches comparable)
-AGAINST_FIELDS = {
-    "track": "track",
-    "seeds": "kinematic_seeds",
-    "physics_seeds": "physics_seeds",
-    "seed_start": "seed_start",
-    "tolerance": "tolerance",
-    "settle_time": "settle_time",
-    "env_kwargs": "env_kwargs",
-}
-
-
-def _against_protocol(against: str, cli: dict) -> dict:
-    """The committed scorecard's track, seeds, tolerance, settle time and env arguments for each of them the
-    command line did not give: `--against DIR` alone runs the committed protocol (a value given that differs is
-    refused by the protocol check, naming it)."""
-    from eval.bench.against import load_against
-
-    protocol = load_against(against)[0]["protocol"]
-    return {f: protocol[k] for f, k in AGAINST_FIELDS.items() if f not in cli and k in protocol}
-
-
 def add_parser(sub) -> None:
     p = sub.add_parser(
         "bench",
@@ -142,7 +121,7 @@ def main(args) -> int:
         print(f"tasks: {', '.join(TASKS)}; robots: {', '.join(ROBOTS)}")
         print(f"default controllers: {', '.join(default_policies())}")
         return 0
-    fixed = _against_protocol(actions.against, given(args, PROTOCOL)) if actions.against else {}
+    fixed = committed_settings(actions.against, given(args, PROTOCOL)) if actions.against else {}
     config = build(BenchConfig, args, PROTOCOL, **fixed)
     how = build(SweepRun, args, RESUMABLE)
     try:
