@@ -89,7 +89,10 @@ class StructuredEstimator:
     map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. J and J_dot are
     composed when read."""
 
-    def __init__(self, n: int, dt: float, *, q_platform: float, platform_std: float, arm_kw: dict):
+    def __init__(
+        self, n: int, dt: float, *, q_platform: float, platform_std: float, heading_filter: float, arm_kw: dict
+    ):
+        self._heading_filter = heading_filter
         self._n = n
         self._na = n - 2
         self._dt = dt
@@ -103,7 +106,8 @@ class StructuredEstimator:
     def reset(self) -> None:
         self.arm.reset()
         self.platform.reset()
-        self._yaw: float | None = None
+        self._yaw: float | None = None  # the heading in use (filtered), rad
+        self._yaw_measured = 0.0
         self.omega = 0.0  # rad/s, the heading's rate over the last step
         self._cs = (1.0, 0.0)
         self._lever = (0.0, 0.0)  # r_a - p_c (x, y), m
@@ -138,9 +142,19 @@ class StructuredEstimator:
     def observe(self, obs: dict) -> None:
         """This step's platform measurements: heading and its rate, the lever r_a - p_c, and the wheel map's
         update (when the wheels turn)."""
-        yaw = float(obs["base_yaw"][0])
+        measured = float(obs["base_yaw"][0])
+        w0, w1 = obs["joint_vel"][self._na :].tolist()
+        yaw = measured
+        omega_measured = 0.0  # the measured heading's finite difference (what the wheel map learns from)
         if self._yaw is not None:
+            omega_measured = (measured - self._yaw_measured) / self._dt
+            a = self._heading_filter
+            if a < 1.0:  # the wheel map's rate, corrected towards the measured heading
+                m0, m1 = self.platform.rows[2]
+                predicted = self._yaw + self._dt * (m0 * w0 + m1 * w1)
+                yaw = predicted + a * math.remainder(measured - predicted, 2.0 * math.pi)
             self.omega = (yaw - self._yaw) / self._dt
+        self._yaw_measured = measured
         self._yaw = yaw
         c, s = math.cos(yaw), math.sin(yaw)
         self._cs = (c, s)
@@ -151,9 +165,8 @@ class StructuredEstimator:
         self._lever = (e0 - p0, e1 - p1)
         self._base_vel = (b0, b1)
         self._lever_rate = (v0 - b0, v1 - b1)
-        w0, w1 = obs["joint_vel"][self._na :].tolist()
         if w0 != 0.0 or w1 != 0.0:
-            self.platform.update(w0, w1, (c * b0 + s * b1, c * b1 - s * b0, self.omega))
+            self.platform.update(w0, w1, (c * b0 + s * b1, c * b1 - s * b0, omega_measured))
         self._dirty = True
 
     def init(self, J0: np.ndarray) -> None:
