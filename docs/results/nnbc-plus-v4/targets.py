@@ -1,0 +1,70 @@
+"""Issue 28's targets for `nnbc-plus`, read from a committed dev-track scorecard (reported seeds).
+
+    python docs/results/nnbc-plus-v4/targets.py docs/results/bench-v2-dev/scorecard.json > docs/results/nnbc-plus-v4/targets.md
+
+Each target with the figure measured: success and clean success on every dev cell (condition x robot, tasks
+pooled), the commands' acceleration RMS at `default` against `qp`'s, the max-error IQM at `default` against
+`qp-oracle`'s, and the median max error under sensor noise (`noise`) against `qp`'s. Medians and IQMs are pooled
+over the condition's episodes (the scorecard's `pooled` rows).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+
+def main(path: str, policy: str = "nnbc-plus") -> str:
+    s = json.loads(Path(path).read_text())
+    rows = [r for r in s["rows"] if r["track"] == "dev" and not r["condition"].startswith("ladder")]
+    cells: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0, 0])
+    for r in rows:
+        if r["policy"] != policy:
+            continue
+        robot = r["env"].split("-")[0].removeprefix("Wheeled")
+        c = cells[(r["condition"], robot)]
+        c[0] += round(r["success_rate"] * r["n"])
+        c[1] += round(r["clean_success_rate"] * r["n"])
+        c[2] += r["n"]
+    out = [f"# `{policy}` against issue 28's targets", "", f"From `{path}` (git {s['git'][:7]}).", ""]
+    out += ["| dev cell | success | clean success |", "|---|---|---|"]
+    low = []
+    for (cond, robot), (ok, clean, n) in sorted(cells.items()):
+        out.append(f"| {cond}, {robot} | {ok}/{n} | {clean}/{n} |")
+        if ok < 0.95 * n or clean < 0.95 * n:
+            low.append(f"{cond}/{robot}")
+    out += [
+        "",
+        f"Cells below 95% success or clean success: {len(low)} of {len(cells)}"
+        + (f" ({', '.join(low)})" if low else ""),
+        "",
+    ]
+
+    def pooled(cond: str, pol: str) -> dict:
+        (row,) = [r for r in s["pooled"] if r["condition"] == cond and r["policy"] == pol]
+        return row
+
+    def ratio(cond: str, key: str, stat: str, other: str) -> tuple[float, float]:
+        return pooled(cond, policy)[key][stat], pooled(cond, other)[key][stat]
+
+    a, q = ratio("default", "cmd_accel_rms", "median", "qp")
+    out.append(
+        f"* commands' acceleration RMS at `default` (median over its episodes): {a:.3g} rad/s^2 against `qp`'s "
+        f"{q:.3g}: {a / q:.3g}x (target <= 3x)"
+    )
+    i, o = ratio("default", "max_error_m", "iqm", "qp-oracle")
+    out.append(
+        f"* max-error IQM at `default`: {i * 1e3:.3g} mm against `qp-oracle`'s {o * 1e3:.3g} mm: {i / o:.3g}x "
+        "(target <= 3x)"
+    )
+    m, mq = ratio("noise", "max_error_m", "median", "qp")
+    out.append(
+        f"* median max error under `noise`: {m * 1e3:.3g} mm against `qp`'s {mq * 1e3:.3g} mm (target: at or below)"
+    )
+    return "\n".join(out) + "\n"
+
+
+if __name__ == "__main__":
+    sys.stdout.write(main(*sys.argv[1:]))
