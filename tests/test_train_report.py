@@ -461,3 +461,36 @@ def test_a_model_zip_that_inflates_beyond_the_cap_is_refused_unread(tmp_path):
     assert path.stat().st_size < 2**20
     with pytest.raises(ValueError, match=rf"entry 'data' inflates to {MAX_MODEL_DATA_BYTES + 3} bytes; at most"):
         read_zip_data(path)
+
+
+def test_the_controllers_are_evaluated_again_when_their_code_changes(tmp_path, monkeypatch):
+    """The controllers' cached evaluation is keyed by the source of `mobman_env` and `policies` too: the same
+    configuration with changed controller code runs again (a report once carried `nnbc-plus` v3's rows over
+    after v4 had changed its actions), the same code reads the cache."""
+    calls: list = []
+    evaluate = _caching_evaluation(calls)
+
+    def cached(cfg, extra):  # the cache rule of R.cached_evaluation over the fake evaluation
+        out = Path(cfg.out)
+        key = json.loads(json.dumps(R._inputs(cfg, extra)))
+        if (out / "inputs.json").is_file() and json.loads((out / "inputs.json").read_text()) == key:
+            return json.loads((out / "results.json").read_text())["episodes"]
+        return evaluate(cfg, extra)
+
+    monkeypatch.setattr(R, "cached_evaluation", cached)
+    cfg = R.ReportConfig(
+        runs=(str(_run_folder(tmp_path, "ppo-kin-s0", "ppo", 0)),),
+        out=str(tmp_path / "report"),
+        episodes=2,
+        controllers=("zero",),
+        models_dir=str(tmp_path / "models"),
+        plots=False,
+    )
+    R.build_report(cfg)
+    assert [c for c in calls if not c[0].startswith("sb3:")] == [("zero",)]
+    calls.clear()
+    R.build_report(cfg)
+    assert calls == []  # nothing changed: everything from the cache
+    monkeypatch.setattr(R, "controller_source", lambda: "another source")
+    R.build_report(cfg)
+    assert calls == [("zero",)]  # the controllers again, the agent's evaluation still from its cache

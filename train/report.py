@@ -345,12 +345,32 @@ def evaluate_run(config: ReportConfig, run: dict, out: Path) -> dict:
     return {"episodes": [_slim(r) for r in records], "command": eval_command(cfg)}
 
 
+def controller_source() -> str:
+    """SHA-256 over the source of the packages that compute a controller's episodes (`mobman_env`, `policies`):
+    part of the controllers' cache key, so a changed controller or env is evaluated again instead of being read
+    from an earlier report's cache (the key was the configuration alone before `nnbc-plus` v4 moved its actions,
+    and `mobman-train report` then carried v3's rows over)."""
+    import hashlib
+
+    import mobman_env
+    import policies
+
+    h = hashlib.sha256()
+    for package in (mobman_env, policies):
+        root = Path(package.__file__).parent
+        for path in sorted(root.rglob("*.py")):
+            h.update(path.relative_to(root.parent).as_posix().encode())
+            h.update(path.read_bytes())
+    return h.hexdigest()
+
+
 def evaluate_controllers(config: ReportConfig, env_id: str, dynamics: str, out: Path) -> dict:
-    """The controllers on the reported episodes in one mode (cached): aggregate rows and slim records."""
+    """The controllers on the reported episodes in one mode (cached while `controller_source()` is the same):
+    aggregate rows and slim records."""
     from eval import metrics as M
 
     cfg = _eval_config(config, env_id, config.controllers, dynamics, out)
-    records = cached_evaluation(cfg, {})
+    records = cached_evaluation(cfg, {"source_sha256": controller_source()})
     rows = M.aggregate(records, group_keys=("policy",))
     for row in rows:
         row.pop("success_curve", None)
