@@ -221,13 +221,14 @@ def test_broyden_needs_more_excitation_than_the_shared_default():
 
 
 def test_estimating_controllers_share_the_scaffolding():
-    """broyden and rls run nnbc-plus's probe: the same 16 probe commands, then an estimate exposed as
-    jacobian_estimate (None during the probe), of the kind their formulation says."""
+    """broyden and rls run nnbc-plus's probe: the same 16 probe commands at the same `probe_speed` (nnbc-plus's
+    default is 0.02 rad/s since v4, theirs 0.05), then an estimate exposed as jacobian_estimate (None during the
+    probe), of the kind their formulation says."""
     env = gym.make("WheeledPuma-Line-v0", dynamics="kinematic")
     n_probe = 2 * EnvFacts.from_env(env).n_actuators  # one + and one - step per actuator
     try:
         actions = {}
-        for spec in ("nnbc-plus", "broyden", "rls", "rls:formulation=paper"):
+        for spec in ("nnbc-plus", "broyden:probe_speed=0.02", "rls:probe_speed=0.02", "rls:formulation=paper"):
             pol = policies.make(spec, env)
             obs, _ = env.reset(seed=0)
             pol.reset(obs, seed=1)
@@ -243,7 +244,7 @@ def test_estimating_controllers_share_the_scaffolding():
             actions[spec] = np.array(acts[:n_probe])
     finally:
         env.close()
-    for spec in ("broyden", "rls"):
+    for spec in ("broyden:probe_speed=0.02", "rls:probe_speed=0.02"):
         np.testing.assert_array_equal(actions[spec], actions["nnbc-plus"])
 
 
