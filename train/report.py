@@ -357,6 +357,7 @@ def controller_source() -> str:
 
     h = hashlib.sha256()
     for package in (mobman_env, policies):
+        assert package.__file__ is not None  # (regular packages, not namespace ones)
         root = Path(package.__file__).parent
         for path in sorted(root.rglob("*.py")):
             h.update(path.relative_to(root.parent).as_posix().encode())
