@@ -87,7 +87,8 @@ def test_bad_batches_raise():
 VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp") + tuple(
     f"{law}{form}" for law in ("jmpi", "clik", "oracle", "nnbc") for form in ("", "-full")
 )
-LOOPED = ("nnbc-plus", "broyden", "rls")
+#: the model-free laws of `policies.nnbc_plus.ModelFreeLaw` (one numba kernel over the rows)
+MODEL_FREE = ("nnbc-plus", "nnbc-plus-wb", "broyden", "rls", "nnbc-plus:formulation=paper,j0_noise=0.3")
 
 
 def _venv(env_id: str, n: int):
@@ -95,7 +96,7 @@ def _venv(env_id: str, n: int):
 
 
 @pytest.mark.parametrize("env_id", ["WheeledPuma-Circle-v0", "WheeledPuma-Line-v0"])
-@pytest.mark.parametrize("spec", VECTORISED)
+@pytest.mark.parametrize("spec", VECTORISED + MODEL_FREE)
 def test_vectorised_law_equals_single_policies(spec, env_id):
     """N = 5 robots for 200 steps driven by the batched actions: row i's action equals a single policy's (built for
     robot i, reset with policy_seed(S + i)) on the same observation to 1e-9 (bit for bit, in fact: the single
@@ -129,6 +130,11 @@ def test_vectorised_law_equals_single_policies(spec, env_id):
     if spec.startswith("nnbc"):
         steps = batched.steps  # the restarted rows count their steps from their new start
         assert steps.tolist() == [200, 140, 200, 140, 200]
+    if spec in MODEL_FREE:  # bit for bit, the commands and the estimates: the same kernel with N = 1
+        for i, pol in enumerate(singles):
+            np.testing.assert_array_equal(batched.last_u[i], pol.last_u)
+            np.testing.assert_array_equal(batched.J_hat_row(i), pol.J_hat)
+            np.testing.assert_array_equal(batched.Jdot_hat_row(i), pol.Jdot_hat)
     venv.close()
 
 
@@ -150,11 +156,31 @@ def test_one_robot(spec):
     venv.close()
 
 
-@pytest.mark.parametrize("spec", LOOPED)
+class LoopedZero:
+    """A user's policy (a `module:attr` spec): no vectorised law, so a vector env loops one per row."""
+
+    def __init__(self, env):
+        self.n = env.action_space.shape[0]
+
+    def reset(self, obs, info=None, *, seed=None): ...
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        return np.zeros(self.n, dtype=np.float32), state
+
+
+@pytest.mark.parametrize("spec", [f"{__name__}:LoopedZero"])
 def test_other_specs_loop_their_rows(spec):
     venv = _venv(ENV_ID, 2)
     pol = policies.make(spec, venv)
     assert isinstance(pol, BatchedPolicy) and not isinstance(pol, BatchedController) and len(pol.rows) == 2
+    venv.close()
+
+
+@pytest.mark.parametrize("spec", MODEL_FREE[:4])
+def test_model_free_specs_are_vectorised_laws(spec):
+    venv = _venv(ENV_ID, 2)
+    pol = policies.make(spec, venv)
+    assert isinstance(pol, BatchedController) and len(pol.rows) == 2
     venv.close()
 
 
