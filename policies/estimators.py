@@ -175,6 +175,12 @@ class KalmanEstimator(_Estimator):
     @property
     def P(self) -> np.ndarray:
         """The shared 2n x 2n covariance (a view the filter keeps updating)."""
+        return self.arm_P
+
+    @property
+    def arm_P(self) -> np.ndarray:
+        """The Kalman filter's own covariance (2k x 2k, k = n, or the arm's joints with the structured estimate;
+        a view)."""
         ns, base = self._ns, 6 * self._n
         return self._e[base + 3 * ns : base + (3 + ns) * ns].reshape(ns, ns)
 
@@ -210,8 +216,9 @@ class StructuredEstimator(KalmanEstimator):
     wheel map (`policies.structured`'s docstring). n actuators: n - 2 arm joints, then the two wheels.
 
     `observe(obs)` must be called at every control step before `update` (and during the probe, so the wheel
-    map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. X and P are the arm
-    filter's; `platform` the wheel map (`WheelMap`); `structured_P` their covariances as blocks of a 2n x 2n."""
+    map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. X and `arm_P` are the arm
+    filter's state [A | A_dot] and covariance, `platform` the wheel map (`WheelMap`), P both covariances as blocks
+    of a 2n x 2n."""
 
     kind = K.STRUCTURED
 
@@ -237,12 +244,12 @@ class StructuredEstimator(KalmanEstimator):
         return float(self._tail[K.S_OMEGA])
 
     @property
-    def structured_P(self) -> np.ndarray:
+    def P(self) -> np.ndarray:
         """2n x 2n: the arm filter's covariance of A's entries in the arm block and the wheel map's in the wheel
-        block (per row; every other entry is zero)."""
+        block (per row; every other entry is zero). A new array (the arm filter's own is `arm_P`)."""
         n, na = self._n, self._n - 2
         P = np.zeros((2 * n, 2 * n))
-        P[:na, :na] = self.P[:na, :na]
+        P[:na, :na] = self.arm_P[:na, :na]
         P[na:n, na:n] = self.platform.P
         return P
 

@@ -702,8 +702,7 @@ class NNBCPlus(EstimatingController):
     def P(self) -> np.ndarray:
         """2n x 2n: the Kalman filter's shared covariance ("whole_body", "paper"), or with "structured" the arm
         filter's covariance of its Jacobian's entries and the wheel map's, as blocks (`StructuredEstimator.P`)."""
-        est: Any = self.estimator
-        return est.structured_P if self.config.formulation == "structured" else est.P
+        return self.estimator.P  # type: ignore[attr-defined]
 
     @property
     def X(self) -> np.ndarray:

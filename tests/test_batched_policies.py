@@ -347,3 +347,56 @@ def test_reset_with_fewer_rows_than_robots_is_refused_with_the_shapes(spec):
     with pytest.raises(ValueError, match=r"reset of a batched policy of 3 rows .*leading axis of 3.*\(2, 3\)"):
         pol.reset({k: v[:2] for k, v in obs.items()}, info, seed=10_600)
     venv.close()
+
+
+def model_free_digests(steps: int = 300) -> list[str]:
+    """sha256 of the commands (last_u, float64 bytes) of each model-free spec on a linear plant r_dot = J u (8
+    actuators, a turning platform's wheels in J's last columns) over `steps` steps: past the probe, the settling of
+    the actuator model and the first block of dither signs."""
+    import hashlib
+
+    from policies.base import EnvFacts
+    from policies.registry import build_config, parse_spec
+
+    facts = EnvFacts(dt=0.01, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=())
+    J = 0.3 * np.random.default_rng(7).standard_normal((3, 8))
+    out = []
+    for spec in MODEL_FREE + ("nnbc-plus:formulation=whole_body,measurement=position",):
+        name, options = parse_spec(spec)
+        entry = policies.registry._REGISTRY[name]
+        cls, cfg_cls = policies.registry._load_entry(name, entry)
+        pol = cls(facts, build_config(cfg_cls, {**entry.preset, **options}, spec), seed=3)
+        q, r, u, h = np.zeros(8), np.zeros(3), np.zeros(8), hashlib.sha256()
+        for k in range(steps):
+            t = 0.01 * k
+            obs = {
+                "ee_pos": r, "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
+                "joint_pos": q, "joint_vel": u, "target_pos": 0.05 * np.array([np.sin(t), 1 - np.cos(t), 0.0]),
+                "target_vel": 0.05 * np.array([np.cos(t), np.sin(t), 0.0]), "base_yaw": np.array([0.1 * t]),
+            }  # fmt: skip
+            action, _ = pol.predict(obs)
+            u = np.asarray(action, dtype=float) * facts.scale
+            h.update(np.asarray(pol.last_u, dtype=float).tobytes())
+            q, r = q + 0.01 * u, r + 0.01 * (J @ u)
+        out.append(h.hexdigest())
+    return out
+
+
+@pytest.mark.slow
+def test_the_model_free_law_as_plain_python_gives_the_compiled_bits():
+    """`policies.model_free_kernels` run as plain Python (`NUMBA_DISABLE_JIT=1`) issues the compiled kernel's
+    commands bit for bit (the kernels are plain float code: no fast-math, no reassociation)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = (
+        f"import json, sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+        "from test_batched_policies import model_free_digests; print(json.dumps(model_free_digests()))"
+    )
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == model_free_digests()
