@@ -184,6 +184,7 @@ DELAY_SETTLE = K.DELAY_SETTLE  # steps during which the delay estimate is refres
 DELAY_EVERY = K.DELAY_EVERY  # afterwards, every this many steps
 #: s: the first-order actuator lags the actuator model is chosen among, beside the pure delays 0..max_delay
 LAG_TAUS = (0.02, 0.05, 0.1, 0.2)
+assert len(LAG_TAUS) == K.N_LAGS  # (the kernel's bank has this many lag models)
 
 
 @dataclass(frozen=True)
