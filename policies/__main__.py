@@ -6,7 +6,11 @@ import time
 import numpy as np
 
 from policies import calib_qp, nnbc
+from policies.base import EnvFacts
+from policies.broyden_rls import RLS, Broyden
+from policies.estimators import BroydenEstimator
 from policies.kernels import damped_pinv_apply_rows
+from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 
 def warm() -> float:
@@ -24,6 +28,20 @@ def warm() -> float:
     calib_qp.calibrate_rows(
         three, ints, ints, ints, *obs, *est, 1.0, 1.0, 1.0, 0.0, np.zeros((1, 8, 8)), np.ones((1, 64))
     )
+    # the model-free law (policies.model_free_kernels): each estimator kind through the probe into the estimate
+    facts = EnvFacts(dt=0.01, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=())
+    sizes = {"ee_pos": 3, "ee_vel": 3, "arm_base_pos": 2, "arm_base_vel": 2, "joint_pos": 8, "joint_vel": 8}
+    single = {k: np.full(m, 0.01) for k, m in {**sizes, "target_pos": 3, "target_vel": 3, "base_yaw": 1}.items()}
+    for policy in (
+        NNBCPlus(facts),
+        NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body")),
+        Broyden(facts),
+        RLS(facts),
+    ):
+        policy.reset(single, seed=0)
+        for _ in range(2 * 8 + 2):
+            policy.predict(single)
+    BroydenEstimator(8, step=1.0, min_speed=0.01).update(np.ones(8), np.ones(3))
     return time.perf_counter() - t0
 
 

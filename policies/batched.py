@@ -15,7 +15,9 @@ Two kinds behind one interface (`BatchedPolicy`):
 
 * Vectorised laws (`BatchedController`): `zero`, `random`, `jmpi`, `jmpi-full`, `clik`, `clik-full`, `oracle`,
   `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle`, `calib-qp` (batched up to the QP, which is solved row by
-  row; `calib-qp`'s calibration is one per-row kernel). The
+  row; `calib-qp`'s calibration is one per-row kernel), and the model-free `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
+  `rls` (one per-row numba kernel, `policies.model_free_kernels`: each row draws its dither signs from its own
+  Generator as the single controller does). The
   law's state is (N, ...) arrays and one `predict` advances every row with whole-array numpy operations
   (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal or true robots' Jacobians batched by
   `mobman_env.vector_kinematics`). The single-env class of the spec (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`:
@@ -27,7 +29,7 @@ Two kinds behind one interface (`BatchedPolicy`):
   finish the probe and run the ZNN law each at its own step count. Cost per robot-step at N = 64 and 1,024: a few
   microseconds, against 25-85 us for one single `predict` (`mobman-eval speed`; `random` keeps one draw per row's
   Generator and step, so its cost stays that of N small draws).
-* Every other spec (`nnbc-plus`, `broyden`, `rls`, `sb3:`, `module:attr`): this class loops
+* Every other spec (`sb3:`, `module:attr`): this class loops
   N single-env policies, row i built for robot i (`_RobotView`: the vector env's dt, action scale, single
   observation space and nominal robot; the true robot is robot i's, read at each of its episode starts) and
   fed row i of each batched observation (float32 rows, as a single env hands them out): bit for bit the single

@@ -34,9 +34,13 @@ below. Both controllers are model-free: built from `EnvFacts`, they read observa
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 from mobman_env.validation import number
-from policies.estimators import BroydenEstimator, RLSEstimator
+from policies import model_free_kernels as K
+from policies.estimators import estimator_params, rls_params
 from policies.nnbc_plus import EstimatingController, ModelFreeConfig
 
 
@@ -79,17 +83,21 @@ class RLSConfig(ModelFreeConfig):
         super().__post_init__()
 
 
+def _broyden_estimator(c: Any, n: int, dt: float, n_probe: int) -> tuple[int, np.ndarray]:
+    return K.BROYDEN, estimator_params(step=c.step, min_speed=c.min_speed)
+
+
+def _rls_estimator(c: Any, n: int, dt: float, n_probe: int) -> tuple[int, np.ndarray]:
+    return K.RLS, rls_params(n, c.forgetting, c.q_jacobian, c.p0, c.p_max)
+
+
 class Broyden(EstimatingController):
     """`nnbc-plus`'s scaffolding with Broyden's secant update (see the module docstring). `estimator.n_skipped`
     counts the gated steps of the episode."""
 
     name = "broyden"
     config_cls = BroydenConfig
-
-    def _make_estimator(self) -> BroydenEstimator:
-        c = self.config
-        assert isinstance(c, BroydenConfig)
-        return BroydenEstimator(self.n_act, step=c.step, min_speed=c.min_speed)
+    _estimator = staticmethod(_broyden_estimator)
 
 
 class RLS(EstimatingController):
@@ -98,8 +106,4 @@ class RLS(EstimatingController):
 
     name = "rls"
     config_cls = RLSConfig
-
-    def _make_estimator(self) -> RLSEstimator:
-        c = self.config
-        assert isinstance(c, RLSConfig)
-        return RLSEstimator(self.n_act, forgetting=c.forgetting, q_jacobian=c.q_jacobian, p0=c.p0, p_max=c.p_max)
+    _estimator = staticmethod(_rls_estimator)

@@ -25,17 +25,24 @@ The three estimators (units as above; "per step" means per control step dt):
   optional random-walk covariance q: K = P x / (lambda + x^T P x), J <- J + (y - J x) K^T,
   P <- (P - K x^T P) / lambda + q I, the trace of P bounded by p_max n (no wind-up when the excitation is poor).
 
-Pure numpy; imports nothing from the package.
+The arithmetic is written once, in `policies.model_free_kernels` (`est_reset`, `est_init`, `est_update`,
+`est_observe`: scalar numba code over one row's state); these classes are its Python face for one estimator:
+each owns a state segment (`est_layout`) or, for the estimator of a controller's row, views that row's segment
+of the batched law (`view`), so `policy.estimator` is the estimate the law runs, not a copy.
+
+Imports numpy and `policies.model_free_kernels` only.
 """
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
+from policies import model_free_kernels as K
+
 #: (m/s)^2: initial running mean square of the Kalman filter's innovations (10 mm/s RMS: permissive).
-INNOV_MS0 = 1e-4
+INNOV_MS0 = K.INNOV_MS0
 
 
 class JacobianEstimator(Protocol):
@@ -54,7 +61,88 @@ class JacobianEstimator(Protocol):
     def update(self, x: np.ndarray, y: np.ndarray) -> None: ...
 
 
-class KalmanEstimator:
+def estimator_params(dt: float = 0.0, **kw: float) -> np.ndarray:
+    """The estimator's constants `ep` (`policies.model_free_kernels.EP_*`) from keyword values (missing: 0)."""
+    ep = np.zeros(K.EP_LEN)
+    names = {
+        "q_jacobian": K.EP_QJ,
+        "q_rate": K.EP_QR,
+        "innov_clip": K.EP_CLIP,
+        "innov_rate": K.EP_RATE,
+        "p0_jacobian": K.EP_P0J,
+        "p0_rate": K.EP_P0R,
+        "noise_rate": K.EP_NOISE_RATE,
+        "midpoint": K.EP_MIDPOINT,
+        "sym_phase": K.EP_SYM_PHASE,
+        "q_platform": K.EP_QPLAT,
+        "heading_filter": K.EP_HEADING,
+        "step": K.EP_STEP,
+        "forgetting": K.EP_LAMBDA,
+        "q_rls": K.EP_QRLS,
+        "p0": K.EP_P0RLS,
+    }
+    ep[K.EP_DT] = dt
+    for key, value in kw.items():
+        if key == "meas_std":
+            ep[K.EP_R0] = value**2
+        elif key == "platform_std":
+            ep[K.EP_RPLAT] = value**2
+        elif key == "min_speed":
+            ep[K.EP_MIN2] = value * value
+        elif key == "trace_max":
+            ep[K.EP_TRMAX] = value
+        else:
+            ep[names[key]] = float(value)
+    ep[K.EP_CLIP2] = ep[K.EP_CLIP] ** 2
+    return ep
+
+
+class _Estimator:
+    """One estimator's state segment (own arrays, or a view of a law's row) and the kernel calls on it."""
+
+    kind = K.KALMAN
+
+    def __init__(self, n: int, ep: np.ndarray):
+        self._n = n
+        self._ep = ep
+        self._e = np.zeros(K.est_layout(self.kind, n)[1])
+        self._ie = np.zeros(2, dtype=np.int64)
+        self._scratch = (np.empty(2 * n), np.empty(2 * n))
+        self.reset()
+
+    @classmethod
+    def view(cls, n: int, ep: np.ndarray, e: np.ndarray, ie: np.ndarray) -> Any:
+        """The estimator whose state is the segment e (floats) and ie (ints) of a law's row (no copy)."""
+        self = object.__new__(cls)
+        self._n, self._ep, self._e, self._ie = n, ep, e, ie
+        self._scratch = (np.empty(2 * n), np.empty(2 * n))
+        return self
+
+    @property
+    def J(self) -> np.ndarray:
+        n = self._n
+        return self._e[: 3 * n].reshape(3, n)
+
+    @property
+    def Jdot(self) -> np.ndarray:
+        n = self._n
+        return self._e[3 * n : 6 * n].reshape(3, n)
+
+    def reset(self) -> None:
+        K.est_reset(self.kind, self._n, self._ep, self._e, self._ie)
+
+    def init(self, J0: np.ndarray) -> None:
+        K.est_init(self.kind, self._n, self._ep, self._e, self._ie, np.ascontiguousarray(J0, dtype=float))
+
+    def update(self, x: np.ndarray, y: np.ndarray) -> None:
+        y0, y1, y2 = (float(v) for v in np.asarray(y, dtype=float))
+        h, ph = self._scratch
+        K.est_update(
+            self.kind, self._n, self._ep, self._e, self._ie, np.ascontiguousarray(x, dtype=float), y0, y1, y2, h, ph
+        )
+
+
+class KalmanEstimator(_Estimator):
     """[J | J_dot] as the state of a linear Kalman filter (the estimator of `nnbc-plus`).
 
     dt: control period, s. q_jacobian, q_rate: process noise per step of each J and J_dot entry, (m/rad)^2 and
@@ -65,156 +153,138 @@ class KalmanEstimator:
     middle, so the regressor gets -dt/2 x on the rate states. noise_rate > 0: the measurement noise R is
     estimated online by covariance matching (a running mean, with that per-step weight, of the (clipped)
     innovation's mean square per component minus its predicted part h P h^T), never below meas_std^2; 0 keeps
-    R = meas_std^2.
+    R = meas_std^2. P is re-symmetrised every 64 updates, at updates m with (m + sym_phase) % 64 == 0
+    (nnbc-plus passes its probe length + 1, the phase its results were first published with).
     """
 
-    def __init__(
-        self,
-        n: int,
-        dt: float,
-        *,
-        q_jacobian: float,
-        q_rate: float,
-        meas_std: float,
-        innov_clip: float,
-        innov_rate: float,
-        p0_jacobian: float,
-        p0_rate: float,
-        midpoint: bool,
-        sym_phase: int = 0,
-        noise_rate: float = 0.0,
-    ):
-        self._n = n
-        self._dt = dt
-        ns = 2 * n
-        self._r0 = self._r = meas_std**2
-        self._noise_rate = noise_rate
-        self._r_est = self._r0
-        self._midpoint = midpoint
-        self._h = np.zeros(ns)
-        q = np.r_[np.full(n, q_jacobian), np.full(n, q_rate)]
-        self._q = q if q.any() else None
-        self._clip = innov_clip
-        self._clip2 = innov_clip**2
-        self._rate = innov_rate
-        # [X; P] in one (3 + 2n) x 2n array (`X` and `P` are views of it): the constant-rate prediction of X and
-        # the column step of F P F^T are then one operation (the same per-entry arithmetic as two)
-        self._M0 = np.zeros((3 + ns, ns))
-        self._M0[3:] = np.diag(np.r_[np.full(n, p0_jacobian), np.full(n, p0_rate)])
-        # P is re-symmetrised every 64 updates, at updates m with (m + sym_phase) % 64 == 0 (nnbc-plus passes
-        # its probe length + 1, the phase its results were first published with)
-        self._sym_phase = sym_phase
-        self._M = self._M0.copy()
-        self._innov_ms: float = INNOV_MS0
-        self._m = 0
+    kind = K.KALMAN
+
+    def __init__(self, n: int, dt: float, **kw: Any):
+        super().__init__(n, estimator_params(dt, **kw))
+
+    @property
+    def _ns(self) -> int:
+        return 2 * K.est_nk(self.kind, self._n)
 
     @property
     def X(self) -> np.ndarray:
         """[J | J_dot] (3 x 2n), the filter's state (a view the filter keeps updating)."""
-        return self._M[:3]
+        ns, base = self._ns, 6 * self._n
+        return self._e[base : base + 3 * ns].reshape(3, ns)
 
     @property
     def P(self) -> np.ndarray:
         """The shared 2n x 2n covariance (a view the filter keeps updating)."""
-        return self._M[3:]
+        return self.arm_P
 
     @property
-    def J(self) -> np.ndarray:
-        return self._M[:3, : self._n]
+    def arm_P(self) -> np.ndarray:
+        """The Kalman filter's own covariance (2k x 2k, k = n, or the arm's joints with the structured estimate;
+        a view)."""
+        ns, base = self._ns, 6 * self._n
+        return self._e[base + 3 * ns : base + (3 + ns) * ns].reshape(ns, ns)
+
+
+class WheelMap:
+    """M (3 x 2), the structured estimate's map from the two wheel speeds to the platform's velocity in its own
+    frame (forward, sideways, yaw rate): a view of its Kalman filter's state (rows and the shared 2 x 2 P)."""
+
+    def __init__(self, e: np.ndarray):
+        self._e = e
 
     @property
-    def Jdot(self) -> np.ndarray:
-        return self._M[:3, self._n :]
+    def rows(self) -> list[list[float]]:
+        m = self._e[K.S_M : K.S_M + 6].tolist()
+        return [m[0:2], m[2:4], m[4:6]]
 
-    def reset(self) -> None:
-        self._M = self._M0.copy()
-        self._innov_ms = INNOV_MS0
-        self._r = self._r_est = self._r0
-        self._m = 0
+    @rows.setter
+    def rows(self, value: Any) -> None:
+        self._e[K.S_M : K.S_M + 6] = np.asarray(value, dtype=float).reshape(6)
 
-    def init(self, J0: np.ndarray) -> None:
-        self._M[:3, : self._n] = J0
-        self._M[:3, self._n :] = 0.0
+    @property
+    def M(self) -> np.ndarray:
+        return np.array(self.rows)
 
-    def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Predict [J | J_dot] one step (constant rate, process noise), then update all rows with
-        y = J x (the same regressor h for the three rows: one gain). P is updated in place: F P F^T by the
-        block structure of F = [[I, dt I], [0, I]] (rows, then columns), the process noise on its diagonal."""
-        n = self._n
-        dt = self._dt
-        self._m += 1
-        M = self._M
-        X = M[:3]
-        P = M[3:]
-        P[:n] += dt * P[n:]  # the rows of F P
-        M[:, :n] += dt * M[:, n:]  # X's constant-rate prediction and the columns of (F P) F^T
-        if self._q is not None:
-            diag = P.reshape(-1)[:: 2 * n + 1]  # a view of P's diagonal (made here: a kept view would not
-            diag += self._q  # survive copy.deepcopy or pickling of the estimator)
-        h = self._h
-        h[:n] = x
-        if self._midpoint:
-            h[n:] = -0.5 * dt * x  # a finite difference over the last step holds at its middle
-        Ph = P.dot(h)  # (.dot: the same BLAS call as @ at about half the overhead)
-        hPh = float(h.dot(Ph))
-        innov = y - X.dot(h)
-        n2 = float(innov.dot(innov))
-        K = Ph / (hPh + self._r)
-        if self._clip > 0:
-            lim2 = self._clip2 * self._innov_ms
-            if n2 > lim2:
-                innov *= (lim2 / n2) ** 0.5
-                n2 = lim2
-            self._innov_ms += self._rate * (n2 - self._innov_ms)
-        if self._noise_rate > 0:  # covariance matching: E[innov_i^2] = h P h + R per component
-            self._r_est += self._noise_rate * (n2 / 3.0 - hPh - self._r_est)
-            self._r = max(self._r0, self._r_est)
-        X += innov[:, None] * K
-        P -= K[:, None] * Ph
-        if (self._m + self._sym_phase) % 64 == 0:  # P is symmetric in exact arithmetic; remove the round-off
-            P += P.T.copy()
-            P *= 0.5
+    @property
+    def P(self) -> np.ndarray:
+        a, b, d = self._e[K.S_P : K.S_P + 3]
+        return np.array([[a, b], [b, d]])
 
 
-class BroydenEstimator:
+class StructuredEstimator(KalmanEstimator):
+    """The whole-body J of an arm on a platform, from an arm Jacobian in the platform's frame and a learnt
+    wheel map (`policies.structured`'s docstring). n actuators: n - 2 arm joints, then the two wheels.
+
+    `observe(obs)` must be called at every control step before `update` (and during the probe, so the wheel
+    map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. X and `arm_P` are the arm
+    filter's state [A | A_dot] and covariance, `platform` the wheel map (`WheelMap`), P both covariances as blocks
+    of a 2n x 2n."""
+
+    kind = K.STRUCTURED
+
+    def __init__(
+        self, n: int, dt: float, *, q_platform: float, platform_std: float, heading_filter: float, arm_kw: dict
+    ):
+        ep = estimator_params(
+            dt, **arm_kw, q_platform=q_platform, platform_std=platform_std, heading_filter=heading_filter
+        )
+        _Estimator.__init__(self, n, ep)
+
+    @property
+    def _tail(self) -> np.ndarray:
+        return self._e[K.est_layout(self.kind, self._n)[1] - K.S_LEN :]
+
+    @property
+    def platform(self) -> WheelMap:
+        return WheelMap(self._tail)
+
+    @property
+    def omega(self) -> float:
+        """rad/s: the (filtered) heading's rate over the last step."""
+        return float(self._tail[K.S_OMEGA])
+
+    @property
+    def P(self) -> np.ndarray:
+        """2n x 2n: the arm filter's covariance of A's entries in the arm block and the wheel map's in the wheel
+        block (per row; every other entry is zero). A new array (the arm filter's own is `arm_P`)."""
+        n, na = self._n, self._n - 2
+        P = np.zeros((2 * n, 2 * n))
+        P[:na, :na] = self.arm_P[:na, :na]
+        P[na:n, na:n] = self.platform.P
+        return P
+
+    def observe(self, obs: dict) -> None:
+        """This step's platform measurements: heading and its rate, the lever r_a - p_c, and the wheel map's
+        update (when the wheels turn)."""
+        na = self._n - 2
+        w0, w1 = (float(v) for v in obs["joint_vel"][na : na + 2])
+        e0, e1 = (float(v) for v in obs["ee_pos"][:2])
+        p0, p1 = (float(v) for v in obs["arm_base_pos"][:2])
+        v0, v1 = (float(v) for v in obs["ee_vel"][:2])
+        b0, b1 = (float(v) for v in obs["arm_base_vel"][:2])
+        yaw = float(np.asarray(obs["base_yaw"]).reshape(-1)[0])
+        K.est_observe(self._n, self._ep, self._e, self._ie, yaw, w0, w1, e0, e1, p0, p1, v0, v1, b0, b1)
+
+
+class BroydenEstimator(_Estimator):
     """Broyden's secant update with step gating (the estimator of `broyden`).
 
     step: relaxation of the update, 0 < step <= 1 (1: the classic update, J x = y exactly after it).
     min_speed: updates are skipped while ||x|| < min_speed, rad/s.
     """
 
+    kind = K.BROYDEN
+
     def __init__(self, n: int, *, step: float, min_speed: float):
-        self._n = n
-        self._step = step
-        self._min2 = min_speed * min_speed
-        self._J = np.zeros((3, n))
-        self._Jdot = np.zeros((3, n))
-        self.n_skipped = 0
+        super().__init__(n, estimator_params(step=step, min_speed=min_speed))
 
     @property
-    def J(self) -> np.ndarray:
-        return self._J
-
-    @property
-    def Jdot(self) -> np.ndarray:
-        return self._Jdot
-
-    def reset(self) -> None:
-        self._J = np.zeros((3, self._n))
-        self.n_skipped = 0
-
-    def init(self, J0: np.ndarray) -> None:
-        self._J[:] = J0
-
-    def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        xx = float(x @ x)
-        if xx < self._min2 or xx == 0.0:
-            self.n_skipped += 1
-            return
-        self._J += (self._step / xx) * np.outer(y - self._J @ x, x)
+    def n_skipped(self) -> int:
+        """Updates skipped (step gate) since the last reset."""
+        return int(self._ie[0])
 
 
-class RLSEstimator:
+class RLSEstimator(_Estimator):
     """Recursive least squares with exponential forgetting and random-walk covariance (the estimator of `rls`).
 
     forgetting: lambda, 0 < lambda <= 1 per step (old pairs fade with a time constant of dt / (1 - lambda)).
@@ -223,42 +293,26 @@ class RLSEstimator:
     covariance trace per entry, applied after every update.
     """
 
+    kind = K.RLS
+
     def __init__(self, n: int, *, forgetting: float, q_jacobian: float, p0: float, p_max: float):
-        self._n = n
-        self._lambda = forgetting
-        self._q = q_jacobian
-        self._p0 = p0
-        self._trace_max = p_max * n
-        self._J = np.zeros((3, n))
-        self._Jdot = np.zeros((3, n))
-        self.P = p0 * np.eye(n)
+        super().__init__(n, rls_params(n, forgetting, q_jacobian, p0, p_max))
 
     @property
-    def J(self) -> np.ndarray:
-        return self._J
+    def P(self) -> np.ndarray:
+        """The shared n x n covariance (a view the estimator keeps updating)."""
+        n = self._n
+        return self._e[6 * n : 6 * n + n * n].reshape(n, n)
 
-    @property
-    def Jdot(self) -> np.ndarray:
-        return self._Jdot
 
-    def reset(self) -> None:
-        self._J = np.zeros((3, self._n))
-        self.P = self._p0 * np.eye(self._n)
+def rls_params(n: int, forgetting: float, q_jacobian: float, p0: float, p_max: float) -> np.ndarray:
+    """`RLSEstimator`'s constants."""
+    return estimator_params(forgetting=forgetting, q_rls=q_jacobian, p0=p0, trace_max=p_max * n)
 
-    def init(self, J0: np.ndarray) -> None:
-        self._J[:] = J0
-        self.P = self._p0 * np.eye(self._n)
 
-    def update(self, x: np.ndarray, y: np.ndarray) -> None:
-        P = self.P
-        Px = P @ x
-        K = Px / (self._lambda + x @ Px)
-        self._J += np.outer(y - self._J @ x, K)
-        P = (P - np.outer(K, Px)) / self._lambda
-        P = 0.5 * (P + P.T)
-        if self._q > 0:
-            P[np.diag_indices(self._n)] += self._q
-        tr = P.trace()
-        if tr > self._trace_max:
-            P *= self._trace_max / tr
-        self.P = P
+ESTIMATOR_CLASSES: dict[int, type[_Estimator]] = {
+    K.KALMAN: KalmanEstimator,
+    K.STRUCTURED: StructuredEstimator,
+    K.BROYDEN: BroydenEstimator,
+    K.RLS: RLSEstimator,
+}

@@ -134,13 +134,18 @@ during the probe), `delay_estimate` the delay it compensates, `actuator_model` t
 model (0..max_delay: that delay; above: the lag LAG_TAUS[index - max_delay - 1]), `P` and `X` the filter's
 covariance and state.
 
-One scaffolding, several estimators
------------------------------------
-The measurement, excitation, control law and probe are `EstimatingController`; the estimate is an object behind
-the interface of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`, `Jdot`). `nnbc-plus` is the
-scaffolding with the Kalman filter; `broyden` and `rls` (`policies.broyden_rls`) are the same scaffolding with
-Broyden's secant update and recursive least squares, so comparisons between them isolate the estimator. The
-shared options are the fields of `ModelFreeConfig`; `NNBCPlusConfig` adds the Kalman filters'.
+One scaffolding, several estimators, one batched law
+----------------------------------------------------
+The measurement, excitation, control law and probe are the scaffolding; the estimate sits behind the interface
+of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`, `Jdot`). `nnbc-plus` is the scaffolding with
+the Kalman filter; `broyden` and `rls` (`policies.broyden_rls`) are the same scaffolding with Broyden's secant
+update and recursive least squares, so comparisons between them isolate the estimator. The shared options are
+the fields of `ModelFreeConfig`; `NNBCPlusConfig` adds the Kalman filters'. All of it is written once, as scalar
+per-row numba kernels (`policies.model_free_kernels`) run over N rows by `ModelFreeLaw` (what
+`policies.make(spec, vector_env)` builds on the native vector env); the single-env classes (`EstimatingController`
+and its subclasses) are its N = 1 case (`policies.batched.LawView`), so row i of a batch is the single controller
+on row i, bit for bit. The dither signs and J_hat(0)'s perturbation are drawn in Python from each row's
+Generator, in the blocks and order of the single controller.
 """
 
 from __future__ import annotations
@@ -151,9 +156,10 @@ from typing import Any
 import numpy as np
 
 from mobman_env.validation import number
-from policies.base import ControllerPolicy, EnvFacts
-from policies.estimators import JacobianEstimator, KalmanEstimator
-from policies.structured import StructuredEstimator
+from policies import model_free_kernels as K
+from policies.base import EnvFacts
+from policies.batched import BatchedController, LawView
+from policies.estimators import ESTIMATOR_CLASSES, JacobianEstimator, estimator_params
 
 FORMULATIONS = ("whole_body", "paper", "structured")
 MEASUREMENTS = ("velocity", "position")
@@ -170,14 +176,15 @@ USES_KEYS: tuple[str, ...] = (
     "target_pos",
     "target_vel",
 )
-_SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call)
-BLOCK_SPEED = 0.05  # rad/s: a command at least this fast that does not move the actuator marks it blocked
-BLOCK_CHECKS = 2  # consecutive checks
-BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
-DELAY_SETTLE = 200  # steps during which the delay estimate is refreshed every step
-DELAY_EVERY = 10  # afterwards, every this many steps
+_SIGN_BLOCK = K.SIGN_BLOCK  # random dither signs are drawn this many steps at a time (one RNG call per row)
+BLOCK_SPEED = K.BLOCK_SPEED  # rad/s: a command at least this fast that does not move the actuator marks it blocked
+BLOCK_CHECKS = K.BLOCK_CHECKS  # consecutive checks
+BLOCK_WEIGHT = K.BLOCK_WEIGHT  # pseudo-inverse weight of a blocked actuator
+DELAY_SETTLE = K.DELAY_SETTLE  # steps during which the delay estimate is refreshed every step
+DELAY_EVERY = K.DELAY_EVERY  # afterwards, every this many steps
 #: s: the first-order actuator lags the actuator model is chosen among, beside the pure delays 0..max_delay
 LAG_TAUS = (0.02, 0.05, 0.1, 0.2)
+assert len(LAG_TAUS) == K.N_LAGS  # (the kernel's bank has this many lag models)
 
 
 @dataclass(frozen=True)
@@ -400,57 +407,201 @@ class NNBCPlusConfig(ModelFreeConfig):
         number("NNBCPlusConfig.platform_std", self.platform_std, low=0.0, open_low=True)
 
 
-def _solve3(
-    A: list[list[float]], rhs: tuple[float, float, float], damping: float = 0.0, eps2: float = 0.0, extra: float = 0.0
-) -> np.ndarray:
-    """Solve (A + damping I + d I) x = rhs for the symmetric positive definite 3x3 A (its rows as floats, e.g.
-    `M.tolist()`) by cofactors in plain floats (several times faster than np.linalg.solve at this size).
-    damping I is added entry by entry as the array sum A + damping * np.eye(3) adds it (off the diagonal + 0.0),
-    so the result equals that of the array expression bit for bit. d = 0, unless eps2 > 0 and the damped A's
-    smallest eigenvalue (estimated as det(A) / e2(A), e2 the sum of the principal 2x2 minors: a lower bound that
-    is tight when one eigenvalue is much smaller than the others) is below eps2: then d = extra (1 - estimate /
-    eps2), the singularity-robust damping of `ModelFreeConfig.sing_damping`."""
-    (a, b, c), (d, e, f), (g, h, i) = A
-    off = damping * 0.0
-    a, b, c = a + damping, b + off, c + off
-    d, e, f = d + off, e + damping, f + off
-    g, h, i = g + off, h + off, i + damping
-    if eps2 > 0.0:
-        e2 = (e * i - f * h) + (a * i - c * g) + (a * e - b * d)
-        det = a * (e * i - f * h) + b * (f * g - d * i) + c * (d * h - e * g)
-        low = det / e2 if e2 > 0.0 else 0.0
-        if low < eps2:
-            add = extra * (1.0 - max(low, 0.0) / eps2)
-            a += add
-            e += add
-            i += add
-    p, q, r = rhs
-    c00, c01, c02 = e * i - f * h, c * h - b * i, b * f - c * e
-    c10, c11, c12 = f * g - d * i, a * i - c * g, c * d - a * f
-    c20, c21, c22 = d * h - e * g, b * g - a * h, a * e - b * d
-    inv_det = 1.0 / (a * c00 + b * c10 + c * c20)
-    return np.array(
-        [
-            (c00 * p + c01 * q + c02 * r) * inv_det,
-            (c10 * p + c11 * q + c12 * r) * inv_det,
-            (c20 * p + c21 * q + c22 * r) * inv_det,
-        ]
+class ModelFreeLaw(BatchedController):
+    """The model-free scaffolding around one Jacobian estimator, for N robots at once (the one implementation of
+    `nnbc-plus`, `broyden` and `rls`; the single-env classes are its N = 1 case).
+
+    `ModelFreeLaw(facts, config, n, seed, *, name, estimator)`: `estimator(config, n_act, dt, n_probe)` returns
+    (kind, ep), the estimator's kind (`policies.model_free_kernels.KALMAN`, ...) and constants. The state of every
+    row is the float array `fst` (N, F) and the int array `ist` (N, I_LEN) of `policies.model_free_kernels`; the
+    per-row attributes (`J_hat_row`, `delay_estimate`, ...) are views or copies of them.
+    """
+
+    def __init__(
+        self, facts: EnvFacts, config: ModelFreeConfig, n: int, seed: int | None, *, name: str, estimator: Any
+    ):
+        super().__init__(facts, n, seed)
+        self.name = self.spec = name
+        n_act = len(self._scale)
+        self.n_act, self.n_arm, self.n_probe = n_act, n_act - 2, 2 * n_act
+        self._estimator = estimator
+        self._layout_key: tuple | None = None
+        self.config = config
+        self.fst = np.zeros((n, int(self.lay[K.LAY_LEN_])))
+        self.ist = np.zeros((n, K.I_LEN), dtype=np.int64)
+        self.signs = np.zeros((n, _SIGN_BLOCK, n_act + 3))
+        self.noise = np.zeros((n, 3, n_act))
+        self._u = np.zeros((n, n_act))
+        self._zeros2 = np.zeros((n, 2))
+        self._zeros1 = np.zeros((n, 1))
+        self._need = 0
+        o = int(self.lay[K.LAY_EST])
+        for i in range(n):  # a row never started holds a reset estimator (what `estimator` shows before reset)
+            K.est_reset(self.kind, self.n_act, self.ep, self.fst[i, o:], self.ist[i, K.I_EST :])
+
+    @property
+    def config(self) -> ModelFreeConfig:
+        return self._config
+
+    @config.setter
+    def config(self, c: ModelFreeConfig) -> None:
+        """Pack the options into the kernels' constants; an option that changes the state's layout (formulation,
+        measurement, max_delay) is refused once the law has state."""
+        n, dt = self.n_act, float(self.facts.dt)
+        whole = c.formulation != "paper"  # (the structured estimate is a whole-body J too)
+        structured = c.formulation == "structured"
+        kind, ep = self._estimator(c, n, dt, self.n_probe)
+        if structured and kind != K.STRUCTURED:
+            raise ValueError(
+                f"{type(self).__name__} {self.name}: formulation='structured' is nnbc-plus's (two Kalman filters); "
+                f"this controller estimates one Jacobian: use formulation 'whole_body' or 'paper'"
+            )
+        key = (kind, c.max_delay, c.formulation, c.measurement)
+        if self._layout_key is not None and key != self._layout_key:
+            raise ValueError(
+                f"{self.name}: formulation, measurement and max_delay fix the law's state; build a new policy to "
+                f"change them (got {key[1:]}, built with {self._layout_key[1:]})"
+            )
+        self._layout_key = key
+        self._config = c
+        self.kind, self.ep = kind, ep
+        self.lay = K.layout(n, c.max_delay, kind)
+        prm = np.zeros(K.PRM_LEN)
+        prm[K.PRM_DT], prm[K.PRM_HALF_DT], prm[K.PRM_GAMMA], prm[K.PRM_DAMPING] = dt, 0.5 * dt, c.gamma, c.damping
+        prm[K.PRM_DITHER], prm[K.PRM_TASK_DITHER], prm[K.PRM_POSTURE] = c.dither, c.task_dither, c.posture_gain
+        prm[K.PRM_PROBE_SPEED], prm[K.PRM_J0_NOISE], prm[K.PRM_POS_FILTER] = c.probe_speed, c.j0_noise, c.pos_filter
+        prm[K.PRM_EPS2], prm[K.PRM_SING_DAMPING] = c.sing_threshold**2, c.sing_damping
+        prm[K.PRM_BLOCK_RELEASE], prm[K.PRM_DELAY_RATE] = c.block_release, c.delay_rate
+        prm[K.PRM_PROBE_RIDGE] = 0.1 * c.probe_speed**2
+        prm[K.PRM_LAG_DECAY :] = np.exp(-dt / np.array(LAG_TAUS))
+        self.prm = prm
+        ipr = np.zeros(K.IPR_LEN, dtype=np.int64)
+        ipr[K.IPR_N], ipr[K.IPR_NA], ipr[K.IPR_NPROBE] = n, n - 2, self.n_probe
+        ipr[K.IPR_D], ipr[K.IPR_MAXD] = c.max_delay + 1, c.max_delay
+        ipr[K.IPR_WHOLE], ipr[K.IPR_STRUCT], ipr[K.IPR_USEVEL] = whole, structured, c.measurement == "velocity"
+        ipr[K.IPR_LOOKAHEAD], ipr[K.IPR_PROBE_TRACK] = c.lookahead, c.probe_tracking
+        ipr[K.IPR_BLOCK_EVERY], ipr[K.IPR_KIND] = c.block_every, kind
+        self.ipr = ipr
+        self.jacobian_kind = "whole_body" if whole else "paper"
+        # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
+        keys = USES_KEYS if not whole else tuple(k for k in USES_KEYS if not k.startswith("arm_base"))
+        self.uses_keys = (*USES_KEYS, "base_yaw") if structured else keys
+
+    @property
+    def knowledge(self) -> str:
+        """The knowledge class (`policies.knowledge`): "structure" with the structured estimate, else "none"."""
+        return "structure" if self.config.formulation == "structured" else "none"
+
+    # --- per-row views ---------------------------------------------------------------------------------
+    @property
+    def steps(self) -> np.ndarray:
+        """(N,) controller steps of each row's episode so far (a view)."""
+        return self.ist[:, K.I_K]
+
+    def block(self, i: int, name: int, rows: int, cols: int) -> np.ndarray:
+        """Row i's float-state block `name` (a `LAY_*` index) as a rows x cols view."""
+        o = int(self.lay[name])
+        return self.fst[i, o : o + rows * cols].reshape(rows, cols)
+
+    def J_hat_row(self, i: int) -> np.ndarray:
+        """Row i's J_hat (a view): the probe's fit until the probe has finished, then the estimator's J."""
+        n = self.n_act
+        if self.ist[i, K.I_K] <= self.n_probe:
+            return self.block(i, K.LAY_JP, 3, n)
+        return self.block(i, K.LAY_EST, 6, n)[:3]
+
+    def Jdot_hat_row(self, i: int) -> np.ndarray:
+        return self.block(i, K.LAY_EST, 6, self.n_act)[3:]
+
+    def estimator_row(self, i: int) -> Any:
+        """Row i's estimator (`policies.estimators`), a view of its state segment."""
+        o = int(self.lay[K.LAY_EST])
+        e, ie = self.fst[i, o:], self.ist[i, K.I_EST :]
+        return ESTIMATOR_CLASSES[self.kind].view(self.n_act, self.ep, e, ie)
+
+    def jacobian_estimate_row(self, i: int) -> np.ndarray | None:
+        if not (self.initialised[i] and self.ist[i, K.I_K] > self.n_probe):
+            return None
+        return self.J_hat_row(i).copy()
+
+    # --- BatchedController -----------------------------------------------------------------------------
+    def _obs_args(self, obs: dict[str, np.ndarray]) -> tuple[np.ndarray, ...]:
+        abp, abv = obs.get("arm_base_pos", self._zeros2), obs.get("arm_base_vel", self._zeros2)
+        return (
+            obs["ee_pos"], obs["ee_vel"], abp, abv, obs["joint_pos"], obs["joint_vel"], obs["target_pos"],
+            obs["target_vel"], obs.get("base_yaw", self._zeros1),
+        )  # fmt: skip
+
+    def _reset_rows(self, rows: np.ndarray, obs: dict) -> None:
+        K.reset_rows(
+            self.prm, self.ipr, self.ep, self.lay, self.fst, self.ist, np.asarray(rows, dtype=np.int64),
+            obs["joint_pos"], obs["ee_pos"], obs.get("arm_base_pos", self._zeros2), obs["target_vel"],
+        )  # fmt: skip
+
+    def _draw(self) -> None:
+        """The random numbers of the rows whose step draws (flagged by the kernel): J_hat(0)'s perturbation
+        first, then the block of dither signs, from each row's Generator (the single controller's order)."""
+        n = self.n_act
+        for i in np.flatnonzero(self.ist[:, K.I_NEED]).tolist():
+            flag, rng = int(self.ist[i, K.I_NEED]), self.rngs[i]
+            if flag & K.NEED_NOISE:
+                self.noise[i] = rng.standard_normal((3, n))
+            if flag & K.NEED_SIGNS:
+                self.signs[i] = 2.0 * rng.integers(0, 2, (_SIGN_BLOCK, n + 3)) - 1.0
+
+    def _act(self, obs: dict) -> np.ndarray:
+        if self._need:
+            self._draw()
+        ee, ev, abp, abv, jp, jv, tp, tv, yaw = self._obs_args(obs)
+        self._need = K.act_rows(
+            self.prm, self.ipr, self.ep, self.lay, self.fst, self.ist, ee, ev, abp, abv, jp, jv, tp, tv, yaw,
+            self.last_u, self.signs, self.noise, self._u,
+        )  # fmt: skip
+        return self._u
+
+
+def _kalman_estimator(c: Any, n: int, dt: float, n_probe: int) -> tuple[int, np.ndarray]:
+    """`nnbc-plus`'s estimator: the Kalman filter on the whole J (or the paper's), or the structured estimate."""
+    kw = dict(
+        q_jacobian=c.q_jacobian,
+        q_rate=c.q_rate,
+        meas_std=c.meas_std,
+        innov_clip=c.innov_clip,
+        innov_rate=c.innov_rate,
+        p0_jacobian=c.p0_jacobian,
+        p0_rate=c.p0_rate,
+        midpoint=c.measurement != "velocity",
+        sym_phase=n_probe + 1,
+        noise_rate=c.noise_rate,
     )
+    if c.formulation == "structured":
+        ep = estimator_params(
+            dt, **kw, q_platform=c.q_platform, platform_std=c.platform_std, heading_filter=c.heading_filter
+        )
+        return K.STRUCTURED, ep
+    return K.KALMAN, estimator_params(dt, **kw)
 
 
-class EstimatingController(ControllerPolicy):
-    """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator.
+class EstimatingController(LawView):
+    """The model-free scaffolding (probe, measurement, excitation, control law) around a Jacobian estimator, for
+    one env: the N = 1 case of `ModelFreeLaw` (`self.law`).
 
-    Subclasses set `config_cls` and implement `_make_estimator()`; everything else is shared. n actuators
-    (`len(facts.action_scale)`, at least 3): n - 2 arm joints, then the two wheels. After each step: `J_hat` and
-    `Jdot_hat` (3 x n) are the estimator's current J and J_dot, `estimator` the estimator object, `last_u` the
-    issued command (rad/s), `jacobian_estimate` a copy of J_hat (None during the probe), `delay_estimate` the
-    observation delay (control steps) the controller currently compensates.
+    Subclasses set `config_cls` and `_estimator` (a function (config, n_act, dt, n_probe) -> (kind, ep)). n
+    actuators (`len(facts.action_scale)`, at least 3): n - 2 arm joints, then the two wheels. After each step:
+    `J_hat` and `Jdot_hat` (3 x n) are the estimate, `estimator` the estimator (a view of its state),
+    `last_u` the issued command (rad/s), `jacobian_estimate` a copy of J_hat (None during the probe),
+    `delay_estimate` the observation delay (control steps) the controller currently compensates,
+    `actuator_model` the best actuator model, `blocked` the actuators held at a stop (+1 / -1, 0: free).
     """
 
     name = "estimating-controller"
     config_cls: type[ModelFreeConfig] = ModelFreeConfig
     uses_keys = USES_KEYS
+    law: ModelFreeLaw
+
+    @staticmethod
+    def _estimator(c: Any, n: int, dt: float, n_probe: int) -> tuple[int, np.ndarray]:
+        raise NotImplementedError
 
     def __init__(self, facts: EnvFacts, config: ModelFreeConfig | None = None, seed: int | None = None, **extra: Any):
         cls = type(self).__name__
@@ -459,306 +610,80 @@ class EstimatingController(ControllerPolicy):
                 f"{cls} takes no extra arguments (it is model-free: EnvFacts and observations only), got "
                 f"{sorted(extra)}"
             )
+        self.law = self.batched(facts, self._checked(facts, config), 1, seed)
+        super().__init__(facts, seed)
+
+    @classmethod
+    def _checked(cls, facts: EnvFacts, config: ModelFreeConfig | None) -> ModelFreeConfig:
         n = len(facts.action_scale)
         if n < 3:
             raise ValueError(
-                f"{cls} drives n - 2 arm joints and 2 wheels: it needs at least 3 actuators, the env has {n} "
-                f"(facts.action_scale = {facts.action_scale})"
+                f"{cls.__name__} drives n - 2 arm joints and 2 wheels: it needs at least 3 actuators, the env has "
+                f"{n} (facts.action_scale = {facts.action_scale})"
             )
-        super().__init__(facts, seed=seed)
         if config is None:
-            config = self.config_cls()
-        if not isinstance(config, self.config_cls):
-            raise TypeError(f"config must be a {self.config_cls.__name__}, got {type(config).__name__}")
-        self.config = c = config
-        self.n_act = n
-        self.n_arm = n - 2
-        self.n_probe = 2 * n
-        self._dt = facts.dt
-        self._w0 = np.ones(n)  # pseudo-inverse weights: 1, or BLOCK_WEIGHT for a blocked actuator (`_w`)
-        self._w = self._w0
-        self._half_dt = 0.5 * self._dt
-        self._lag_decay = np.exp(-self._dt / np.array(LAG_TAUS))[:, None]  # per step, for each of LAG_TAUS
-        self._eps2 = c.sing_threshold**2
-        self._whole = c.formulation != "paper"  # (the structured estimate is a whole-body J too)
-        self._structured = c.formulation == "structured"
-        self._use_vel = c.measurement == "velocity"
-        self.jacobian_kind = "whole_body" if self._whole else "paper"
-        # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
-        self.uses_keys = USES_KEYS if not self._whole else tuple(k for k in USES_KEYS if not k.startswith("arm_base"))
-        if self._structured:
-            self.uses_keys = (*USES_KEYS, "base_yaw")
-        self.estimator: JacobianEstimator = self._make_estimator()
-        if self._structured and not hasattr(self.estimator, "observe"):
-            raise ValueError(
-                f"{cls}: formulation='structured' is nnbc-plus's (two Kalman filters); this controller estimates "
-                f"one Jacobian: use formulation 'whole_body' or 'paper'"
-            )
-        self._k = 0
-        self.delay_estimate = 0
+            config = cls.config_cls()
+        if not isinstance(config, cls.config_cls):
+            raise TypeError(f"config must be a {cls.config_cls.__name__}, got {type(config).__name__}")
+        return config
 
-    def _make_estimator(self) -> JacobianEstimator:
-        raise NotImplementedError
+    @classmethod
+    def batched(cls, facts: EnvFacts, config: ModelFreeConfig, n: int, seed: int | None) -> ModelFreeLaw:
+        """The batched law for n robots (`policies.make(spec, vector_env)`)."""
+        return ModelFreeLaw(facts, cls._checked(facts, config), n, seed, name=cls.name, estimator=cls._estimator)
+
+    @property
+    def config(self) -> ModelFreeConfig:
+        return self.law.config
+
+    @config.setter
+    def config(self, value: ModelFreeConfig) -> None:
+        self.law.config = value
 
     @property
     def knowledge(self) -> str:
         """The knowledge class (`policies.knowledge`): "structure" with the structured estimate (it knows which
         actuators are the arm's and that the platform is a planar base with a sensed mount, no parameter value),
         "none" with a whole-body or the paper's estimate."""
-        return "structure" if self.config.formulation == "structured" else "none"
+        return self.law.knowledge
+
+    @property
+    def n_act(self) -> int:
+        return self.law.n_act
+
+    @property
+    def n_arm(self) -> int:
+        return self.law.n_arm
+
+    @property
+    def n_probe(self) -> int:
+        return self.law.n_probe
 
     @property
     def J_hat(self) -> np.ndarray:
-        return self._J_probe if self._k <= self.n_probe else self.estimator.J
+        return self.law.J_hat_row(0)
 
     @property
     def Jdot_hat(self) -> np.ndarray:
-        return self.estimator.Jdot
+        return self.law.Jdot_hat_row(0)
 
     @property
-    def jacobian_estimate(self) -> np.ndarray | None:
-        """The estimated Jacobian (3 x n, m/rad: actuator speeds in rad/s to task velocity in m/s) at the time
-        of the last observation: the whole-body Jacobian, or the paper's J of eq. (6) with
-        `formulation="paper"` (`jacobian_kind`). None before the probe has finished."""
-        if not (self._initialised and self._k > self.n_probe):
-            return None
-        return self.J_hat.copy()
+    def estimator(self) -> JacobianEstimator:
+        return self.law.estimator_row(0)
 
-    # --- episode start ---------------------------------------------------------------------------------
-    def _reset(self, obs: dict) -> None:
-        n = self.n_act
-        self._k = 0
-        q = obs["joint_pos"]
-        self._q0 = q[: self.n_arm].copy()
-        self._probe_A = np.zeros((n, n))
-        self._probe_B = np.zeros((3, n))
-        self._J_probe = np.zeros((3, n))
-        self._prev_q = q.copy()
-        self._prev_s = self._task_pos(obs).copy()
-        # 3-vectors as floats (numpy's per-call overhead dominates at this size; + - * round alike)
-        self._s_f: list[float] = self._prev_s.tolist()
-        self._prev_vd: list[float] = obs["target_vel"].tolist()
-        self._td: list[float] = [0.0, 0.0, 0.0]
-        # random signs, drawn _SIGN_BLOCK steps at a time and scaled once: row i of _dz is the dither of the
-        # block's i-th step, _dtd[i] its task dither; _sign_i the next row
-        self._dz: np.ndarray = np.empty((0, n))
-        self._dtd: list[list[float]] = []
-        self._sign_i = 0
-        self._pull = np.zeros(n)  # the posture pull, rad/s (arm entries rewritten each step, wheels 0)
-        # the last max_delay + 1 commands in a ring (row k % m holds the command issued at step k - 1) and the
-        # running mismatch of each lag with x
-        m = self.config.max_delay + 1
-        self._hist = np.zeros((m, n))
-        self._lags = [np.array([(i - j) % m for j in range(m)]) for i in range(m)]  # ring rows, newest first
-        self._lag_ms = np.zeros(self.config.max_delay + 1 + len(LAG_TAUS))
-        self._lag_x = np.zeros((len(LAG_TAUS), n))  # each lag model's actuator speeds
-        self.actuator_model = 0
-        self.delay_estimate = 0
-        self._block_count = np.zeros(n)
-        self._counting = False
-        self._blocked = np.zeros(n)  # +1 / -1: blocked in that direction, 0: free
-        self._block_q = np.zeros(n)
-        self._any_blocked = False
-        self._w = self._w0
-        self.estimator.reset()
+    @property
+    def delay_estimate(self) -> int:
+        return int(self.law.ist[0, K.I_DELAY])
 
-    def _task_pos(self, obs: dict) -> np.ndarray:
-        """The position J_hat's output integrates to: r_a (whole body) or r_a - [p_c; 0] (paper)."""
-        r = obs["ee_pos"]
-        if self._whole:
-            return r  # (not a copy: callers that keep it copy it)
-        pc = obs["arm_base_pos"]
-        return np.array([r[0] - pc[0], r[1] - pc[1], r[2]])
+    @property
+    def actuator_model(self) -> int:
+        """The best actuator model: 0..max_delay that delay; above, the lag LAG_TAUS[index - max_delay - 1]."""
+        return int(self.law.ist[0, K.I_MODEL])
 
-    def _measure(self, obs: dict, probing: bool) -> tuple[np.ndarray, np.ndarray]:
-        """(x, y): actuator speeds (n) and task velocity (3) with y = J x (see `measurement`); advances the
-        position filter by the measured motion."""
-        if self._use_vel:
-            x = obs["joint_vel"]
-            y = obs["ee_vel"]
-            if not self._whole:
-                v = obs["arm_base_vel"]
-                y = np.array([y[0] - v[0], y[1] - v[1], y[2]])
-            dt = self._dt
-            y0, y1, y2 = y.tolist()
-            ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
-            s0, s1, s2 = self._task_pos(obs).tolist()
-        else:
-            q = obs["joint_pos"]
-            s = self._task_pos(obs)
-            dq = q - self._prev_q
-            x = dq / self._dt
-            y = (s - self._prev_s) / self._dt
-            ds0, ds1, ds2 = ((self._J_probe if probing else self.estimator.J) @ dq).tolist()
-            self._prev_q = q.copy()
-            self._prev_s = s.copy()
-            s0, s1, s2 = s.tolist()
-        a = self.config.pos_filter
-        f0, f1, f2 = self._s_f
-        f0, f1, f2 = f0 + ds0, f1 + ds1, f2 + ds2
-        self._s_f = [f0 + a * (s0 - f0), f1 + a * (s1 - f1), f2 + a * (s2 - f2)]
-        return x, y
-
-    def _track_actuators(self, x: np.ndarray, newest_first: np.ndarray) -> None:
-        """Which actuator model the measured actuator speeds x match best (running mean squares of the
-        mismatch, `delay_rate`): a pure delay of d = 0..max_delay steps (x is the command of d steps before the
-        last one: an observation delay) or a first-order lag of a time constant in `LAG_TAUS` (x follows the
-        commands). The best delay is the `delay_estimate` the law compensates; a lag is not a delay (its
-        `delay_estimate` is 0), and the joint-stop check compares x with the best model's speeds. Neither
-        changes within an episode: `_act` calls this every step while the step count (this step included) is from
-        2 to `DELAY_SETTLE`, then every `DELAY_EVERY`-th step."""
-        diff = np.concatenate((self._hist[newest_first], self._lag_x)) - x
-        self._lag_ms += self.config.delay_rate * (np.einsum("ij,ij->i", diff, diff) - self._lag_ms)
-        self.actuator_model = best = int(self._lag_ms.argmin())
-        self.delay_estimate = best if best <= self.config.max_delay else 0
-
-    def _expected_speeds(self, ring: int) -> np.ndarray:
-        """The actuator speeds the best actuator model predicts for this observation (`_track_actuators`)."""
-        m = self.actuator_model - self.config.max_delay - 1
-        if m >= 0:
-            return self._lag_x[m]
-        return self._hist[self._lags[ring][self.delay_estimate]]
-
-    def _check_blocked(self, x: np.ndarray, commanded: np.ndarray, q: np.ndarray) -> None:
-        """Mark the actuators that were commanded but did not move, release those that moved away (see
-        `block_release`). commanded: the speeds the actuator model predicts from the issued commands
-        (`_expected_speeds`), x the measured ones."""
-        if not self._counting and not self._any_blocked:
-            # the usual step (nothing stuck, counting or blocked), decided on floats: no lag < 0 (nor nan)
-            for ci, xi in zip(commanded.tolist(), x.tolist()):
-                if not ci * (xi - 0.1 * ci) >= 0.0:
-                    break
-            else:
-                return
-        lag = commanded * (x - 0.1 * commanded)  # < 0: moved less than a tenth of the command (or backwards)
-        stuck = (lag < 0.0) & (commanded * commanded > BLOCK_SPEED**2)
-        self._block_count = np.where(stuck, self._block_count + 1, 0.0)
-        self._counting = bool(stuck.any())
-        new = (self._block_count >= BLOCK_CHECKS) & (self._blocked == 0.0)
-        if new.any():
-            self._blocked[new] = np.sign(commanded[new])
-            self._block_q[new] = q[new]
-        if self._any_blocked or new.any():
-            free = np.abs(q - self._block_q) > self.config.block_release
-            self._blocked[free] = 0.0
-            self._any_blocked = bool(self._blocked.any())
-            self._w = np.where(self._blocked != 0.0, BLOCK_WEIGHT, self._w0)
-
-    def _probe_fit(self, x: np.ndarray, y: np.ndarray, final: bool) -> None:
-        """J_hat during the probe: least squares over the (x, y) pairs so far, ridge-regularised so that an
-        actuator not probed yet keeps a zero column (final: the tiny ridge of the finished probe, J_hat(0))."""
-        n = self.n_act
-        self._probe_A += np.outer(x, x)
-        self._probe_B += np.outer(y, x)
-        A = self._probe_A
-        tr = np.trace(A)
-        if tr <= 0:  # no actuator moved (e.g. the same observation fed again and again): no information
-            return
-        ridge = 1e-9 * tr / n if final else 0.1 * self.config.probe_speed**2
-        self._J_probe = np.linalg.solve(A + ridge * np.eye(n), self._probe_B.T).T
-
-    def _finish_probe(self) -> None:
-        """J_hat(0): the probe's least-squares fit (plus `j0_noise`); J_dot_hat(0) = 0."""
-        J0 = self._J_probe
-        if self.config.j0_noise > 0:
-            noise = self.rng.standard_normal(J0.shape)
-            J0 = J0 + self.config.j0_noise * np.linalg.norm(J0) / np.linalg.norm(noise) * noise
-        self.estimator.init(J0)
-
-    # --- one step --------------------------------------------------------------------------------------
-    def _act(self, obs: dict) -> np.ndarray:
-        k = self._k
-        self._k = k + 1
-        c = self.config
-        n_probe = self.n_probe
-        est = self.estimator
-        hist = self._hist
-        ring = k % len(hist)
-        hist[ring] = self.last_u  # the command issued at step k - 1
-        probing = k < n_probe
-        x, y = self._measure(obs, probing)
-        if self._structured:  # the platform's measurements (every step: the wheel map learns from the probe too)
-            est.observe(obs)  # type: ignore[attr-defined]
-        u_last = self.last_u  # each lag model's actuator speeds after the command of step k - 1
-        self._lag_x = u_last + (self._lag_x - u_last) * self._lag_decay
-        n_seen = k + 1  # steps counted, this one included (the count the model refresh is scheduled on)
-        if n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
-            self._track_actuators(x, self._lags[ring])
-        if c.block_release > 0 and k > 1 and k % c.block_every == 0:
-            self._check_blocked(x, self._expected_speeds(ring), obs["joint_pos"])
-        if k <= n_probe:
-            if k > 0:
-                self._probe_fit(x, y, final=k == n_probe)
-            if k == n_probe:
-                self._finish_probe()
-        else:
-            est.update(x, y)
-        # --- control: u = z + J_c^+ (v - J_c z); the 3-vectors v, r_d, r_hat_a as floats
-        J = self._J_probe if probing else est.J
-        vd = obs["target_vel"].tolist()
-        Jc = J
-        v0, v1, v2 = vd
-        if c.lookahead and not probing:  # (the probe's fit has no rate; r_d_dot has no history at the reset)
-            Jc = J + self._half_dt * est.Jdot
-            p0, p1, p2 = self._prev_vd
-            v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2  # r_d_dot half a step ahead
-        self._prev_vd = vd
-        d0, d1, d2 = obs["target_pos"].tolist()
-        if not self._whole:
-            pc, pv = obs["arm_base_pos"].tolist(), obs["arm_base_vel"].tolist()
-            d0, d1 = d0 - pc[0], d1 - pc[1]
-            v0, v1 = v0 - pv[0], v1 - pv[1]
-        f0, f1, f2 = self._s_f
-        q_arm = obs["joint_pos"][: self.n_arm]
-        d = self.delay_estimate
-        if d > 0:  # the observation is d steps old: predict it forward by the commands issued since
-            moved = hist[self._lags[ring][:d]].sum(axis=0) * self._dt
-            m0, m1, m2 = (J @ moved).tolist()
-            f0, f1, f2 = f0 + m0, f1 + m1, f2 + m2
-            q_arm = q_arm + moved[: self.n_arm]
-        g = c.gamma
-        v0, v1, v2 = v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
-        g = c.posture_gain
-        if g > 0:  # the null-space pull of the arm joints back to their start: the arm entries of _pull
-            pull = self._pull
-            pa = pull[: self.n_arm]
-            np.subtract(self._q0, q_arm, out=pa)
-            pa *= g  # (bit-identical to g (q0 - q) and to 0 - g (q - q0)); the wheel entries stay 0
-        dithered = False
-        if not probing:
-            i = self._sign_i
-            if i >= len(self._dtd):  # random signs, one row per step: n for the dither, 3 for the task dither
-                signs = 2.0 * self.rng.integers(0, 2, (_SIGN_BLOCK, self.n_act + 3)) - 1.0
-                self._dz = c.dither * signs[:, : self.n_act]
-                self._dtd = (c.task_dither * signs[:, self.n_act :]).tolist()
-                i = 0
-            self._sign_i = i + 1
-            if c.task_dither > 0:
-                if k % 2 == 0:
-                    self._td = td = self._dtd[i]
-                    v0, v1, v2 = v0 + td[0], v1 + td[1], v2 + td[2]
-                else:
-                    td = self._td
-                    v0, v1, v2 = v0 - td[0], v1 - td[1], v2 - td[2]
-            if c.dither > 0:  # z = dither + pull (the wheels' d + 0.0 is d: the dither is never 0)
-                z = self._dz[i] + pull if g > 0 else self._dz[i].copy()
-                dithered = True
-        if not dithered:
-            z = pull.copy() if g > 0 else np.zeros(self.n_act)
-        if probing and not c.probe_tracking:
-            v0 = v1 = v2 = 0.0
-            z = np.zeros(self.n_act)
-        JW = Jc * self._w if self._any_blocked else Jc  # W = I unless an actuator is blocked
-        # (.dot: the same BLAS calls as @, at about half numpy's per-call overhead; equal bit for bit)
-        r0, r1, r2 = Jc.dot(z).tolist()
-        lam = _solve3(JW.dot(Jc.T).tolist(), (v0 - r0, v1 - r1, v2 - r2), c.damping, self._eps2, c.sing_damping)
-        u = z + JW.T.dot(lam)
-        if probing:  # actuator k // 2 at +probe_speed, then -probe_speed (back), on top of the tracking
-            u[k // 2] += c.probe_speed if k % 2 == 0 else -c.probe_speed
-        if self._any_blocked:  # never further into a stop
-            b = self._blocked
-            u = np.where(b * u > 0.0, 0.0, u)
-        return u
+    @property
+    def blocked(self) -> np.ndarray:
+        """(n,) +1 / -1: the actuator is held at a stop in that direction; 0: free (a copy)."""
+        return self.law.block(0, K.LAY_BLOCKED, 1, self.n_act)[0].copy()
 
 
 class NNBCPlus(EstimatingController):
@@ -772,32 +697,7 @@ class NNBCPlus(EstimatingController):
     name = "nnbc-plus"
     config_cls = NNBCPlusConfig
     Config = NNBCPlusConfig
-
-    def _make_estimator(self) -> KalmanEstimator | StructuredEstimator:
-        c = self.config
-        assert isinstance(c, NNBCPlusConfig)
-        kw: dict[str, Any] = dict(
-            q_jacobian=c.q_jacobian,
-            q_rate=c.q_rate,
-            meas_std=c.meas_std,
-            innov_clip=c.innov_clip,
-            innov_rate=c.innov_rate,
-            p0_jacobian=c.p0_jacobian,
-            p0_rate=c.p0_rate,
-            midpoint=not self._use_vel,
-            sym_phase=self.n_probe + 1,
-            noise_rate=c.noise_rate,
-        )
-        if c.formulation == "structured":
-            return StructuredEstimator(
-                self.n_act,
-                self._dt,
-                q_platform=c.q_platform,
-                platform_std=c.platform_std,
-                heading_filter=c.heading_filter,
-                arm_kw=kw,
-            )
-        return KalmanEstimator(self.n_act, self._dt, **kw)
+    _estimator = staticmethod(_kalman_estimator)
 
     @property
     def P(self) -> np.ndarray:

@@ -271,7 +271,7 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
     For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
     robots: on the native vector env the spec's vectorised law where its class has one (a `batched`
     constructor: `zero`, `random`, `jmpi`, `clik`, `oracle`, `nnbc`, their `-full` forms, `qp`, `qp-oracle`,
-    `calib-qp`),
+    `calib-qp`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`, `rls`),
     else (every other spec, `sb3:` and `module:attr` included, and every spec on a `SyncVectorEnv` of single
     envs: mobman's physics mode and random arm) a loop of this spec built for each robot. Other vector envs
     (e.g. `AsyncVectorEnv`) are refused naming the fix.

@@ -87,7 +87,8 @@ def test_bad_batches_raise():
 VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp") + tuple(
     f"{law}{form}" for law in ("jmpi", "clik", "oracle", "nnbc") for form in ("", "-full")
 )
-LOOPED = ("nnbc-plus", "broyden", "rls")
+#: the model-free laws of `policies.nnbc_plus.ModelFreeLaw` (one numba kernel over the rows)
+MODEL_FREE = ("nnbc-plus", "nnbc-plus-wb", "broyden", "rls", "nnbc-plus:formulation=paper,j0_noise=0.3")
 
 
 def _venv(env_id: str, n: int):
@@ -95,7 +96,7 @@ def _venv(env_id: str, n: int):
 
 
 @pytest.mark.parametrize("env_id", ["WheeledPuma-Circle-v0", "WheeledPuma-Line-v0"])
-@pytest.mark.parametrize("spec", VECTORISED)
+@pytest.mark.parametrize("spec", VECTORISED + MODEL_FREE)
 def test_vectorised_law_equals_single_policies(spec, env_id):
     """N = 5 robots for 200 steps driven by the batched actions: row i's action equals a single policy's (built for
     robot i, reset with policy_seed(S + i)) on the same observation to 1e-9 (bit for bit, in fact: the single
@@ -129,6 +130,11 @@ def test_vectorised_law_equals_single_policies(spec, env_id):
     if spec.startswith("nnbc"):
         steps = batched.steps  # the restarted rows count their steps from their new start
         assert steps.tolist() == [200, 140, 200, 140, 200]
+    if spec in MODEL_FREE:  # bit for bit, the commands and the estimates: the same kernel with N = 1
+        for i, pol in enumerate(singles):
+            np.testing.assert_array_equal(batched.last_u[i], pol.last_u)
+            np.testing.assert_array_equal(batched.J_hat_row(i), pol.J_hat)
+            np.testing.assert_array_equal(batched.Jdot_hat_row(i), pol.Jdot_hat)
     venv.close()
 
 
@@ -150,11 +156,31 @@ def test_one_robot(spec):
     venv.close()
 
 
-@pytest.mark.parametrize("spec", LOOPED)
+class LoopedZero:
+    """A user's policy (a `module:attr` spec): no vectorised law, so a vector env loops one per row."""
+
+    def __init__(self, env):
+        self.n = env.action_space.shape[0]
+
+    def reset(self, obs, info=None, *, seed=None): ...
+
+    def predict(self, observation, state=None, episode_start=None, deterministic=True):
+        return np.zeros(self.n, dtype=np.float32), state
+
+
+@pytest.mark.parametrize("spec", [f"{__name__}:LoopedZero"])
 def test_other_specs_loop_their_rows(spec):
     venv = _venv(ENV_ID, 2)
     pol = policies.make(spec, venv)
     assert isinstance(pol, BatchedPolicy) and not isinstance(pol, BatchedController) and len(pol.rows) == 2
+    venv.close()
+
+
+@pytest.mark.parametrize("spec", MODEL_FREE[:4])
+def test_model_free_specs_are_vectorised_laws(spec):
+    venv = _venv(ENV_ID, 2)
+    pol = policies.make(spec, venv)
+    assert isinstance(pol, BatchedController) and len(pol.rows) == 2
     venv.close()
 
 
@@ -321,3 +347,56 @@ def test_reset_with_fewer_rows_than_robots_is_refused_with_the_shapes(spec):
     with pytest.raises(ValueError, match=r"reset of a batched policy of 3 rows .*leading axis of 3.*\(2, 3\)"):
         pol.reset({k: v[:2] for k, v in obs.items()}, info, seed=10_600)
     venv.close()
+
+
+def model_free_digests(steps: int = 300) -> list[str]:
+    """sha256 of the commands (last_u, float64 bytes) of each model-free spec on a linear plant r_dot = J u (8
+    actuators, a turning platform's wheels in J's last columns) over `steps` steps: past the probe, the settling of
+    the actuator model and the first block of dither signs."""
+    import hashlib
+
+    from policies.base import EnvFacts
+    from policies.registry import build_config, parse_spec
+
+    facts = EnvFacts(dt=0.01, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=())
+    J = 0.3 * np.random.default_rng(7).standard_normal((3, 8))
+    out = []
+    for spec in MODEL_FREE + ("nnbc-plus:formulation=whole_body,measurement=position",):
+        name, options = parse_spec(spec)
+        entry = policies.registry._REGISTRY[name]
+        cls, cfg_cls = policies.registry._load_entry(name, entry)
+        pol = cls(facts, build_config(cfg_cls, {**entry.preset, **options}, spec), seed=3)
+        q, r, u, h = np.zeros(8), np.zeros(3), np.zeros(8), hashlib.sha256()
+        for k in range(steps):
+            t = 0.01 * k
+            obs = {
+                "ee_pos": r, "ee_vel": J @ u, "arm_base_pos": np.zeros(2), "arm_base_vel": np.zeros(2),
+                "joint_pos": q, "joint_vel": u, "target_pos": 0.05 * np.array([np.sin(t), 1 - np.cos(t), 0.0]),
+                "target_vel": 0.05 * np.array([np.cos(t), np.sin(t), 0.0]), "base_yaw": np.array([0.1 * t]),
+            }  # fmt: skip
+            action, _ = pol.predict(obs)
+            u = np.asarray(action, dtype=float) * facts.scale
+            h.update(np.asarray(pol.last_u, dtype=float).tobytes())
+            q, r = q + 0.01 * u, r + 0.01 * (J @ u)
+        out.append(h.hexdigest())
+    return out
+
+
+@pytest.mark.slow
+def test_the_model_free_law_as_plain_python_gives_the_compiled_bits():
+    """`policies.model_free_kernels` run as plain Python (`NUMBA_DISABLE_JIT=1`) issues the compiled kernel's
+    commands bit for bit (the kernels are plain float code: no fast-math, no reassociation)."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    code = (
+        f"import json, sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); "
+        "from test_batched_policies import model_free_digests; print(json.dumps(model_free_digests()))"
+    )
+    env = {**os.environ, "NUMBA_DISABLE_JIT": "1"}
+    proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads(proc.stdout.strip().splitlines()[-1]) == model_free_digests()

@@ -79,8 +79,8 @@ def test_batched_policies_have_their_spec_class():
     try:
         for spec in ("qp-oracle", "clik", "nnbc", "zero"):  # vectorised laws
             assert knowledge_of(policies.make(spec, venv)) == EXPECTED[spec], spec
-        loop = policies.make("nnbc-plus:formulation=whole_body", venv)  # a loop of single policies
-        assert knowledge_of(loop) == "none"
+        law = policies.make("nnbc-plus:formulation=whole_body", venv)  # the vectorised model-free law
+        assert knowledge_of(law) == "none"
         assert knowledge_of(policies.make("nnbc-plus", venv)) == "structure"
     finally:
         venv.close()

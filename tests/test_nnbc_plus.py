@@ -370,7 +370,7 @@ def test_a_lagging_actuator_is_neither_a_delay_nor_a_joint_stop():
                 action, _ = policy.predict(obs)
                 obs, _, terminated, truncated, info = env.step(action)
                 errors.append(info["tracking_error"])
-                n_blocked += int(policy._any_blocked)
+                n_blocked += int(policy.blocked.any())
                 if terminated or truncated:
                     break
             results.append(max(errors))

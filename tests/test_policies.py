@@ -402,8 +402,7 @@ class _GuardedView:
         return getattr(self._env, name)
 
 
-#: every robot's circle id; `broyden` and `rls` (policies.broyden_rls) still size their estimators from the
-#: PUMA's 8 actuators, so they are guarded on the 8-actuator robots only
+#: every robot's circle id (the model-free law sizes itself from the action's length: 8 or 9 actuators)
 ROBOT_CIRCLES = (
     "WheeledPuma-Circle-v0",
     "WheeledUR5-Circle-v0",
@@ -415,7 +414,7 @@ MODEL_FREE = ("nnbc", "nnbc-full", "nnbc:gamma=20,mu=20,j0=probe", "zero", "rand
 
 @pytest.mark.parametrize(
     "spec, env_id",
-    [(s, e) for e in ROBOT_CIRCLES for s in MODEL_FREE if "Panda" not in e or s not in ("broyden", "rls")],
+    [(s, e) for e in ROBOT_CIRCLES for s in MODEL_FREE],
 )
 def test_model_free_controllers_never_touch_the_model(spec, env_id):
     env = _ModelGuard(gym.make(env_id, dynamics="kinematic", path=SHORT_CIRCLE))

@@ -26,7 +26,7 @@ _VERSION_PACKAGES = (
     "torch",
 )
 #: the modules whose compiled kernels define the numbers (`kernels()` hashes their source)
-KERNEL_MODULES = ("mobman_env.engine", "policies.kernels", "policies.nnbc")
+KERNEL_MODULES = ("mobman_env.engine", "policies.kernels", "policies.nnbc", "policies.model_free_kernels")
 
 
 def kernels() -> dict[str, str | None]:
@@ -122,8 +122,9 @@ def provenance() -> dict:
     BLAS loaded at run time and its kernel (`blas_runtime`), the environment variables of `PROVENANCE_ENV_VARS`
     (None when unset), the package versions, the git revision and the hashes of the compiled kernels' source
     (`kernels`). The env and the controllers whose laws are compiled kernels (`nnbc`, `jmpi`, `clik`, `oracle`,
-    `qp`) do not use BLAS: their figures do not depend on the `blas` entries; the estimators still written in
-    numpy (`nnbc-plus`, `broyden`, `rls` before release 0.3's v4) and the SB3 agents may."""
+    `qp`, and since the numba port of the model-free law `nnbc-plus`, `broyden`, `rls`) do not use BLAS: their
+    figures do not depend on the `blas` entries; the SB3 agents (and the model-free controllers of earlier
+    revisions, written in numpy) may."""
     return {
         "cpu": cpu_model(),
         "machine": platform.machine(),

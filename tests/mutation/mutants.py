@@ -89,9 +89,9 @@ MUTANTS = (
     ),
     Mutant(
         "nnbc-plus-lookahead-removed",
-        "policies/nnbc_plus.py",
-        "        if c.lookahead and not probing:",
-        "        if False:",
+        "policies/model_free_kernels.py",
+        "        look = ipr[IPR_LOOKAHEAD] != 0 and not probing\n",
+        "        look = False\n",
         ("tests/test_mutants_nnbc_plus.py",),
     ),
     Mutant(
