@@ -4,9 +4,9 @@
 The file was recorded by `record()` with `PYTHONPATH=$PWD python tests/test_model_free_actions.py --write`, last
 by `nnbc-plus` v4 (issue 28), which moved the actions on purpose: the actuator-model bank (lag models beside
 the delays: all four controllers), the filtered heading and the 0.02 rad/s probe (`nnbc-plus`, `nnbc-plus-wb`).
-Before, v4's deletion of the failed and dead options had passed it unchanged (each was a no-op at its default). A change meant to leave the default
-controllers as they are must pass this test unchanged; a change that moves them on purpose records the file anew
-in the same commit and says why.
+Before, v4's deletion of the failed and dead options had passed it unchanged (each was a no-op at its default).
+A change meant to leave the default controllers as they are must pass this test unchanged; a change that moves
+them on purpose records the file anew in the same commit and says why.
 
 Episodes: the PUMA's Circle-v0 in kinematic and physics mode, and its Lemniscate-v0 with sensor noise (1 mm,
 0.01 m/s) and a 2-step observation delay (kinematic), each for `STEPS` control steps past the probe, the
