@@ -225,6 +225,31 @@ def est_init(kind, n, ep, e, ie, J0):
 
 
 @njit(cache=True)
+def _matvec(e, off, n, lim, v, out):
+    """out[a] = sum over b < lim of M[a, b] v[b], for a < n and the n x n matrix M row-major at e[off:]; returns
+    sum over a < lim of v[a] out[a] (v^T M v when v is 0 beyond lim)."""
+    for a in range(n):
+        acc = 0.0
+        for b in range(lim):
+            acc += e[off + a * n + b] * v[b]
+        out[a] = acc
+    q = 0.0
+    for a in range(lim):
+        q += v[a] * out[a]
+    return q
+
+
+@njit(cache=True)
+def _symmetrise(e, off, n):
+    """The n x n matrix row-major at e[off:] replaced by its symmetric part (round-off removed)."""
+    for a in range(n):
+        for b in range(a + 1, n):
+            v = 0.5 * (e[off + a * n + b] + e[off + b * n + a])
+            e[off + a * n + b] = v
+            e[off + b * n + a] = v
+
+
+@njit(cache=True)
 def _kalman_update(ep, e, ie, base, nk, x, y0, y1, y2, h, ph):
     """One predict-update of the Kalman filter on [J | J_dot] (k = nk columns each) at e[base:]: constant-rate
     prediction, random-walk process noise, the robust gain-shared update of the three rows, R by covariance
@@ -249,14 +274,7 @@ def _kalman_update(ep, e, ie, base, nk, x, y0, y1, y2, h, ph):
         h[j] = x[j]
         h[nk + j] = -0.5 * dt * x[j] if midpoint else 0.0
     lim = ns if midpoint else nk  # (the entries of h beyond are 0)
-    hph = 0.0
-    for a in range(ns):
-        acc = 0.0
-        for b in range(lim):
-            acc += e[p0 + a * ns + b] * h[b]
-        ph[a] = acc
-    for a in range(lim):
-        hph += h[a] * ph[a]
+    hph = _matvec(e, p0, ns, lim, h, ph)
     i0, i1, i2 = y0, y1, y2
     for b in range(lim):
         i0 -= e[base + b] * h[b]
@@ -285,11 +303,7 @@ def _kalman_update(ep, e, ie, base, nk, x, y0, y1, y2, h, ph):
         for b in range(ns):
             e[p0 + a * ns + b] -= ka * ph[b]
     if (m + int(ep[EP_SYM_PHASE])) % 64 == 0:
-        for a in range(ns):
-            for b in range(a + 1, ns):
-                v = (e[p0 + a * ns + b] + e[p0 + b * ns + a]) * 0.5
-                e[p0 + a * ns + b] = v
-                e[p0 + b * ns + a] = v
+        _symmetrise(e, p0, ns)
 
 
 @njit(cache=True)
@@ -387,15 +401,7 @@ def est_update(kind, n, ep, e, ie, x, y0, y1, y2, h, ph):
                 e[r * n + j] += f * (res * x[j])
     else:  # RLS: K = P x / (lambda + x^T P x), J += (y - J x) K^T, P <- (P - K (P x)^T) / lambda, bounded
         lam = ep[EP_LAMBDA]
-        xpx = 0.0
-        for a in range(n):
-            acc = 0.0
-            for b in range(n):
-                acc += e[base + a * n + b] * x[b]
-            ph[a] = acc
-        for a in range(n):
-            xpx += x[a] * ph[a]
-        den = lam + xpx
+        den = lam + _matvec(e, base, n, n, x, ph)
         for a in range(n):
             h[a] = ph[a] / den
         for r in range(3):
@@ -407,11 +413,7 @@ def est_update(kind, n, ep, e, ie, x, y0, y1, y2, h, ph):
         for a in range(n):
             for b in range(n):
                 e[base + a * n + b] = (e[base + a * n + b] - h[a] * ph[b]) / lam
-        for a in range(n):
-            for b in range(a + 1, n):
-                v = 0.5 * (e[base + a * n + b] + e[base + b * n + a])
-                e[base + a * n + b] = v
-                e[base + b * n + a] = v
+        _symmetrise(e, base, n)
         q = ep[EP_QRLS]
         tr = 0.0
         for a in range(n):
@@ -454,7 +456,10 @@ def reset_rows(prm, ipr, ep, lay, fst, ist, rows, jp, ee_pos, abp, tv):
 
 @njit(cache=True)
 def _solve3(a, b, c, d, e, f, g, h, i, p, q, r, damping, eps2, extra):
-    """(A + damping I + d I)^-1 rhs for the symmetric 3 x 3 A, by cofactors (`policies.nnbc_plus._solve3`)."""
+    """(A + damping I + d I)^-1 rhs for the symmetric 3 x 3 A (its nine entries a..i), by cofactors. damping I is
+    added entry by entry (off the diagonal + 0.0); d = 0, unless eps2 > 0 and the damped A's smallest eigenvalue
+    (estimated as det(A) / e2(A), e2 the sum of the principal 2 x 2 minors) is below eps2: then d = extra
+    (1 - estimate / eps2), the singularity-robust damping of `policies.nnbc_plus.ModelFreeConfig.sing_damping`."""
     off = damping * 0.0
     a, b, c = a + damping, b + off, c + off
     d, e, f = d + off, e + damping, f + off
