@@ -290,6 +290,9 @@ def test_model_free_construction_and_config_validation():
         NNBCPlusConfig(formulation="full")
     with pytest.raises(ValueError, match="pos_filter"):
         NNBCPlusConfig(pos_filter=1.5)
+    for bad in (0.0, 1.5):  # a weight in (0, 1]: 0 would never read the heading, above 1 overshoots it
+        with pytest.raises(ValueError, match=r"heading_filter must be a finite number > 0 and <= 1"):
+            NNBCPlusConfig(heading_filter=bad)
     with pytest.raises(ValueError, match="gamma"):
         NNBCPlusConfig(gamma=-1.0)
     cfg = NNBCPlusConfig()
