@@ -1,0 +1,86 @@
+"""Protocol v3's held-out track (`eval.heldout`): the family and its draw are fixed, the release's seed is
+committed as a digest before its tuning, and every drawn condition runs."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mobman_env  # noqa: F401  (registers the ids)
+from eval import heldout as H
+from eval.bench.config import ROBOTS, TASKS
+from mobman_env.env import WheeledPumaEnv
+
+ROOT = Path(__file__).resolve().parents[1]
+KNOWN_ANSWER = json.loads((Path(__file__).parent / "data" / "heldout_v3_draw_seed0.json").read_text())
+
+
+def test_the_family_is_the_one_committed():
+    """A change of the family is a new protocol version, never an edit: its digest is pinned."""
+    assert H.family_digest() == H.FAMILY_SHA256
+
+
+def test_the_draw_of_a_known_seed_is_pinned():
+    """The draw itself cannot change after the seed's digest was committed: a public seed's draw is pinned."""
+    assert H.draw(KNOWN_ANSWER["seed"]) == KNOWN_ANSWER["conditions"]
+
+
+def test_different_seeds_draw_different_conditions_inside_the_family():
+    axes = {a.name: a for a in H.AXES}
+    seen: set[str] = set()
+    for k in range(200):
+        for c in H.draw(f"{k:032x}"):
+            kw = c["env_kwargs"]
+            assert kw["dynamics"] in ("kinematic", "physics")
+            assert H.WEAR_RANGE[0] <= kw["model_error"] <= H.WEAR_RANGE[1]
+            assert len(c["robots"]) == (1 if kw["dynamics"] == "physics" else H.ROBOTS_PER_CONDITION)
+            assert set(c["robots"]) <= set(H.ROBOT_FAMILIES)
+            stressors = [n for n in kw if n in axes]
+            assert stressors, c
+            for n in stressors:
+                a = axes[n]
+                assert (kw[n] in a.choices) if a.scale == "choice" else a.low * 0.999 <= kw[n] <= a.high * 1.001
+                seen.add(n)
+            if "path" in kw:
+                assert c["tasks"] == ["random"] and 6.0 <= kw["path"]["duration"] <= 20.0
+            else:
+                assert c["tasks"] is None
+    assert seen == set(axes)  # every stressor of the family shows up in 200 draws
+    assert H.draw(f"{1:032x}") != H.draw(f"{2:032x}")
+
+
+@pytest.mark.parametrize("seed", ["0" * 31, "0" * 33, "G" * 32, "A" * 32, 7])
+def test_a_seed_is_32_lowercase_hex_digits(seed):
+    with pytest.raises(ValueError, match="32 lowercase hex digits"):
+        H.draw(seed)
+
+
+def test_the_release_seed_digest_is_committed_and_the_seed_not():
+    digest = H.RELEASE_SEED_SHA256["0.4"]
+    assert len(digest) == 64 and int(digest, 16) >= 0
+    assert H.seed_digest("0" * 32, "0.4") != H.seed_digest("0" * 32, "0.5")  # salted per release
+    assert "0.4" not in H.REVEALED_SEEDS or H.seed_digest(H.REVEALED_SEEDS["0.4"], "0.4") == digest
+    with pytest.raises(ValueError, match="not revealed yet"):
+        H.revealed_draw("0.4") if "0.4" not in H.REVEALED_SEEDS else H.revealed_draw("0.3")
+    with pytest.raises(ValueError, match="committed no held-out seed"):
+        H.revealed_draw("0.1")
+
+
+def test_every_drawn_condition_makes_an_env_that_steps():
+    """Every condition of a draw runs: its env arguments exist and are accepted, on its robots and tasks."""
+    params = set(WheeledPumaEnv.__init__.__code__.co_varnames)
+    for c in KNOWN_ANSWER["conditions"]:
+        kw = dict(c["env_kwargs"])
+        assert set(kw) <= params
+        task = (c["tasks"] or list(TASKS))[0]
+        env = gym.make(f"{ROBOTS[c['robots'][0]]}-{TASKS[task]}-v0", **kw)
+        try:
+            obs, _ = env.reset(seed=0)
+            obs, *_ = env.step(np.zeros(env.action_space.shape, dtype=np.float32))
+            assert np.isfinite(obs["ee_pos"]).all()
+        finally:
+            env.close()
