@@ -114,6 +114,8 @@ RELEASE_SEED_SHA256: dict[str, str] = {
     # release 0.4: committed before any of its tuning (nnbc-plus v5, the RL recipes, the MPC laws) started
     "0.4": "6e6a55d4e9fd221d229ebe55201780119cf08643d9835de007b0f9450a458634",
 }
+#: Per release: the commit that added its seed's digest (scorecards cite it; a test finds the digest in that commit).
+RELEASE_SEED_COMMIT: dict[str, str] = {"0.4": "248394abd6b8dca7d593b24a14c2a4794c90f449"}
 #: Per release: its seed, once its held-out draw has been run (then `seed_digest(seed, release)` must equal the
 #: committed digest).
 REVEALED_SEEDS: dict[str, str] = {}

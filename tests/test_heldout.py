@@ -4,6 +4,7 @@ committed as a digest before its tuning, and every drawn condition runs."""
 from __future__ import annotations
 
 import json
+import subprocess
 from pathlib import Path
 
 import gymnasium as gym
@@ -84,3 +85,25 @@ def test_every_drawn_condition_makes_an_env_that_steps():
             assert np.isfinite(obs["ee_pos"]).all()
         finally:
             env.close()
+
+
+def _git(*args: str) -> str:
+    return subprocess.run(["git", *args], cwd=ROOT, capture_output=True, text=True, check=True).stdout.strip()
+
+
+def test_the_seed_digest_was_committed_in_the_commit_the_module_names():
+    """`RELEASE_SEED_COMMIT` exists, is in main's history and is where the digest first appears (so "committed
+    before the tuning" can be checked against the commits that follow it). An unpacked sdist has no history: there
+    the test checks that it is one (PKG-INFO) and that the commit is a full hash."""
+    commit = H.RELEASE_SEED_COMMIT["0.4"]
+    assert len(commit) == 40 and int(commit, 16) >= 0
+    if not (ROOT / ".git").exists():
+        assert (ROOT / "PKG-INFO").is_file(), "neither a git checkout nor an unpacked sdist"
+        return
+    if _git("rev-parse", "--is-shallow-repository") == "true":
+        _git("fetch", "--unshallow", "--quiet")
+    _git("merge-base", "--is-ancestor", commit, "HEAD")  # raises if not in HEAD's history
+    digest = H.RELEASE_SEED_SHA256["0.4"]
+    assert digest in _git("show", f"{commit}:eval/heldout.py")
+    parent = subprocess.run(["git", "show", f"{commit}~1:eval/heldout.py"], cwd=ROOT, capture_output=True, text=True)
+    assert digest not in parent.stdout
