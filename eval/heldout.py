@@ -13,7 +13,7 @@ conditions from it with a seed nobody knows while the release is tuned:
 3. then the drawn conditions join the public set (the dev track), and the next release commits a new seed.
 
 So no value of a held-out condition can be in a controller before the run (nobody knew it), and "the hash was
-committed before the tuning" is checked against the repository's history (`release_seed_commit`).
+committed before the tuning" is checked against the repository's history (`RELEASE_SEED_COMMIT`).
 
 **The family** (`AXES`, `ROBOT_FAMILIES`, `PATH_FAMILY`): every condition is kinematic or, with probability
 `P_PHYSICS`, PyBullet contact dynamics on one robot; it runs on robots drawn from the arm families (PUMA 560, UR5,
