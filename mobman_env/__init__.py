@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import importlib
 import inspect
-import math
 import sys
 from typing import Any
 
@@ -38,6 +37,7 @@ from gymnasium.envs.registration import register, registry
 
 from mobman_env.env import OBS_KEYS, PAPER_ARM_JOINT_POS, PAPER_BASE_POSE, PAPER_CIRCLE, WheeledPumaEnv
 from mobman_env.params import RobotParams
+from mobman_env.paths import TASK_SPECS
 
 __all__ = [
     "ENV_IDS",
@@ -57,19 +57,7 @@ __all__ = [
 __version__ = "0.3.0.dev0"
 
 #: id -> path spec of each PUMA task (all start at the paper's theta(0), heading pi).
-TASKS = {
-    "WheeledPuma-Circle-v0": PAPER_CIRCLE,
-    "WheeledPuma-Line-v0": {"type": "line", "length": 3.0, "direction": [-1.0, 0.0, 0.0], "duration": 20.0},
-    "WheeledPuma-Lemniscate-v0": {
-        "type": "lemniscate",
-        "width": 0.6,
-        "height": 0.3,
-        "tilt": math.pi / 6,
-        "yaw": math.pi,
-        "duration": 20.0,
-    },
-    "WheeledPuma-Random-v0": {"type": "random", "size": 0.3, "n_terms": 3, "duration": 20.0},
-}
+TASKS = {f"WheeledPuma-{name.title()}-v0": spec for name, spec in TASK_SPECS.items()}
 #: id prefix -> the env's `robot` argument (the PUMA ids pass none: the default, as in release 0.1).
 ROBOT_IDS = {
     "WheeledPuma": "puma560",

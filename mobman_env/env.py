@@ -22,7 +22,7 @@ from gymnasium import spaces
 from mobman_env import engine as E
 from mobman_env.batch import CONDITIONS, RobotBatch, RobotState
 from mobman_env.params import MAX_REL_STD, RobotParams
-from mobman_env.paths import Path, validate_spec
+from mobman_env.paths import TASK_SPECS, Path, validate_spec
 from mobman_env.robots.sources import ROBOT_NAMES, RobotSource, robot_source
 from mobman_env.sensors import SENSOR_KEYS
 from mobman_env.sim import DYNAMICS_MODES, Sim, display_available
@@ -33,7 +33,7 @@ PAPER_ARM_JOINT_POS = (0.0, math.pi / 4, 0.0, 2 * math.pi / 3, -math.pi / 4, 0.0
 #: Platform pose (x, y, yaw) of P_0 at the start: heading pi faces the paper's circle, which lies towards -x.
 PAPER_BASE_POSE = (0.0, 0.0, math.pi)
 #: The paper's circle (section IV): radius 0.4 m, tilted pi/6, 20 s, centre towards -x from the start.
-PAPER_CIRCLE = {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": math.pi, "duration": 20.0}
+PAPER_CIRCLE = TASK_SPECS["circle"]
 DEFAULT_REWARD_WEIGHTS = {"tracking": 1.0, "effort": 1e-3}
 TIP_ANGLE = E.TIP_ANGLE  # rad, roll or pitch beyond which the platform counts as tipped over
 

@@ -37,6 +37,23 @@ from mobman_env import engine
 from mobman_env.validation import integer, number, vector
 
 PATH_TYPES = ("circle", "line", "lemniscate", "random")
+#: The four tasks' path specs, by task name: the one home of the tasks (the env ids `Wheeled<Robot>-<Task>-v0`
+#: in `mobman_env.TASKS`, the start selection in `mobman_env.robots.starts` and the env's default path read them).
+#: The circle is the paper's (section IV: radius 0.4 m, tilted pi/6, 20 s, its centre towards -x from the start);
+#: the line runs 3 m along the heading; the figure eight is 0.6 m x 0.3 m; the random path has 3 harmonics of 0.3 m.
+TASK_SPECS: dict[str, dict[str, Any]] = {
+    "circle": {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": math.pi, "duration": 20.0},
+    "line": {"type": "line", "length": 3.0, "direction": [-1.0, 0.0, 0.0], "duration": 20.0},
+    "lemniscate": {
+        "type": "lemniscate",
+        "width": 0.6,
+        "height": 0.3,
+        "tilt": math.pi / 6,
+        "yaw": math.pi,
+        "duration": 20.0,
+    },
+    "random": {"type": "random", "size": 0.3, "n_terms": 3, "duration": 20.0},
+}
 Vec3 = tuple[float, float, float]
 
 

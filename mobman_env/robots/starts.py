@@ -65,7 +65,7 @@ import numpy as np
 
 from mobman_env import engine
 from mobman_env.params import RobotParams
-from mobman_env.paths import path_from_spec
+from mobman_env.paths import TASK_SPECS, path_from_spec
 from mobman_env.robots.catalogue import ROBOTS
 from mobman_env.robots.description import ArmDescription
 from mobman_env.robots.kinematics import arm_point_and_jacobian, link_frames
@@ -84,20 +84,6 @@ __all__ = [
     "track",
 ]
 
-#: The four tasks' path specs (those of `mobman_env.TASKS`, copied so this module does not import the env).
-TASK_SPECS = {
-    "circle": {"type": "circle", "radius": 0.4, "tilt": math.pi / 6, "yaw": math.pi, "duration": 20.0},
-    "line": {"type": "line", "length": 3.0, "direction": [-1.0, 0.0, 0.0], "duration": 20.0},
-    "lemniscate": {
-        "type": "lemniscate",
-        "width": 0.6,
-        "height": 0.3,
-        "tilt": math.pi / 6,
-        "yaw": math.pi,
-        "duration": 20.0,
-    },
-    "random": {"type": "random", "size": 0.3, "n_terms": 3, "duration": 20.0},
-}
 GAIN = 20.0  # 1/s, the release's task-space gain
 DAMPING = 0.05  # DLS lambda (the Jacobian is scaled by the speed limits, so lambda is in m/s)
 DT = 0.01  # s, 100 Hz
