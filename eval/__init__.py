@@ -10,7 +10,7 @@ res = eval.load_results("runs/first")   # a results.json or its folder (schema 1
 res.to_dataframe()                      # pandas: one row per episode (pip install "mobman[pandas]")
 ```
 
-Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme` (`eval.cli.main(argv)`); eval/README.md is
+Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme|timings` (`eval.cli.main(argv)`); eval/README.md is
 the manual.
 
 ## Layout and dependency rule
@@ -18,7 +18,8 @@ the manual.
 Each layer may import only the layers above it in this list (imports inside functions count; a test parses
 every module and fails on a cycle or an upward import):
 
-1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays)
+1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays), `heldout` (protocol
+   v3's held-out family and its draw; imports numpy only)
 2. `rollout` (make_env, make_vector_env, make_policy, the one rollout loop: `rollout` for one env, `rollout_batch`
    for a vector env and a batched policy)
 3. `config` (EvalConfig)
@@ -30,7 +31,7 @@ every module and fails on a cycle or an upward import):
 7. `runner` (`run`), `sweep` (`config`, `report`, `plots` <- `run`: resumable grids)
 8. `paper` (section IV of the paper), `bench` (the benchmark protocol v2: `config` <- `chaos`, `scorecard` <-
    `against` <- `run`)
-9. `speed` (the speed benchmark; `--paper` times `paper`)
+9. `speed` (the speed benchmark; `--paper` times `paper`), `timings` (the README's steps timed)
 10. `cli` (one module per subcommand, `common`, `options`: the options generated from the config dataclasses;
     nothing in eval imports it but `__main__`; train's command lines use `options`)
 

@@ -57,6 +57,7 @@ def test_every_command_is_covered():
         "mobman-eval speed",
         "mobman-eval picture",
         "mobman-eval readme",
+        "mobman-eval timings",
         "mobman-train",
         "mobman-train report",
     }

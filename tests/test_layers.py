@@ -22,6 +22,7 @@ ALLOWED = {
 EVAL_LAYERS = {
     "eval.errors": 1,
     "eval.metrics": 1,
+    "eval.heldout": 1,
     "eval.rollout": 2,
     "eval.config": 3,
     "eval.execution": 4,
@@ -33,6 +34,7 @@ EVAL_LAYERS = {
     "eval.paper": 8,
     "eval.bench": 8,
     "eval.speed": 9,
+    "eval.timings": 9,
     "eval.cli": 10,
     "eval.__main__": 11,
     "eval": 11,

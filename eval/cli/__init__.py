@@ -1,5 +1,6 @@
 """`mobman-eval`: benchmark policies side by side (`run`), sweep a grid (`sweep`), run the benchmark protocol
-(`bench`), reproduce the paper (`paper`), measure speed (`speed`), render the README's picture (`picture`).
+(`bench`), reproduce the paper (`paper`), measure speed (`speed`), render the README's picture (`picture`), time
+the README's steps (`timings`).
 
 ```
 mobman-eval run --env WheeledPuma-Circle-v0 --policy nnbc,jmpi --seeds 20 --dynamics kinematic
@@ -9,10 +10,11 @@ mobman-eval bench --workers 2    # the benchmark protocol v2: one scorecard (res
 mobman-eval paper                # the paper's section IV, both dynamics modes, 20 reported seeds
 mobman-eval speed                # env steps/s, predict microseconds, episodes/s
 mobman-eval picture              # docs/assets/robot.png: nnbc-plus tracking the Line, physics mode
+mobman-eval timings              # how long the README's steps take here (wall and CPU, with the load)
 ```
 
-One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`) builds its parser
-from the fields of the library's frozen config dataclasses (`eval.cli.options`: one option per field, its help the
+One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`, `timings`) builds its
+parser from the fields of the library's frozen config dataclasses (`eval.cli.options`: one option per field, its help the
 field's docstring, its default the field's default) and calls one function; `main(argv=None)`, so tests call it
 in-process. The same concept has the same option everywhere: `--policy SPEC` (repeatable, comma lists; one spec
 in `picture`, which renders one episode), `--env ID`, `--dynamics MODE`, `--seed S` (the first seed), `--seeds N`
@@ -32,14 +34,14 @@ from mobman_env import __version__
 from mobman_env.packages import shadowing_message
 
 #: the subcommands, each a module of this package with add_parser(sub) and main(args)
-SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme")
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme", "timings")
 
 
 def _subcommands() -> dict:
     """The subcommand modules, imported only after the shadowing check (they import policies)."""
-    from eval.cli import bench, paper, picture, readme, run, speed, sweep
+    from eval.cli import bench, paper, picture, readme, run, speed, sweep, timings
 
-    modules = (run, sweep, bench, paper, speed, picture, readme)
+    modules = (run, sweep, bench, paper, speed, picture, readme, timings)
     return dict(zip(SUBCOMMANDS, modules, strict=True))
 
 
