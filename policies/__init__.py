@@ -18,7 +18,7 @@ action, _ = policy.predict(obs)
 | `clik`, `clik-full` | eq. (10), closed loop, on the nominal model: the practitioner's baseline (`policies.jmpi`) |
 | `oracle`, `oracle-full` | eq. (10) with the true model (`policies.jmpi`) |
 | `qp`, `qp-oracle` | whole-body QP with joint-limit dampers, nominal / true model; `qp-oracle` is the ceiling (`policies.qp`) |
-| `calib-qp` | `qp`'s QP on a model calibrated online from the catalogue: the structure-aware adaptive baseline (`policies.calib_qp`) |
+| `calib-qp` | `qp`'s QP on a model calibrated online from the catalogue: the adaptive baseline (class nominal; `policies.calib_qp`) |
 | `zero`, `random` | floor references (`policies.simple`) |
 | `sb3:PATH` | a Stable-Baselines3 agent (`policies.sb3`) |
 | `module:attr` | your own policy object, class or factory |

@@ -1,4 +1,4 @@
-"""`calib-qp`: the whole-body QP of `qp` on a robot model calibrated online: the structure-aware adaptive baseline.
+"""`calib-qp`: the whole-body QP of `qp` on a robot model calibrated online from the catalogue: the adaptive baseline.
 
 The law is `qp`'s (`policies.qp.QPLaw`, unchanged: the same QP, bounds, dampers and posture term); what changes is
 the model whose whole-body Jacobian it solves with. `CalibQPLaw` subclasses `QPLaw`, and before each of its steps
@@ -9,10 +9,11 @@ random arm family, the episode's drawn design) and are calibrated from the measu
 positions and velocities, the heading and the joint readings. May import numpy, numba, `mobman_env` (engine,
 params, validation) and `policies.base`, `.batched`, `.qp`.
 
-Knowledge class `structure` (DESIGN, release 0.3): the estimator knows the kind of chain (the catalogue's joint
-axes, twists and offsets, and which DH lengths are non-zero), that the platform is a unicycle carrying the arm at a
-sensed mount, and the shoulder height; it learns every worn length. It does start from the catalogue's values, but
-only as a prior of `prior_rel_std` relative uncertainty, which the data overrule within the episode.
+Knowledge class `nominal` (DESIGN, release 0.4; labelled `structure` in 0.3): the estimator reads the catalogue,
+the object class `nominal` reads (`policies.views`): the kind of chain (its joint axes, twists and offsets, which DH
+lengths are non-zero), that the platform is a unicycle carrying the arm at a sensed mount, the shoulder height,
+and the catalogue's values as the prior of its lengths (`prior_rel_std` relative uncertainty, which the data
+overrule within the episode). It learns every worn length; its class is what it is built from, not what it keeps.
 
 What is estimated, per robot (row)
 ----------------------------------
@@ -316,7 +317,7 @@ class CalibQPLaw(QPLaw):
 
     config: CalibQPConfig
     uses_keys: tuple[str, ...] = (*QPLaw.uses_keys, "arm_base_pos", "arm_base_vel")
-    knowledge = "structure"
+    knowledge = "nominal"
 
     def __init__(self, facts: EnvFacts, config: CalibQPConfig, n: int, seed: int | None, params: Callable[[int], Any]):
         if not isinstance(config, CalibQPConfig):
@@ -443,7 +444,7 @@ class CalibQP(LawView):
     """
 
     name = "calib-qp"
-    knowledge = "structure"
+    knowledge = "nominal"
 
     def __init__(
         self,

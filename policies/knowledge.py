@@ -5,8 +5,8 @@ Every built-in policy class declares `knowledge`, one of `KNOWLEDGE_CLASSES` (DE
 | class | what the policy knows | built-in policies |
 |---|---|---|
 | `none` | no kinematic parameter and no structure | `nnbc`, `nnbc-full`, `nnbc-plus-wb`, `broyden`, `rls`, `zero`, `random`, every `sb3:` agent; `nnbc-plus:formulation=whole_body` or `=paper` |
-| `structure` | the kind of chain and platform (which joints, a planar base, a sensed mount), no parameter value | `nnbc-plus` (its default structured estimate), `calib-qp` (it learns every worn length; the catalogue's values are only its prior) |
-| `nominal` | the catalogue's parameters | `jmpi`, `jmpi-full`, `clik`, `clik-full`, `qp`; `nnbc:j0=nominal` |
+| `structure` | the kind of chain and platform (which joints, a planar base, a sensed mount), no parameter value | `nnbc-plus` (its default structured estimate) |
+| `nominal` | the catalogue's parameters | `jmpi`, `jmpi-full`, `clik`, `clik-full`, `qp`, `calib-qp` (it calibrates the catalogue online: the catalogue is its start, release 0.4; it was labelled `structure` in 0.3); `nnbc:j0=nominal` |
 | `true` | the worn robot's parameters | `oracle`, `oracle-full`, `qp-oracle` |
 
 Where the class depends on an option, `knowledge` is a property of the built object: `nnbc-plus` follows its

@@ -42,6 +42,7 @@ from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
 from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_native_vector_env, is_vector_env
+from policies.views import KnowledgeView
 
 
 @dataclass(frozen=True)
@@ -314,13 +315,25 @@ def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
     entry = _REGISTRY[name]
     cls, cfg_cls = _load_entry(name, entry)
     config = build_config(cfg_cls, {**entry.preset, **options}, spec)
-    facts = EnvFacts.from_env(env)
+    view = KnowledgeView(unwrap_env(env), view_class(entry, config))  # all the controller can reach of the env
+    facts = EnvFacts.from_env(view)
     extra: dict[str, Any] = {}
-    if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
-        extra["nominal_params"] = nominal_params_provider(env)
-    elif entry.model == "true":
-        extra["params_provider"] = true_params_provider(env)
+    if view.knowledge == "nominal":
+        extra["nominal_params"] = nominal_params_provider(view)
+    elif view.knowledge == "true":
+        extra["params_provider"] = true_params_provider(view)
     return cls(facts, config, seed, **extra)
+
+
+def view_class(entry: _Entry, config: Any) -> str:
+    """The knowledge class a built-in is built with (`policies.views`): "true" for a true-model law, "nominal" for
+    a catalogue law (and `nnbc:j0=nominal`), else "none" (the model-free and structure classes read the same: the
+    facts). `policies.knowledge_of(spec)` reports the same class, or "structure" where this says "none"."""
+    if entry.model == "true":
+        return "true"
+    if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
+        return "nominal"
+    return "none"
 
 
 def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
@@ -332,12 +345,14 @@ def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
     entry = _REGISTRY[name]
     cls, cfg_cls = _load_entry(name, entry)
     config = build_config(cfg_cls, {**entry.preset, **options}, spec)
-    facts = EnvFacts.from_env(_RobotView(venv, 0))
+    knowledge = view_class(entry, config)
+    view = KnowledgeView(venv, knowledge)  # all the law can reach of the vector env
+    facts = EnvFacts.from_env(KnowledgeView(_RobotView(venv, 0), knowledge))
     extra: dict[str, Any] = {}
-    if entry.model == "nominal" or getattr(config, "j0", None) == "nominal":
-        extra["nominal_params"] = lambda i: nominal_of(venv, i)
-    elif entry.model == "true":
-        extra["params_provider"] = venv.true_params
+    if knowledge == "nominal":
+        extra["nominal_params"] = lambda i: nominal_of(view, i)
+    elif knowledge == "true":
+        extra["params_provider"] = view.true_params
     law = getattr(cls, "batched")(facts, config, venv.num_envs, seed, **extra)  # noqa: B009  (not every class has it)
     law.spec = spec
     return law

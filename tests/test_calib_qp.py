@@ -155,7 +155,7 @@ def _rows_equal_singles(env_id: str, n: int, seed: int, steps: int, restart_at: 
     try:
         batched = policies.make("calib-qp", venv)
         assert isinstance(batched, CalibQPLaw) and batched.num_envs == n
-        assert policies.knowledge_of(batched) == "structure"
+        assert policies.knowledge_of(batched) == "nominal"
         singles = [policies.make("calib-qp", _RobotView(venv, i)) for i in range(n)]
         obs, info = venv.reset(seed=seed)
         batched.reset(obs, info, seed=seed)
@@ -283,7 +283,7 @@ def test_every_option_is_documented_and_spec_settable():
     try:
         pol = policies.make("calib-qp:drift=0.01,pos_std=0.003,gamma=10", env)
         assert (pol.config.drift, pol.config.pos_std, pol.config.gamma) == (0.01, 0.003, 10.0)
-        assert policies.knowledge_of(pol) == policies.knowledge_of("calib-qp") == "structure"
+        assert policies.knowledge_of(pol) == policies.knowledge_of("calib-qp") == "nominal"
     finally:
         env.close()
 

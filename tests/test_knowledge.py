@@ -28,7 +28,7 @@ EXPECTED = {
     "oracle-full": "true",
     "qp": "nominal",
     "qp-oracle": "true",
-    "calib-qp": "structure",
+    "calib-qp": "nominal",
     "zero": "none",
     "random": "none",
 }
@@ -131,3 +131,56 @@ def test_bad_values_and_specs_fail_naming_what_is_accepted():
         knowledge_of("nnbc-plus:formulation=whole")
     with pytest.raises(ValueError, match=r"neither a known policy nor an importable module"):
         knowledge_of("no_such_module_xyz:Thing")
+
+
+# --- the classes are enforced: a built-in is built from a view holding what its class may read (policies.views) --
+def test_a_view_answers_only_what_its_class_may_read():
+    import gymnasium as gym
+
+    from policies.views import ALLOWED, KnowledgeError, KnowledgeView
+
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
+    env.reset(seed=0)
+    base = env.unwrapped
+    for cls, readable in ALLOWED.items():
+        view = KnowledgeView(base, cls)
+        assert view.dt == base.dt and view.unwrapped is view
+        for name in ("nominal_params", "true_params", "sim", "_batch", "model_error"):
+            if name in readable:
+                assert getattr(view, name) is not None
+            else:
+                with pytest.raises(KnowledgeError, match=f"knowledge class '{cls}' read the env's '{name}'"):
+                    getattr(view, name)
+        with pytest.raises(KnowledgeError, match="read-only"):
+            view.dt = 0.5
+    env.close()
+
+
+@pytest.mark.parametrize("name", sorted(policies.KNOWN_POLICIES))
+def test_every_built_in_is_built_from_the_view_of_the_class_it_reports(name):
+    """The class a built-in is built with equals the one it reports (none and structure read the same), so a
+    label cannot claim less than the controller reads (release 0.3's calib-qp read the catalogue as `structure`)."""
+    from policies import registry
+
+    entry = registry._REGISTRY[name]
+    config = registry.build_config(registry._load_entry(name, entry)[1], dict(entry.preset), name)
+    built_with = registry.view_class(entry, config)
+    reported = policies.knowledge_of(name)
+    assert built_with == ("none" if reported == "structure" else reported)
+
+
+def test_a_controller_built_below_its_class_gets_no_model(monkeypatch):
+    """calib-qp built as class none (its registry entry changed) receives no catalogue and fails at once."""
+    import dataclasses
+
+    import gymnasium as gym
+
+    from policies import registry
+
+    monkeypatch.setitem(
+        registry._REGISTRY, "calib-qp", dataclasses.replace(registry._REGISTRY["calib-qp"], model="none")
+    )
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
+    with pytest.raises((TypeError, ValueError), match="nominal_params"):
+        policies.make("calib-qp", env)
+    env.close()

@@ -39,7 +39,7 @@ BUILTIN_COLORS: dict[str, str] = {
     "oracle-full": "#aec7e8",
     "qp": "#8c564b",  # brown
     "qp-oracle": "#17becf",  # cyan
-    "calib-qp": "#c49c94",  # light brown: the qp family's light shade (line style dash-dot: class structure)
+    "calib-qp": "#c49c94",  # light brown: the qp family's light shade (line style: its class, nominal)
     "zero": "#7f7f7f",  # grey
     "random": "#c7c7c7",
 }
