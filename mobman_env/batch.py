@@ -100,7 +100,7 @@ class RobotBatch:
         self.paths: list[Any] = [None] * num
         self.hashes: list[str] = [""] * num
         self._noise: list[np.ndarray | None] = [None] * num
-        self.noisy: list[int] = []  # rows with a noise plan
+        self._noisy = np.zeros(num, dtype=bool)  # the rows with a noise plan
 
     # --- episodes -----------------------------------------------------------------------------------------
     def begin(self, i: int, params: RobotParams, q0: np.ndarray, pose: np.ndarray, cond: dict) -> None:
@@ -120,7 +120,7 @@ class RobotBatch:
         p[E.P_SYAW] = cond["obs_noise_yaw"]
         plan = self._noise[i] = noise_plan(m, cond)
         p[E.P_NOISY] = 0.0 if plan is None else 1.0
-        self.noisy = [r for r in range(self.num) if self._noise[r] is not None]
+        self._noisy[i] = plan is not None  # row i only: a reset of N rows is linear in N (see `noisy`)
         s = self.st[i]
         s[:] = 0.0
         s[E.s_q(m) : E.s_q(m) + m] = q0
@@ -180,17 +180,28 @@ class RobotBatch:
             return p0
         return p0.scaled(1.0 + self.wear[i] * (self.steps(i) * self.dt))
 
+    @property
+    def noisy(self) -> np.ndarray:
+        """The rows with a noise plan, ascending. Derived from a mask that `begin` sets for its own row: the list
+        was once rebuilt over all N rows by every row's `begin`, so a reset of N robots did N^2 work (16,384
+        robots took 59-113 s; tests/test_vector_env.py counts the work of a reset at two sizes)."""
+        return np.flatnonzero(self._noisy)
+
     def draw_noise(self, rows: Any, rngs: Any) -> None:
         """The standard normals of this step's noise of the noisy rows among `rows` (each from its generator,
-        `rngs[i]`), in each row's draw order."""
-        if not self.noisy:
+        `rngs[i]`), in each row's draw order; O(N)."""
+        if not self._noisy.any():
             return
+        chosen = self._noisy
+        if len(rows) != self.num:
+            chosen = np.zeros(self.num, dtype=bool)
+            chosen[np.asarray(rows, dtype=np.intp)] = True
+            chosen &= self._noisy
         io = self.io
-        rowset = None if len(rows) == self.num else set(np.asarray(rows).tolist())
-        for i in self.noisy:
+        for i in np.flatnonzero(chosen).tolist():
             cols = self._noise[i]
-            if cols is not None and (rowset is None or i in rowset):
-                io[i, cols] = rngs[i].standard_normal(len(cols))
+            assert cols is not None  # a noisy row has a plan
+            io[i, cols] = rngs[i].standard_normal(len(cols))
 
     # --- kinematic mode -----------------------------------------------------------------------------------------
     def ee_kinematic(self, rows: np.ndarray) -> np.ndarray:

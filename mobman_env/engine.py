@@ -41,7 +41,7 @@ height stays.
 7. the target r_d(t), the error ||r_d - r_a||, the reward terms, the observation (noise, float32, clipped into
    the bounds, delayed).
 
-May import: numpy, numba, the standard library.
+May import: numpy, numba (through `mobman_env.numba_cache`), the standard library.
 """
 
 from __future__ import annotations
@@ -49,7 +49,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from mobman_env.numba_cache import njit
 
 # --- layouts ------------------------------------------------------------------------------------------------
 #: rows of `arm`

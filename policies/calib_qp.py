@@ -7,7 +7,7 @@ writes the current estimate of the robot's lengths into the packed model rows of
 numbers in its row). The rows start from the catalogue (`nominal_params`, read at every episode start: for the
 random arm family, the episode's drawn design) and are calibrated from the measured end-effector and mount
 positions and velocities, the heading and the joint readings. May import numpy, numba, `mobman_env` (engine,
-params, validation) and `policies.base`, `.batched`, `.qp`.
+params, validation, numba_cache) and `policies.base`, `.batched`, `.qp`.
 
 Knowledge class `nominal` (DESIGN, release 0.4; labelled `structure` in 0.3): the estimator reads the catalogue,
 the object class `nominal` reads (`policies.views`): the kind of chain (its joint axes, twists and offsets, which DH
@@ -92,9 +92,9 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from mobman_env import engine as E
+from mobman_env.numba_cache import njit
 from mobman_env.params import slot_name
 from mobman_env.validation import number
 from policies.base import EnvFacts, reject_extra

@@ -21,9 +21,9 @@ from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from mobman_env import engine as E
+from mobman_env.numba_cache import njit
 
 _THIRD_TURN = 2.0 * math.pi / 3.0
 

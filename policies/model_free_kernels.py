@@ -28,7 +28,7 @@ J_dot (3 x n) at 3n, then the kind's own state: the Kalman filter's [X; P] ((3 +
 innovation mean square, R and R's estimate; the structured estimate adds the heading, its rate, cos/sin, the lever,
 its rate, the platform's velocity, the wheel map M (3 x 2) and its covariance (a, b, d); RLS its P (n x n).
 
-May import: numpy, numba, the standard library.
+May import: numpy, numba (through `mobman_env.numba_cache`), the standard library.
 """
 
 from __future__ import annotations
@@ -36,7 +36,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from mobman_env.numba_cache import njit
 
 KALMAN, STRUCTURED, BROYDEN, RLS = 0, 1, 2, 3
 SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one RNG call per row)

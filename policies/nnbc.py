@@ -101,8 +101,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from mobman_env.numba_cache import njit
 from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
 from policies.kernels import ModelJacobians, damped_pinv_apply_rows

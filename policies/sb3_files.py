@@ -17,8 +17,9 @@ the module and attribute:
   decoded with the restricted unpickler (`ALLOWED_MODEL`: SB3 policy and feature-extractor classes,
   gymnasium spaces, torch activation and optimiser classes, and numpy data). The weights (`*.pth`) are read
   by SB3 with `torch.load(..., weights_only=True)`. The zip's `data` entry may inflate to at most
-  `MAX_MODEL_DATA_BYTES`, all entries together to `MAX_MODEL_ZIP_BYTES`; a statistics file must be a regular
-  file of at most `MAX_STATS_BYTES`.
+  `MAX_MODEL_DATA_BYTES`, all entries together to `MAX_MODEL_ZIP_BYTES`, counting the records of the archives
+  inside it (torch's `policy.pth`), read from their central directories before anything is inflated
+  (`check_nested_zip_sizes`); a statistics file must be a regular file of at most `MAX_STATS_BYTES`.
 
 Where the files are (`find_run`): a mobman-train or plain SB3 folder holds `model.zip` and, optionally, the
 statistics under mobman's name `vecnormalize.pkl` or `VecNormalize.save`'s conventional `vec_normalize.pkl`
@@ -57,6 +58,7 @@ from policies.untrusted import (
     VEC_NORMALIZE,
     FileRefused,
     UnsafePickleError,
+    check_nested_zip_sizes,
     check_zip_sizes,
     load_pickle,
     read_regular,
@@ -193,6 +195,7 @@ def read_zip_data(path: Path) -> dict[str, Any]:
     try:
         with zipfile.ZipFile(path) as zf:
             check_zip_sizes(zf, path, {"data": MAX_MODEL_DATA_BYTES}, MAX_MODEL_ZIP_BYTES)
+            check_nested_zip_sizes(zf, path, MAX_MODEL_ZIP_BYTES)
             data = json.loads(zf.read("data"))
     except FileRefused:
         raise

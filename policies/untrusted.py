@@ -296,3 +296,41 @@ def file_sha256(path: Path) -> str:
         for block in iter(lambda: f.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+#: The local-file-header signature a zip archive starts with (torch saves `policy.pth` as such an archive).
+_ZIP_MAGIC = b"PK\x03\x04"
+
+
+def check_nested_zip_sizes(zf: zipfile.ZipFile, path: Path, total: int) -> None:
+    """Refuse a zip whose entries that are themselves zip archives declare records that inflate, together with
+    the outer entries, to more than `total` bytes (`FileRefused` naming the file, the entry and the cap).
+
+    Why: torch saves `policy.pth` as a zip inside model.zip and `torch.load` inflates each of its records to
+    the size the inner archive declares; a 3.6 MB model.zip whose `policy.pth` declared one 2 GiB record of
+    zeros took 52 s and 2.4 GB before torch refused it, though `check_zip_sizes` (the outer sizes) passed it.
+    How, without inflating any inner record: each outer entry is opened as a stream (`ZipFile.open`: seekable,
+    read in chunks of at most 16 MiB, and at most its own declared size, which `check_zip_sizes` capped);
+    one starting with the zip signature is parsed as a zip, which reads only its end record and central
+    directory, whose declared sizes are summed. One level: torch nests no archive inside the inner one. An
+    entry that starts like a zip but is not one is refused (nothing could bound what a reader makes of it)."""
+    declared = sum(info.file_size for info in zf.infolist())
+    for info in zf.infolist():
+        with zf.open(info) as entry:
+            if entry.read(len(_ZIP_MAGIC)) != _ZIP_MAGIC:
+                continue
+            entry.seek(0)
+            try:
+                with zipfile.ZipFile(entry) as inner:
+                    size = sum(record.file_size for record in inner.infolist())
+            except (zipfile.BadZipFile, ValueError, OSError) as exc:
+                raise FileRefused(
+                    f"{path}: entry {info.filename!r} starts like a zip archive but is not one ({exc}): copy the "
+                    f"file again from the training run"
+                ) from None
+        declared += size
+        if declared > total:
+            raise FileRefused(
+                f"{path}: entry {info.filename!r} is an archive whose records inflate to {size} bytes (all entries "
+                f"together: {declared}); at most {total} are read: copy the file again from the training run"
+            )

@@ -3,6 +3,7 @@
 it names (fix: run that command, or rerun the experiment and commit its output)."""
 
 import json
+import os
 import re
 from pathlib import Path
 
@@ -11,6 +12,7 @@ import pytest
 from eval.cli import main
 from eval.cli.readme import render
 from eval.errors import EvalError
+from eval.output.blocks import escape_copied, replace_blocks
 from eval.output.readme import render_generated
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -128,3 +130,131 @@ def test_readme_keeps_a_symlinked_page_and_its_mode(tmp_path, argv):
     assert main([*argv, str(page)]) == 0
     assert page.is_symlink() and "old" not in real.read_text()
     assert real.stat().st_mode & 0o777 == 0o640
+
+
+#: a section copied from a hostile (or careless) source: markers that would end or open a block, HTML, an entity,
+#: and the same inside a code span and a fenced block
+HOSTILE = (
+    "## T\n\nbefore <!-- generated:end --> after <script>alert(1)</script> &amp; <img src=x onerror=alert(2)>\n"
+    "<!-- generated:end -->\n<!-- generated:begin other.md T -->\n"
+    "code: `<!-- generated:end --> <b>`, plain: a <= 6 mm, b -> c, R & D\n"
+    "```\n<!-- generated:end -->\n<i>fenced</i>\n```\n"
+)
+
+
+def _hostile_page(tmp_path) -> Path:
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "summary.md").write_text(HOSTILE)
+    page = tmp_path / "page.md"
+    page.write_text("top\n<!-- generated:begin summary.md T -->\nold\n<!-- generated:end -->\nbottom\n")
+    return page
+
+
+def test_copied_text_cannot_close_its_block_or_inject_html_and_renders_the_same_twice(tmp_path, capsys):
+    """Pass 3's RD4: a section holding `<!-- generated:end -->` closed its block early and the rest of the body
+    grew after it on every render. Copied text is escaped: no tag, comment or entity of the source reaches the
+    page (outside code as entities, inside code a zero-width space after `<!`), and a second render changes
+    nothing."""
+    page = _hostile_page(tmp_path)
+    assert main(["readme", str(page)]) == 0
+    once = page.read_text()
+    assert main(["readme", str(page)]) == 0 and page.read_text() == once  # idempotent
+    assert main(["readme", "--check", str(page)]) == 0
+    body = once.split("<!-- generated:begin summary.md T -->\n", 1)[1]
+    body, rest = body.split("\n<!-- generated:end -->", 1)
+    assert rest == "\nbottom\n" and once.startswith("top\n")
+    for raw in ("<script", "<img", "<!-- generated", " &amp; "):
+        assert raw not in body, raw
+    assert "&lt;script>alert(1)&lt;/script>" in body and "&amp;amp;" in body
+    assert "`<!\u200b-- generated:end --> <b>`" in body and "\n<!\u200b-- generated:end -->\n<i>fenced</i>\n" in body
+    assert "a <= 6 mm, b -> c, R & D" in body  # plain text that starts no markup stays as written
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_bench_block_escapes_what_the_scorecard_names(tmp_path, monkeypatch):
+    from eval.bench import scorecard
+
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "scorecard.json").write_text((ROOT / "docs/results/bench-v2-dev/scorecard.json").read_text())
+    monkeypatch.setattr(scorecard, "readme_markdown", lambda sc: "| <img src=x> |\n<!-- bench:end -->\nx\n")
+    page = "<!-- bench:begin scorecard.json -->\nold\n<!-- bench:end -->\n"
+    once = scorecard.render_readme(page, tmp_path)[0]
+    assert (
+        once
+        == "<!-- bench:begin scorecard.json -->\n| &lt;img src=x> |\n&lt;!-- bench:end -->\nx\n<!-- bench:end -->\n"
+    )
+    assert scorecard.render_readme(once, tmp_path)[0] == once
+
+
+@pytest.mark.parametrize(
+    ("page", "match"),
+    [
+        ("<!-- generated:begin s.md T -->\nold\n", "line 1: the generated block begun there has no line"),
+        ("a\n<!-- generated:end -->\n", "line 2: '<!-- generated:end -->' closes no block"),
+        (
+            "<!-- generated:begin s.md T -->\n<!-- generated:begin s.md T -->\n<!-- generated:end -->\n",
+            "line 2: a generated block begins inside the one begun on line 1",
+        ),
+        ("<!-- generated:begin s.md T\n<!-- generated:end -->\n", "line 1: .* does not end with ' -->'"),
+        ("<!-- generated:begin s.md -->\n<!-- generated:end -->\n", "write '<!-- generated:begin PATH SECTION -->'"),
+    ],
+    ids=["no-end", "no-begin", "nested", "open-marker", "no-section"],
+)
+def test_malformed_blocks_are_refused_naming_the_line(tmp_path, capsys, page, match):
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "s.md").write_text("## T\n\nx\n")
+    (tmp_path / "page.md").write_text(page)
+    assert main(["readme", str(tmp_path / "page.md")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err) and "Traceback" not in err, err
+    assert (tmp_path / "page.md").read_text() == page  # nothing written
+
+
+@pytest.mark.parametrize("which", ["page", "source", "bench page"])
+def test_a_page_or_source_that_is_not_utf8_is_refused(tmp_path, capsys, which):
+    """Pass 3's RD5: a page in Latin-1 gave a UnicodeDecodeError traceback (`readme` and `bench --render-readme`)."""
+    page = _hostile_page(tmp_path)
+    target = tmp_path / "summary.md" if which == "source" else page
+    target.write_bytes(target.read_bytes().replace(b"top", b"caf\xe9").replace(b"## T\n", b"## T\n\xff\n"))
+    before = page.read_bytes()
+    argv = ["bench", "--render-readme", str(page)] if which == "bench page" else ["readme", str(page)]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"{target}: the {'source file' if which == 'source' else 'page'} is not UTF-8 text (byte 0x" in err, err
+    assert "save it as UTF-8" in err and "Traceback" not in err
+    assert page.read_bytes() == before
+
+
+def test_a_page_that_is_a_fifo_is_refused_not_read(tmp_path, capsys):
+    fifo = tmp_path / "page.md"
+    os.mkfifo(fifo)
+    assert main(["readme", str(fifo)]) == 2
+    err = capsys.readouterr().err
+    assert "is a FIFO, not a regular file" in err and "Traceback" not in err
+
+
+@pytest.mark.timeout(120)
+def test_a_hostile_megabyte_page_is_parsed_in_one_pass(tmp_path, capsys):
+    """A 672 KB page of begin markers without an end took 284 s (the regular expression rescanned the rest of the
+    page from every marker); the blocks are now found in one pass over the lines, so a 1 MB page is refused at
+    its second line (the old code would not finish within the timeout)."""
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "s.md").write_text("## T\n\nx\n")
+    line = "<!-- generated:begin s.md T -->\n"
+    page = tmp_path / "page.md"
+    page.write_text(line * (2**20 // len(line)))
+    assert main(["readme", str(page)]) == 2
+    assert "line 2: a generated block begins inside the one begun on line 1" in capsys.readouterr().err
+    text, count = replace_blocks("x<!-- generated:begin s.md T -->\n" * (2**20 // 33), "generated", str)
+    assert count == 0 and len(text) > 2**20 - 64  # markers mid-line are text: nothing to rebuild
+
+
+@pytest.mark.timeout(120)
+def test_a_hostile_megabyte_of_backticks_is_escaped_in_one_pass():
+    """Code spans are paired in one pass (each run of backticks with the next run of the same length): 1 MB of
+    runs of every length is escaped, and no comment opener survives, in code or out."""
+    runs = "".join("`" * (k % 500 + 1) + "<!--" for k in range(4000))
+    text = (runs + "\n") * (2**20 // (len(runs) + 1) + 1)
+    out = escape_copied(text)
+    assert len(text) > 2**20 and "<!--" not in out
+    assert escape_copied("`<!--` <!--") == "`<!\u200b--` &lt;!--"

@@ -79,3 +79,37 @@ def test_first_sentence(tmp_path):
     assert first_sentence(f, "m") == "`m`: does x (eqs. (7)-(15)), i.e. y."
     f.write_text('"""pkg.m: a module. `Other` text."""\n')
     assert first_sentence(f, "pkg.m") == "a module."
+
+
+def test_a_docstring_cannot_end_the_layout_block_or_inject_html(tmp_path):
+    """A docstring's first sentence is copied into a table cell: a `<!-- layout:end -->` in it closed the block
+    early and the page grew on every render; it is escaped, and a second render changes nothing."""
+    repo = _repo(tmp_path)
+    (repo / "pkg" / "evil.py").write_text('"""Evil <!-- layout:end --> <img src=x onerror=alert(1)> `<!-- x -->`."""\n')
+    doc = repo / "doc.md"
+    assert main(["readme", str(doc)]) == 0
+    once = doc.read_text()
+    assert main(["readme", str(doc)]) == 0 and doc.read_text() == once
+    assert "| `evil` | Evil &lt;!-- layout:end --> &lt;img src=x onerror=alert(1)> `<!\u200b-- x -->`. |" in once
+    assert once.count("<!-- layout:end -->") == 1
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (b'"""Broken."""\ndef f(:\n', r"pkg/bad.py is not Python source \(SyntaxError"),
+        (b'"""Caf\xe9."""\n', r"pkg/bad.py: the module is not UTF-8 text \(byte 0xe9 at offset 6\)"),
+        (b'"""Nul."""\n\x00\n', r"pkg/bad.py is not Python source"),
+    ],
+    ids=["syntax", "latin-1", "nul"],
+)
+def test_a_malformed_module_is_named_not_a_traceback(tmp_path, capsys, content, match):
+    import re
+
+    repo = _repo(tmp_path)
+    (repo / "pkg" / "bad.py").write_bytes(content)
+    before = (repo / "doc.md").read_text()
+    assert main(["readme", str(repo / "doc.md")]) == 2
+    err = capsys.readouterr().err
+    assert re.search(match, err) and "Traceback" not in err, err
+    assert (repo / "doc.md").read_text() == before

@@ -48,6 +48,7 @@ from typing import Any
 from eval import metrics as M
 from eval.bench.config import ROBOTS, conditions_markdown
 from eval.errors import EvalError
+from eval.output.blocks import replace_blocks
 from eval.output.files import to_jsonable
 from eval.output.precision import CHAOTIC, CHAOTIC_NOTE, SIGNIFICANT_DIGITS, format_mm, is_chaotic
 from eval.output.provenance import git_rev, provenance, versions
@@ -557,23 +558,32 @@ def scorecard_figures(sc: dict) -> list[tuple[str, Any]]:
 
 # --- the README ------------------------------------------------------------------------------------------
 
-#: `<!-- bench:begin docs/results/x/scorecard.json -->` ... `<!-- bench:end -->` (path relative to the README)
+#: `<!-- bench:begin docs/results/x/scorecard.json -->` ... `<!-- bench:end -->` (path relative to the README; for
+#: reading a committed page: rendering finds the blocks in one pass, `eval.output.blocks.replace_blocks`)
 README_BLOCK = re.compile(r"(<!-- bench:begin (?P<path>\S+) -->\n)(?P<body>.*?)(<!-- bench:end -->)", re.S)
 
 
 def render_readme(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
     """`text` with every bench block regenerated from the scorecard it names (relative to `root`, inside the
     page's repository `repo`: `eval.output.readme.source_path`), and the paths of those scorecards. EvalError
-    when a block names a missing file or one outside the repository, or no block exists."""
+    when a block names a missing file or one outside the repository or one it cannot render, or no block
+    exists. The scorecard's names are escaped on their way into the page (`eval.output.blocks`)."""
     root = Path(root)
     found: list[str] = []
 
-    def sub(m: re.Match) -> str:
-        found.append(m.group("path"))
-        body = readme_markdown(load_scorecard(source_path(root, m.group("path"), repo)))
-        return m.group(1) + body + m.group(4)
+    def rebuild(rel: str) -> str:
+        found.append(rel)
+        path = source_path(root, rel, repo)
+        sc = load_scorecard(path)
+        try:
+            return readme_markdown(sc)
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise EvalError(
+                f"{rel}: a scorecard whose rows this mobman cannot render ({type(exc).__name__}: {exc}); write it "
+                f"again with `mobman-eval bench` (or restore the committed file)"
+            ) from None
 
-    new = README_BLOCK.sub(sub, text)
+    new = replace_blocks(text, "bench", rebuild)[0]
     if not found:
         raise EvalError(
             "no bench block in the README; add '<!-- bench:begin PATH/scorecard.json -->' and "

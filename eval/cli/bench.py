@@ -25,6 +25,7 @@ from eval.cli.options import Opt, add_options, build, given, values
 from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.output.files import atomic_rewrite_text
+from eval.output.readme import read_text
 from eval.sweep.config import SweepRun
 
 
@@ -98,10 +99,9 @@ def main(args) -> int:
         return 0
     if actions.render_readme:
         path = Path(actions.render_readme)
-        try:
-            text = path.read_text()
-        except OSError as exc:
-            raise EvalError(f"cannot read {str(path)!r}: {exc}") from None
+        if not path.exists():
+            raise EvalError(f"cannot read {str(path)!r}: no such file")
+        text = read_text(path, "page")  # a regular UTF-8 file of at most MAX_PAGE_BYTES
         new, used = render_readme(text, path.parent)
         if new != text:
             atomic_rewrite_text(path, new)

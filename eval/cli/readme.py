@@ -4,17 +4,20 @@ Markdown files mobman wrote (`eval.output.readme`), layout blocks from the sourc
 
 from __future__ import annotations
 
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 
-from eval.bench.scorecard import README_BLOCK as BENCH_BLOCK
 from eval.bench.scorecard import render_readme as render_bench
 from eval.cli.options import Opt, add_options, build
 from eval.errors import EvalError
 from eval.output.files import atomic_rewrite_text
 from eval.output.layout import render_layout
-from eval.output.readme import render_generated
+from eval.output.readme import read_text, render_generated
+
+#: a line that begins a bench block (a search anchored at line starts: linear in the page)
+BENCH_BEGIN = re.compile(r"^<!-- bench:begin ", re.M)
 
 
 @dataclass(frozen=True)
@@ -43,7 +46,7 @@ def render(text: str, root: Path) -> tuple[str, list[str]]:
     """`text` with every bench, generated and layout block regenerated, and what they were made from (results
     files, package folders)."""
     used: list[str] = []
-    if BENCH_BLOCK.search(text):
+    if BENCH_BEGIN.search(text):
         text, bench = render_bench(text, root)
         used += bench
     text, generated = render_generated(text, root)
@@ -60,9 +63,9 @@ def main(args) -> int:
     stale = []
     for name in command.files:
         path = Path(name)
-        if not path.is_file():
+        if not path.exists():
             raise EvalError(f"{name}: no such file")
-        text = path.read_text(encoding="utf-8")
+        text = read_text(path, "page")
         new, used = render(text, path.resolve().parent)
         state = "up to date" if new == text else ("stale" if command.check else "updated")
         if new != text:

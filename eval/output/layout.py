@@ -22,9 +22,11 @@ import re
 from pathlib import Path
 
 from eval.errors import EvalError
-from eval.output.readme import source_path
+from eval.output.blocks import replace_blocks
+from eval.output.readme import read_text, source_path
 
-#: `<!-- layout:begin PACKAGE... -->` ... `<!-- layout:end -->`
+#: `<!-- layout:begin PACKAGE... -->` ... `<!-- layout:end -->` (for reading a committed page: rendering finds
+#: the blocks in one pass, `eval.output.blocks.replace_blocks`)
 LAYOUT_BLOCK = re.compile(r"(<!-- layout:begin (?P<packages>[^>]*?) -->\n)(?P<body>.*?)(<!-- layout:end -->)", re.S)
 #: the end of a docstring's first sentence: a full stop before a capital or a code span (not after e.g., i.e., vs)
 _SENTENCE_END = re.compile(r"(?<!e\.g)(?<!i\.e)(?<!\bvs)\.(?=\s+[A-Z`])")
@@ -32,8 +34,13 @@ _SENTENCE_END = re.compile(r"(?<!e\.g)(?<!i\.e)(?<!\bvs)\.(?=\s+[A-Z`])")
 
 def first_sentence(path: Path, name: str) -> str:
     """The first sentence of the module docstring of `path` (its first paragraph, whitespace collapsed), without
-    a leading `name:` that repeats the module's name; EvalError when the module has no docstring."""
-    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8")))
+    a leading `name:` that repeats the module's name; EvalError when the module has no docstring or is not
+    Python source (the module is parsed, never imported)."""
+    source = read_text(path, "module")
+    try:
+        doc = ast.get_docstring(ast.parse(source, filename=str(path)))
+    except (SyntaxError, ValueError) as exc:
+        raise EvalError(f"{path} is not Python source ({type(exc).__name__}: {exc}); fix the module") from None
     if not doc:
         raise EvalError(f"{path} has no module docstring; the Layout shows its first sentence, so write one")
     paragraph = " ".join(doc.split("\n\n")[0].split())
@@ -76,19 +83,20 @@ def package_table(package: Path) -> str:
 
 def render_layout(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
     """`text` with every layout block rebuilt from the package folders it names (relative to `root`, inside
-    `repo`), and those folders (each once, in order)."""
+    `repo`), and those folders (each once, in order); the blocks are found and their text escaped by
+    `eval.output.blocks.replace_blocks`."""
     root = Path(root)
     found: list[str] = []
 
-    def sub(m: re.Match) -> str:
+    def rebuild(packages: str) -> str:
         tables = []
-        for rel in m.group("packages").split():
+        for rel in packages.split():
             folder = source_path(root, rel, repo)
             if not folder.is_dir():
                 raise EvalError(f"a layout block names {rel}, which is not a folder (relative to {root})")
             tables.append(package_table(folder))
             if rel not in found:
                 found.append(rel)
-        return m.group(1) + "\n".join(tables) + m.group(4)
+        return "\n".join(tables)
 
-    return LAYOUT_BLOCK.sub(sub, text), found
+    return replace_blocks(text, "layout", rebuild)[0], found

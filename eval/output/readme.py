@@ -11,8 +11,10 @@ A block is
 ```
 
 with the path relative to the file that holds the block and the section title after it (the rest of the line;
-`*` for the whole file). `render_generated(text, root)` regenerates every block; `mobman-eval readme FILE`
-writes the result, and a test keeps the README equal to it.
+`*` for the whole file). `render_generated(text, root)` regenerates every block (`eval.output.blocks`: one pass
+over the page, the copied text escaped so that it cannot end its block or inject HTML); `mobman-eval readme
+FILE` writes the result, and a test keeps the README equal to it. Pages and sources are read with `read_text`:
+a regular file of at most `MAX_PAGE_BYTES`, UTF-8, else `EvalError` naming the file and the fix.
 
 A page copies only from its own repository (`source_path`): the path a block names, symlinks resolved, must lie
 inside the page's repository (the nearest folder above it holding `.git` or `pyproject.toml`, else the page's
@@ -21,15 +23,14 @@ folder), so that a block naming `/etc/passwd` or `../../x` cannot copy a file fr
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 
 from eval.errors import EvalError
+from eval.output.blocks import replace_blocks
+from policies.untrusted import FileRefused, read_regular
 
-#: `<!-- generated:begin PATH SECTION -->` ... `<!-- generated:end -->`
-GENERATED_BLOCK = re.compile(
-    r"(<!-- generated:begin (?P<path>\S+) (?P<section>[^>]*?) -->\n)(?P<body>.*?)(<!-- generated:end -->)", re.S
-)
+#: the largest page or source file `mobman-eval readme` reads (the README is about 60 kB)
+MAX_PAGE_BYTES = 16 * 2**20
 
 
 #: what marks a repository's top folder: a git checkout (`.git`, a folder or a worktree's file), or a source tree
@@ -74,24 +75,45 @@ def markdown_section(text: str, title: str) -> str:
     return (body if end < 0 else body[:end]).strip() + "\n"
 
 
+def read_text(path: Path, what: str) -> str:
+    """The text of a page or source file: a regular file of at most `MAX_PAGE_BYTES` holding UTF-8; EvalError
+    naming the file, what is wrong and the fix otherwise (a FIFO is never opened, a device never read)."""
+    try:
+        data = read_regular(Path(path), MAX_PAGE_BYTES, what)
+    except FileRefused as exc:
+        raise EvalError(str(exc)) from None
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise EvalError(
+            f"{path}: the {what} is not UTF-8 text (byte {data[exc.start]:#04x} at offset {exc.start}); save it "
+            f"as UTF-8"
+        ) from None
+
+
 def render_generated(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
     """`text` with every generated block rebuilt from the file it names (relative to `root`, inside `repo`:
     `source_path`), and the paths of those files (each once, in order). EvalError when a block names a missing
-    file or section, or a file outside the repository."""
+    file or section, or a file outside the repository, or when the blocks are malformed (`replace_blocks`)."""
     root = Path(root)
     found: list[str] = []
 
-    def sub(m: re.Match) -> str:
-        rel = m.group("path")
+    def rebuild(args: str) -> str:
+        rel, _, section = args.partition(" ")
+        if not rel or not section.strip():
+            raise EvalError(
+                f"a generated block names {args!r}; write '<!-- generated:begin PATH SECTION -->' (SECTION: a "
+                f"'## ' heading of PATH, or * for the whole file)"
+            )
         path = source_path(root, rel, repo)
         if not path.is_file():
             raise EvalError(f"a generated block names {rel}, which does not exist (relative to {root})")
         try:
-            body = markdown_section(path.read_text(encoding="utf-8"), m.group("section"))
+            body = markdown_section(read_text(path, "source file"), section.strip())
         except EvalError as exc:
             raise EvalError(f"{rel}: {exc}") from None
         if rel not in found:
             found.append(rel)
-        return m.group(1) + body + m.group(5)
+        return body
 
-    return GENERATED_BLOCK.sub(sub, text), found
+    return replace_blocks(text, "generated", rebuild)[0], found

@@ -1,0 +1,72 @@
+"""numba's on-disk cache of the kernels (`mobman_env.numba_cache`): a damaged index or data file is removed and
+the kernel compiled again, with one line on stderr naming the file, instead of a numba traceback in every later
+process. Each run uses its own `NUMBA_CACHE_DIR` (the package's real cache is never touched) and one tiny
+kernel (compiled in about a second)."""
+
+from __future__ import annotations
+
+import importlib
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+KERNEL = """\
+from mobman_env.numba_cache import njit
+
+
+@njit(cache=True)
+def add(a, b):
+    return a + b
+
+
+print(add(1, 2))
+"""
+
+
+def _run(folder: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(folder / "cache"), "PYTHONPATH": f"{ROOT}{os.pathsep}{folder}"}
+    return subprocess.run(
+        [sys.executable, str(folder / "tiny.py")], capture_output=True, text=True, env=env, timeout=120, cwd=folder
+    )
+
+
+def _said(err: str) -> list[str]:
+    return [line for line in err.splitlines() if "numba's cache file" in line]
+
+
+def test_a_corrupt_cache_file_is_recompiled_and_said_once(tmp_path):
+    (tmp_path / "tiny.py").write_text(KERNEL)
+    first = _run(tmp_path)
+    assert first.returncode == 0 and first.stdout == "3\n", first.stderr
+    index = next((tmp_path / "cache").rglob("tiny.add-*.nbi"))
+    data = next((tmp_path / "cache").rglob("tiny.add-*.nbc"))
+    for damaged, damage in ((index, b"garbage"), (data, b"garbage"), (data, data.read_bytes()[:300])):
+        damaged.write_bytes(damage)
+        again = _run(tmp_path)
+        assert again.returncode == 0 and again.stdout == "3\n", again.stderr
+        assert "Traceback" not in again.stderr, again.stderr
+        said = _said(again.stderr)
+        assert len(said) == 1 and str(damaged) in said[0], again.stderr
+        assert "could not be loaded" in said[0] and f"add ({tmp_path / 'tiny.py'}) is compiled again" in said[0]
+        assert damaged.read_bytes() != damage  # written again by the recompile
+        quiet = _run(tmp_path)  # the next process loads the new file and says nothing
+        assert quiet.returncode == 0 and quiet.stdout == "3\n" and not _said(quiet.stderr), quiet.stderr
+
+
+@pytest.mark.parametrize(
+    "module",
+    ["mobman_env.engine", "policies.kernels", "policies.model_free_kernels", "policies.calib_qp", "policies.nnbc"],
+)
+def test_every_cached_kernel_recovers_from_a_corrupt_file(module):
+    from numba.core.dispatcher import Dispatcher
+
+    from mobman_env.numba_cache import CheckedFunctionCache
+
+    kernels = [v for v in vars(importlib.import_module(module)).values() if isinstance(v, Dispatcher)]
+    assert kernels
+    for kernel in kernels:
+        assert isinstance(kernel._cache, CheckedFunctionCache), kernel
