@@ -106,6 +106,8 @@ def run(config: EvalConfig, policies: dict[str, Any] | None = None) -> RunResult
             atomic_write_json(out / "config.json", _config_record(config, user, out))  # what --resume compares
             return _run(config, user, user_bytes, out, journal, tasks, done)
         except WriteError as exc:  # a full disk: say the command that resumes (the journal is kept)
+            if config.command != "run":  # `paper`, `speed` and train's evaluations have no --resume
+                raise
             again = f"resume: the same command with --out {out} --resume"
             resume = ("--out", str(out), "--resume")
             raise write_error(exc.path, exc.os_error, exc.kept, again=again, resume=resume) from None
@@ -179,7 +181,8 @@ def _run(
     if interrupted:
         raise RunInterrupted(
             f"interrupted: {len(finished)} of {len(records)} episodes finished; results written to {out} "
-            f'(the others have status "interrupted"; the same command with --out {out} --resume runs them)'
+            f'(the others have status "interrupted"'
+            + (f"; the same command with --out {out} --resume runs them)" if config.command == "run" else ")")
         )
     if config.video:
         written += write_videos(result, config, user)
