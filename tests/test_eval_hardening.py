@@ -686,3 +686,17 @@ def test_the_journal_of_a_run_is_kept_beside_its_results(tmp_path):
     lines = [json.loads(x) for x in (result.out / "episodes.jsonl").read_text().splitlines()]
     assert [r["seed"] for r in lines] == [e["seed"] for e in result.episodes]
     assert [r["max_error_m"] for r in lines] == [e["max_error_m"] for e in result.episodes]
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "--policy", "zero"], "mobman-eval run --policy zero --out 'runs/a b' --resume"),
+        (["run", "--out", "x", "--overwrite", "--quiet"], "mobman-eval run --quiet --out 'runs/a b' --resume"),
+        (["run", "--out=x", "--resume", "--seeds", "4"], "mobman-eval run --seeds 4 --out 'runs/a b' --resume"),
+    ],
+)
+def test_the_resume_command_replaces_out_and_drops_overwrite(argv, expected):
+    from eval.cli import resume_command
+
+    assert resume_command(argv, ("--out", "runs/a b", "--resume")) == expected
