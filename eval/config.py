@@ -38,6 +38,15 @@ class EvalConfig:
     """Output directory; None: `runs/<command>-<UTC timestamp>`."""
     overwrite: bool = False
     """Write into an existing non-empty `out` (files of the same name are replaced atomically)."""
+    resume: bool = False
+    """Continue the run in `out` where it stopped (a full disk, a kill): the episodes in its journal
+    (episodes.jsonl) are kept, the others run, then every file is written. The settings that change episodes
+    (env_kwargs, tolerance, settle_time) must be those of the run there; more envs, policies or seeds may be
+    added. The kept episodes have no per-step arrays, so their plots are missing."""
+    rerun_changed: bool = False
+    """With `resume`: run again the episodes the journal holds from other code than this (another mobman
+    version, an edited source); without it such a journal is refused: one result never mixes two code
+    versions."""
     workers: int = 1
     """Parallel episodes. Local backend: processes (one PyBullet client each; 1 runs in this process). Ray
     backend: the CPUs of the local Ray instance started for the run (ignored when this process already called
@@ -95,6 +104,10 @@ class EvalConfig:
 
     def validate(self) -> None:
         """Raise `EvalError` naming the bad value, the accepted ones and the fix."""
+        if self.resume and not self.out:
+            raise EvalError("--resume continues the run in --out DIR: name that folder (--out DIR --resume)")
+        if self.resume and self.overwrite:
+            raise EvalError("--resume keeps the episodes in --out, --overwrite starts over: pass one of them")
         if not self.envs:
             raise EvalError("no env given; pass at least one --env, e.g. --env WheeledPuma-Circle-v0")
         integer("episodes", self.episodes, low=1, hint="the number of seeds, e.g. --seeds 5", error=EvalError)

@@ -7,7 +7,13 @@ class EvalError(ValueError):
     that cannot be written (a full disk).
 
     The CLIs print it as `mobman-eval <command>: error: <message>` and exit with code 2; the message names the bad
-    value, what is accepted and the fix."""
+    value, what is accepted and the fix. `resume`: the options that continue the command where it stopped (e.g.
+    `("--out", "runs/x", "--resume")` after a full disk); the CLI then prints the exact command line that resumes
+    (the user's own, with these options in place of any earlier values of them)."""
+
+    def __init__(self, message: str = "", resume: tuple[str, ...] = ()):
+        super().__init__(message)
+        self.resume = tuple(resume)
 
 
 class RunInterrupted(KeyboardInterrupt):

@@ -614,10 +614,58 @@ def test_a_full_disk_while_journaling_stops_the_run_with_exit_2_and_keeps_what_w
     _Disk(monkeypatch, free=2)
     assert main([*RUN4, "--out", str(out), "--batch-size", batch_size, "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert f"cannot write {out / 'episodes.jsonl'} (No space left on device); free space and run again" in err, err
+    assert f"cannot write {out / 'episodes.jsonl'} (No space left on device); free space and resume" in err, err
     assert "Traceback" not in err
     lines = (out / "episodes.jsonl").read_text().splitlines()
     assert len(lines) == 2 and all(json.loads(x)["status"] == "ok" for x in lines)
+
+
+def _named_command(err: str) -> list[str]:
+    """The argv of the command a message names ("the command that resumes: mobman-eval ..."), for `main`."""
+    import shlex
+
+    line = err.split("the command that resumes: ", 1)[1].splitlines()[0]
+    argv = shlex.split(line)
+    assert argv[0] == "mobman-eval"
+    return argv[1:]
+
+
+@pytest.mark.parametrize("full_at", [None, "results.json"])
+def test_after_a_full_disk_the_command_the_message_names_finishes_the_run_without_rerunning_the_journaled(
+    tmp_path, capsys, monkeypatch, full_at
+):
+    """The disk fills while journaling (2 of 4 episodes kept) or at the report (all 4 journaled): the message
+    names the exact command that resumes; it finishes with every episode, the journaled ones kept as they were
+    (not run again: the journal gains only the missing episodes' lines)."""
+    out = tmp_path / "out"
+    _Disk(monkeypatch, free=None if full_at else 2, full_at=full_at)
+    assert main([*RUN4, "--out", str(out), "--batch-size", "1", "--quiet", "--overwrite"]) == 2
+    err = capsys.readouterr().err
+    assert "free space and resume: the same command with --out" in err and "Traceback" not in err, err
+    argv = _named_command(err)
+    assert "--resume" in argv and "--overwrite" not in argv
+    before = [json.loads(x) for x in (out / "episodes.jsonl").read_text().splitlines()]
+    monkeypatch.undo()  # the disk has room again
+    assert main(argv) == 0, capsys.readouterr().err
+    after = [json.loads(x) for x in (out / "episodes.jsonl").read_text().splitlines()]
+    assert after[: len(before)] == before
+    assert sorted(r["seed"] for r in after) == list(range(10_000, 10_004))  # each episode journaled once
+    res = json.loads((out / "results.json").read_text())
+    assert [e["seed"] for e in res["episodes"]] == list(range(10_000, 10_004))
+    assert all(e["status"] == "ok" for e in res["episodes"])
+    kept = {r["seed"]: r["wall_s"] for r in before}
+    assert all(e["wall_s"] == kept[e["seed"]] for e in res["episodes"] if e["seed"] in kept)
+
+
+def test_resume_refuses_a_folder_without_a_run_or_with_other_settings(tmp_path, capsys):
+    out = tmp_path / "out"
+    assert main([*RUN4, "--out", str(out), "--quiet", "--resume"]) == 2
+    assert f"--out '{out}' holds no run to resume (no episodes.jsonl); drop --resume" in capsys.readouterr().err
+    assert main([*RUN4, "--out", str(out), "--quiet", "--resume", "--overwrite"]) == 2
+    assert "--resume keeps the episodes in --out, --overwrite starts over" in capsys.readouterr().err
+    assert main([*RUN4, "--out", str(out), "--quiet"]) == 0
+    assert main([*RUN4, "--out", str(out), "--quiet", "--resume", "--tolerance", "0.01"]) == 2
+    assert "holds a run with other settings (tolerance: 0.006 there, 0.01 now)" in capsys.readouterr().err
 
 
 def test_a_full_disk_at_the_report_exits_2_naming_the_file_and_the_journal(tmp_path, capsys, monkeypatch):
@@ -625,8 +673,8 @@ def test_a_full_disk_at_the_report_exits_2_naming_the_file_and_the_journal(tmp_p
     _Disk(monkeypatch, full_at="results.json")
     assert main([*RUN4, "--out", str(out), "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert f"cannot write {out / 'results.json'} (No space left on device); free space and run again" in err, err
-    assert f"the 4 finished episodes are in {out / 'episodes.jsonl'}" in err and "Traceback" not in err
+    assert f"cannot write {out / 'results.json'} (No space left on device); free space and resume" in err, err
+    assert f"(the 4 finished episodes are in {out / 'episodes.jsonl'})" in err and "Traceback" not in err
     assert [json.loads(x)["seed"] for x in (out / "episodes.jsonl").read_text().splitlines()] == list(
         range(10_000, 10_004)
     )
@@ -638,3 +686,17 @@ def test_the_journal_of_a_run_is_kept_beside_its_results(tmp_path):
     lines = [json.loads(x) for x in (result.out / "episodes.jsonl").read_text().splitlines()]
     assert [r["seed"] for r in lines] == [e["seed"] for e in result.episodes]
     assert [r["max_error_m"] for r in lines] == [e["max_error_m"] for e in result.episodes]
+
+
+@pytest.mark.parametrize(
+    "argv, expected",
+    [
+        (["run", "--policy", "zero"], "mobman-eval run --policy zero --out 'runs/a b' --resume"),
+        (["run", "--out", "x", "--overwrite", "--quiet"], "mobman-eval run --quiet --out 'runs/a b' --resume"),
+        (["run", "--out=x", "--resume", "--seeds", "4"], "mobman-eval run --seeds 4 --out 'runs/a b' --resume"),
+    ],
+)
+def test_the_resume_command_replaces_out_and_drops_overwrite(argv, expected):
+    from eval.cli import resume_command
+
+    assert resume_command(argv, ("--out", "runs/a b", "--resume")) == expected

@@ -60,11 +60,16 @@ def test_unknown_schemas_and_files_are_refused(tmp_path):
         load_results(tmp_path / "bad.json")
 
 
-def test_a_schema_1_sweep_resumes(tmp_path):
+def test_a_schema_1_sweep_is_read_and_refused_on_resume_as_unknown_code_until_rerun(tmp_path):
+    """A sweep of mobman 0.1 still loads (its journal's records parse), but its episodes carry no `code`: the
+    code that ran them is unknown, so resuming is refused (one result never mixes two code versions) and
+    `rerun_changed` runs them again with this code beside the new seed."""
+    from eval.output.provenance import code_hash
+
     out = tmp_path / "sweep"
     shutil.copytree(FIXTURES / "sweep", out)
     old = [json.loads(line) for line in (out / "episodes.jsonl").read_text().splitlines()]
-    assert len(old) == 4 and "steady_max_error_m" not in old[0]  # written before schema 2
+    assert len(old) == 4 and "steady_max_error_m" not in old[0] and "code" not in old[0]  # before schema 2
     cfg = json.loads((out / "config.json").read_text())
     sweep = SweepConfig.from_dict(
         {
@@ -73,17 +78,15 @@ def test_a_schema_1_sweep_resumes(tmp_path):
             "seeds": [10000, 10001, 10002],
         }
     )
-    result = run_sweep(sweep, out, progress=False, plots=False)
-    assert (result.n_skipped, result.n_run, result.n_left) == (4, 2, 0)  # only the new seed ran
+    with pytest.raises(EvalError, match="holds 4 episode\\(s\\) run by other code than this: code unknown there"):
+        run_sweep(sweep, out, progress=False, plots=False)
+    result = run_sweep(sweep, out, rerun_changed=True, progress=False, plots=False)
+    assert (result.n_skipped, result.n_run, result.n_left) == (0, 6, 0)
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 3 and len(res["episodes"]) == 6
-    by_key = {(r["policy"], r["seed"]): r for r in res["episodes"]}
-    for r in old:  # the old episodes are kept as they were
-        assert by_key[(r["policy"], r["seed"])]["max_error_m"] == r["max_error_m"]
-    assert by_key[("jmpi", 10002)]["steady_max_error_m"] is not None
+    assert res["schema"] == 3 and len(res["episodes"]) == 6 and {r["code"] for r in res["episodes"]} == {code_hash()}
+    assert all(r["steady_max_error_m"] is not None for r in res["episodes"])
     for row in res["aggregate"]:
         assert row["n"] == 3 and row["max_error_m"]["iqm"] is not None
-        assert row["steady_max_error_m"]["median"] is not None  # over the one episode that has it
 
 
 def test_settle_time_flag_reaches_the_records(tmp_path):

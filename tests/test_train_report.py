@@ -491,6 +491,6 @@ def test_the_controllers_are_evaluated_again_when_their_code_changes(tmp_path, m
     calls.clear()
     R.build_report(cfg)
     assert calls == []  # nothing changed: everything from the cache
-    monkeypatch.setattr(R, "controller_source", lambda: "another source")
+    monkeypatch.setattr(R, "code_hash", lambda: "another source")
     R.build_report(cfg)
     assert calls == [("zero",)]  # the controllers again, the agent's evaluation still from its cache

@@ -43,6 +43,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from eval.metrics import DEFAULT_TOLERANCE
+from eval.output.provenance import code_hash
 from mobman_env.validation import folder_name, integer
 from policies.untrusted import file_sha256
 from train.curve import read_curve
@@ -345,33 +346,19 @@ def evaluate_run(config: ReportConfig, run: dict, out: Path) -> dict:
     return {"episodes": [_slim(r) for r in records], "command": eval_command(cfg)}
 
 
-def controller_source() -> str:
-    """SHA-256 over the source of the packages that compute a controller's episodes (`mobman_env`, `policies`):
-    part of the controllers' cache key, so a changed controller or env is evaluated again instead of being read
-    from an earlier report's cache (the key was the configuration alone before `nnbc-plus` v4 moved its actions,
-    and `mobman-train report` then carried v3's rows over)."""
-    import hashlib
-
-    import mobman_env
-    import policies
-
-    h = hashlib.sha256()
-    for package in (mobman_env, policies):
-        assert package.__file__ is not None  # (regular packages, not namespace ones)
-        root = Path(package.__file__).parent
-        for path in sorted(root.rglob("*.py")):
-            h.update(path.relative_to(root.parent).as_posix().encode())
-            h.update(path.read_bytes())
-    return h.hexdigest()
-
-
 def evaluate_controllers(config: ReportConfig, env_id: str, dynamics: str, out: Path) -> dict:
-    """The controllers on the reported episodes in one mode (cached while `controller_source()` is the same):
-    aggregate rows and slim records."""
+    """The controllers on the reported episodes in one mode (cached while `code_hash()` is the same):
+    aggregate rows and slim records.
+
+    The cache key holds the hash of the code (`eval.output.provenance.code_hash`, the one hash of "the code
+    that ran", over all four packages), so a changed controller, env or metric is evaluated again instead of
+    being read from an earlier report's cache (the key was the configuration alone before `nnbc-plus` v4 moved
+    its actions, and `mobman-train report` then carried v3's rows over; it hashed `mobman_env` and `policies`
+    alone until the code hash became one function: eval's metrics make these rows too)."""
     from eval import metrics as M
 
     cfg = _eval_config(config, env_id, config.controllers, dynamics, out)
-    records = cached_evaluation(cfg, {"source_sha256": controller_source()})
+    records = cached_evaluation(cfg, {"source_sha256": code_hash()})
     rows = M.aggregate(records, group_keys=("policy",))
     for row in rows:
         row.pop("success_curve", None)

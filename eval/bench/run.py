@@ -12,7 +12,8 @@ Output directory (default `runs/bench`; running the same command again resumes):
 
 Resuming follows the sweep's rules per condition (`eval.sweep`): episodes in a journal are skipped, more seeds,
 controllers or conditions may be added later; the tolerance, settle time and extra env arguments may not change
-(start a new --out). `max_episodes` bounds the new episodes of the whole bench, conditions in order.
+(start a new --out), nor the code (a journal of other code is refused before anything is written; `--rerun-changed`
+runs its episodes again: `eval.grid.same_code`). `max_episodes` bounds the new episodes of the whole bench, conditions in order.
 """
 
 from __future__ import annotations
@@ -111,13 +112,15 @@ def run_bench(
     batch_size: int = EvalConfig.batch_size,
     max_episodes: int | None = None,
     retry_failed: bool = False,
+    rerun_changed: bool = False,
     plots: bool = True,
     progress: bool = True,
     against: str | Path | None = None,
 ) -> BenchResult:
     """Run what is left of the bench in `out`, then write scorecard.json, scorecard.md and the plots.
 
-    `against`: a committed bench (folder or scorecard.json) whose baselines' rows are reused after a sample of
+    `rerun_changed`: run again the episodes a condition's journal holds from other code (without it such a
+    journal is refused before anything is written: `eval.grid.same_code`). `against`: a committed bench (folder or scorecard.json) whose baselines' rows are reused after a sample of
     them is run again bit for bit (`eval.bench.against`); then only `config.policies` run."""
     committed: dict | None = None
     against_record: dict[str, Any] | None = None
@@ -160,7 +163,7 @@ def run_bench(
     _check_out_dir(out, protocol)
     sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
     checked = {  # every condition's envs, policies and folder, before bench.json changes
-        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size)
+        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size, None, rerun_changed)
         for name, sweep in sweeps.items()
     }
     out.mkdir(parents=True, exist_ok=True)
@@ -207,6 +210,7 @@ def run_bench(
                     batch_size=batch_size,
                     max_episodes=budget,
                     retry_failed=retry_failed,
+                    rerun_changed=rerun_changed,
                     plots=False,
                     progress=progress,
                     checked=checked[name],

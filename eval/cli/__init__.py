@@ -55,6 +55,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def resume_command(argv: list[str], resume: tuple[str, ...]) -> str:
+    """The command line that continues `mobman-eval ARGV`: `argv` without `--overwrite` (it would start over)
+    and without earlier values of the options in `resume` (e.g. `--out X`), followed by `resume`, quoted for a
+    POSIX shell."""
+    import shlex
+
+    valued = {tok for tok, nxt in zip(resume, (*resume[1:], "--")) if tok.startswith("--") and not nxt.startswith("--")}
+    drop = {tok for tok in resume if tok.startswith("--")} | {"--overwrite"}
+    kept: list[str] = []
+    skip = False
+    for tok in argv:
+        if skip:
+            skip = False
+            continue
+        name = tok.split("=", 1)[0]
+        if name in drop:
+            skip = tok in valued  # `--out X`: drop X too (`--out=X` is one token)
+            continue
+        kept.append(tok)
+    return shlex.join(["mobman-eval", *kept, *resume])
+
+
 def main(argv: list[str] | None = None) -> int:
     """Parse `argv` and run the subcommand. Exit codes: 0 done, 2 bad input (before any rollout), 130
     interrupted by Ctrl-C or SIGTERM (what finished is written)."""
@@ -74,6 +96,9 @@ def main(argv: list[str] | None = None) -> int:
             return _subcommands()[args.command].main(args)
     except EvalError as exc:
         print(f"mobman-eval {args.command}: error: {exc}", file=sys.stderr)
+        if exc.resume:
+            line = resume_command(sys.argv[1:] if argv is None else list(argv), exc.resume)
+            print(f"mobman-eval {args.command}: the command that resumes: {line}", file=sys.stderr)
         return 2
     except RunInterrupted as exc:
         print(f"\nmobman-eval {args.command}: {exc}", file=sys.stderr)

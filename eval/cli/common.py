@@ -61,6 +61,7 @@ RESUMABLE = (
     Opt("out", metavar="DIR"),
     Opt("max_episodes", metavar="N"),
     "retry_failed",
+    "rerun_changed",
     Opt("plots", flag="--no-plots"),
     Opt("progress", flag="--quiet"),
 )

@@ -26,6 +26,8 @@ EPISODES = (
 OUTPUT = (
     Opt("out", metavar="DIR"),
     "overwrite",
+    "resume",
+    "rerun_changed",
     "video",
     Opt("plots", flag="--no-plots"),
     Opt("save_arrays", choices=SAVE_ARRAYS_CHOICES),

@@ -63,15 +63,30 @@ def atomic_write_bytes(path: Path, data: bytes, mode: int | None = None) -> None
         raise
 
 
-def write_error(path: Path, exc: OSError, kept: str = "") -> EvalError:
+class WriteError(EvalError):
+    """A file that could not be written: `path`, the system's `os_error` and what survived (`kept`) are kept,
+    so that a caller who knows more (how its command resumes, where the finished episodes are) can say it again
+    with `write_error`."""
+
+    def __init__(self, message: str, path: Path, os_error: OSError, resume: tuple[str, ...] = (), kept: str = ""):
+        super().__init__(message, resume)
+        self.path, self.os_error, self.kept = Path(path), os_error, kept
+
+
+def write_error(
+    path: Path, exc: OSError, kept: str = "", again: str = "run again", resume: tuple[str, ...] = ()
+) -> WriteError:
     """The EvalError of a file that could not be written (a full disk, a read-only folder): the path, the
-    system's reason and the fix (the CLIs exit 2 with it, no traceback); `kept` says what survived."""
+    system's reason and the fix (the CLIs exit 2 with it, no traceback); `kept` says what survived; `again` is
+    how the command goes on once the cause is fixed ("run again": a sweep or bench resumes by itself; a `run`
+    says its `--resume` and passes it in `resume`, so the CLI prints the exact command)."""
     fix = {
-        errno.ENOSPC: "free space and run again",
-        errno.EDQUOT: "free space (your disk quota is full) and run again",
-        errno.EFBIG: "raise the file-size limit (ulimit -f) or free space and run again",
-    }.get(exc.errno or 0, "fix that and run again")
-    return EvalError(f"cannot write {path} ({exc.strerror or exc}); {fix}" + (f" ({kept})" if kept else ""))
+        errno.ENOSPC: f"free space and {again}",
+        errno.EDQUOT: f"free space (your disk quota is full) and {again}",
+        errno.EFBIG: f"raise the file-size limit (ulimit -f) or free space and {again}",
+    }.get(exc.errno or 0, f"fix that and {again}")
+    message = f"cannot write {path} ({exc.strerror or exc}); {fix}" + (f" ({kept})" if kept else "")
+    return WriteError(message, path, exc, resume, kept)
 
 
 def atomic_write_text(path: Path, text: str) -> None:

@@ -31,6 +31,14 @@ def episode_key(rec: Any) -> tuple:
     )
 
 
+def run_key(rec: Any) -> tuple:
+    """(env, policy, seed, dynamics) of a record or a task: what identifies an episode within one `run`, whose
+    model_error and obs_noise are the config's for every episode (None in a task: the env's default, which its
+    record resolves to a number, so `episode_key` of a run's task and of its record differ)."""
+    get: Callable[[str], Any] = rec.get if isinstance(rec, dict) else lambda k: getattr(rec, k)
+    return (get("env"), get("policy"), int(get("seed")), get("dynamics"))
+
+
 class Journal:
     """`episodes.jsonl`: one complete JSON episode record per line; later lines win for the same episode.
     `command` ("sweep", "run", ...) names the writer in the message that refuses a second one. A write that
@@ -41,9 +49,10 @@ class Journal:
         self.command = command
         self._fd: int | None = None
 
-    def load(self) -> tuple[dict[tuple, dict], int]:
-        """({key: record}, number of lines dropped). A torn last line (the process was killed while writing
-        it) is cut off the file; a line that is valid JSON but not an object is skipped with a warning; any
+    def load(self, repair: bool = True, key: Callable[[Any], tuple] = episode_key) -> tuple[dict[tuple, dict], int]:
+        """({key: record}, number of lines dropped), keyed by `key` (`episode_key`; a run's: `run_key`). A torn last line (the process was killed while writing
+        it) is cut off the file (with `repair`; without, it is only left out: a check before the lock is held
+        changes nothing); a line that is valid JSON but not an object is skipped with a warning; any
         other unreadable line is an error naming it."""
         if not self.path.exists():
             return {}, 0
@@ -70,7 +79,7 @@ class Journal:
                 dropped += 1
                 continue
             try:
-                records[episode_key(rec)] = rec
+                records[key(rec)] = rec
             except (ValueError, KeyError, TypeError) as exc:
                 raise EvalError(
                     f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
@@ -78,7 +87,8 @@ class Journal:
                 ) from None
         if end < len(data):
             dropped += 1
-            os.truncate(self.path, end)
+            if repair:
+                os.truncate(self.path, end)
         return records, dropped
 
     def open(self, fresh: bool = False) -> None:

@@ -24,6 +24,8 @@ leaves a half-written file and never destroys the previous version of a file bef
  "provenance": {"cpu", "machine", "cpu_count", "platform", "python", "numpy", "numpy_build", "blas": [{
     "user_api", "internal_api", "version", "architecture", "threading_layer", "num_threads", ...}],
     "env": {"OPENBLAS_CORETYPE", ...}, "versions", "git",
+    "schema": 4, "code": sha256 of the four packages' source, "diff": {"sha256", "paths"} | null (a dirty
+    tree's uncommitted changes, named; since provenance schema 4),
     "kernels": {module: sha256[:16] of its source}},   # eval.output.provenance.provenance()
  "statistics": {"iqm", "ci", "bootstrap_resamples", "bootstrap_seed", "success_interval",
     "success_curve_tolerances_m": [31 tolerances, 1e-4 .. 0.1 m], "settle_time_s"},  # how aggregates are made
@@ -40,6 +42,8 @@ leaves a half-written file and never destroys the previous version of a file bef
     "limit_margin_min" (rad), "converge_time_s" (null: ends outside the tolerance),
     "joint_limit_hits", "n_clipped", "tipped_over", "terminated", "n_steps", "success", "clean_success",
     "predict_us_median", "predict_us_p99" (whole predict call, microseconds), "wall_s", "pid",
+    "code" (SHA-256 of the four packages' source that ran it, `eval.output.provenance.code_hash`; absent for
+    an episode that never ran and in files written before it existed),
     "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
  "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
    {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",

@@ -28,7 +28,9 @@ aside). `--max-episodes N` runs at most N new episodes (a job that must fit a ti
 produced no result at all (their worker process died, their Ray task failed twice) are in the table as failed
 but not in the journal, so the next run tries them again; episodes that crashed inside the rollout are results
 (status failed, traceback) and are skipped unless `--retry-failed`. The grid may grow between runs (more seeds,
-policies, noise levels); `env_kwargs`, `tolerance` and `settle_time` may not change (start a new --out).
+policies, noise levels); `env_kwargs`, `tolerance` and `settle_time` may not change (start a new --out), nor
+the code: every record carries the hash of the code that ran it, and a journal of other code is refused (use
+another --out, or `--rerun-changed` to run those episodes again; `eval.grid.same_code`).
 
 Modules: `config` (the YAML file -> `SweepConfig`), `run`
 (`run_sweep`), `report` (aggregate.csv, summary.md, the console summary), `plots`; the append-only episode

@@ -132,6 +132,9 @@ class SweepRun:
     to go on); None: every episode left."""
     retry_failed: bool = False
     """Run again the episodes recorded as failed."""
+    rerun_changed: bool = False
+    """Run again the episodes the journal holds from other code than this (another mobman version, an edited
+    source): without it such a journal is refused, because one result never mixes two code versions."""
     plots: bool = True
     """Write the PNG plots."""
     progress: bool = True

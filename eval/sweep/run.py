@@ -13,7 +13,7 @@ from eval.checks import check_all, check_user_policies
 from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.execution.tasks import Task
-from eval.grid import run_tasks
+from eval.grid import FIXED_KEYS, run_tasks, same_code, same_settings
 from eval.output.files import atomic_write_json, check_out, read_folder_record, slug
 from eval.output.journal import JOURNAL, Journal, episode_key
 from eval.output.results import ResultsView, build_results
@@ -22,9 +22,7 @@ from eval.sweep.config import SweepConfig
 from eval.sweep.report import write_tables
 from mobman_env.validation import integer
 
-#: settings that must not change when a sweep is resumed (they change every episode's result), with the value a
-#: sweep written before the key existed had
-FIXED_KEYS = {"env_kwargs": {}, "tolerance": M.DEFAULT_TOLERANCE, "settle_time": M.DEFAULT_SETTLE_TIME}
+__all__ = ["FIXED_KEYS", "SweepResult", "check_sweep", "grid_tasks", "run_sweep"]  # FIXED_KEYS: eval.grid's
 
 
 def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
@@ -66,6 +64,7 @@ def run_sweep(
     batch_size: int = EvalConfig.batch_size,
     max_episodes: int | None = None,
     retry_failed: bool = False,
+    rerun_changed: bool = False,
     plots: bool = True,
     progress: bool = True,
     policies: dict[str, Any] | None = None,
@@ -74,14 +73,17 @@ def run_sweep(
 ) -> SweepResult:
     """Run the episodes of `sweep` not yet in `out`, then rebuild the table, summary and plots.
 
-    `policies` adds the user's own objects ({name: object with predict/reset}) beside the specs; `source` is
+    A journal holding episodes of other code than this is refused (EvalError), or with `rerun_changed` those
+    episodes run again (`eval.grid.same_code`: one result, one code version). `policies` adds the user's own objects ({name: object with predict/reset}) beside the specs; `source` is
     the YAML file's path (recorded, and naming the default output directory); `checked` is what `check_sweep`
     returned for these arguments, when the caller (a bench) checked them already."""
     user = dict(policies or {})
     out = Path(out) if out is not None else default_out(source)
     if max_episodes is not None:
         integer("max_episodes", max_episodes, low=0, error=EvalError)
-    base, user_bytes, resuming = checked or check_sweep(sweep, out, backend, address, workers, batch_size, user)
+    base, user_bytes, resuming = checked or check_sweep(
+        sweep, out, backend, address, workers, batch_size, user, rerun_changed
+    )
 
     tasks = grid_tasks(sweep, list(sweep.policies) + list(user))
     cfg = {
@@ -104,6 +106,7 @@ def run_sweep(
     try:
         atomic_write_json(out / "config.json", cfg)  # the directory is a sweep's from now on
         done, dropped = journal.load()
+        done = same_code(done, tasks, rerun_changed, f"--out {str(out)!r}")  # under the lock, as it runs
         if dropped and progress:
             print(
                 f"sweep: dropped {dropped} unreadable line(s) of {journal.path} (torn by an interruption, or not "
@@ -139,10 +142,12 @@ def check_sweep(
     workers: int = 1,
     batch_size: int = EvalConfig.batch_size,
     user: dict[str, Any] | None = None,
+    rerun_changed: bool = False,
 ) -> tuple[EvalConfig, bytes | None, bool]:
-    """Every check of `run_sweep` before it writes anything (the settings, the output folder, every env and
-    policy of the grid): (the episodes' EvalConfig, the pickled user policies, whether `out` is resumed);
-    EvalError naming what is wrong. A bench checks all its conditions with it before writing bench.json."""
+    """Every check of `run_sweep` before it writes anything (the settings, the output folder and the code of its
+    journal's episodes, every env and policy of the grid): (the episodes' EvalConfig, the pickled user
+    policies, whether `out` is resumed); EvalError naming what is wrong. A bench checks all its conditions with
+    it before writing bench.json."""
     user = user or {}
     base = _episode_config(sweep, out, backend, address, workers, batch_size)
     base.validate()
@@ -150,6 +155,9 @@ def check_sweep(
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
     user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
     resuming = _check_out_dir(out, sweep, check_out)
+    if resuming:  # read only (no lock yet): run_sweep checks again under the lock
+        done, _ = Journal(out / JOURNAL).load(repair=False)
+        same_code(done, grid_tasks(sweep, list(sweep.policies) + list(user)), rerun_changed, f"--out {str(out)!r}")
     check_all(base, user)
     _check_conditions(sweep)
     return base, user_bytes, resuming
@@ -210,15 +218,7 @@ def _check_out_dir(out: Path, sweep: SweepConfig, check_out) -> bool:
     if not out.is_dir() or not any(out.iterdir()):
         check_out(out, overwrite=False)
         return False
-    old = read_folder_record(out, "config.json", "sweep")
-    new = sweep.to_dict()
-    changed = [k for k, before in FIXED_KEYS.items() if old.get(k, before) != new[k]]
-    if changed:
-        diff = "; ".join(f"{k}: {old.get(k, FIXED_KEYS[k])!r} there, {new[k]!r} now" for k in changed)
-        raise EvalError(
-            f"--out {str(out)!r} holds a sweep with other settings ({diff}); its episodes would not be "
-            f"comparable: use another --out, or delete that directory to start over"
-        )
+    same_settings(read_folder_record(out, "config.json", "sweep"), sweep.to_dict(), out, "sweep")
     return True
 
 
