@@ -135,13 +135,15 @@ class RobotBatch:
         self, i: int, rng: np.random.Generator, source: Any, nominal: RobotParams, q0: Any, pose: Any, cond: dict
     ) -> tuple[RobotParams, np.ndarray]:
         """Draw row i's episode from its generator, in the env's fixed order (the arm and its start for a drawn
-        robot family, then the worn true robot), and `begin` it; returns (the episode's nominal robot, its start
+        robot family, then the worn true robot: the built robot worn, which for the scaled family is not its
+        catalogue), and `begin` it; returns (the episode's nominal robot, its start
         (m angles)). The path (its seed is drawn next) comes with `set_path` once the start point is known."""
         drawn = source.draw(rng)
+        built = nominal
         if drawn is not None:
-            nominal, start = drawn
+            nominal, start, built = drawn
             q0 = np.concatenate([start, [0.0, 0.0]])
-        params = nominal.perturbed(rng, cond["model_error"])
+        params = built.perturbed(rng, cond["model_error"])
         self.begin(i, params, q0, pose, cond)
         return nominal, np.asarray(q0, dtype=float)
 

@@ -316,10 +316,32 @@ def test_a_memoised_draw_is_the_draw_and_leaves_the_generator_where_it_would_be(
 
     src = robot_source(robot)
     first = np.random.default_rng(10_020)
-    arm, q0 = src.draw(first)
+    arm, q0, built = src.draw(first)
     after = first.random(3)
     hit_rng = np.random.default_rng(10_020)
-    assert src.draw(hit_rng) == (arm, q0) and np.array_equal(hit_rng.random(3), after)
+    assert src.draw(hit_rng) == (arm, q0, built) and np.array_equal(hit_rng.random(3), after)
     monkeypatch.setattr(sources, "_DRAWS", {})
     fresh = np.random.default_rng(10_020)
-    assert src.draw(fresh) == (arm, q0) and np.array_equal(fresh.random(3), after)
+    assert src.draw(fresh) == (arm, q0, built) and np.array_equal(fresh.random(3), after)
+
+
+def test_a_scaled_arms_catalogue_is_its_design_before_scaling():
+    """The scaled family's catalogue (the nominal robot a model-based controller is given) is the design before the
+    scale factor: the factor is an error of the catalogue (in 0.3 the catalogue held the scaled arm, so the
+    condition tested nothing for the nominal-model laws). The random family's catalogue is the arm built."""
+    factors = []
+    for seed in range(3):
+        env = gym.make("WheeledScaledArm-Circle-v0", dynamics="kinematic", model_error=0.0)
+        env.reset(seed=seed)
+        nominal, true = env.unwrapped.nominal_params.arm, env.unwrapped.true_params.arm
+        ratios = [getattr(true, f)[i] / getattr(nominal, f)[i] for f, i in nominal.length_slots if f != "tool"]
+        ratios.append(true.tool / nominal.tool)
+        assert max(ratios) - min(ratios) < 1e-12  # one factor for every length
+        assert 0.7 <= ratios[0] <= 1.4 and abs(ratios[0] - 1.0) > 1e-3
+        factors.append(ratios[0])
+        env.close()
+    assert len(set(factors)) == 3
+    env = gym.make("WheeledRandomArm-Circle-v0", dynamics="kinematic", model_error=0.0)
+    env.reset(seed=0)
+    assert env.unwrapped.nominal_params.arm == env.unwrapped.true_params.arm
+    env.close()

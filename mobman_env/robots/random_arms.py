@@ -76,11 +76,13 @@ SCALE_RANGE = (0.7, 1.4)
 
 @dataclass(frozen=True)
 class RandomArm:
-    """One accepted draw: the arm, its start configuration q0 (rad, 6 entries) and how many draws it took."""
+    """One accepted draw: the arm, its start configuration q0 (rad, 6 entries) and how many draws it took; for the
+    scaled family also the design before scaling (`design`: what its catalogue lists, `arm` being the robot built)."""
 
     arm: ArmDescription
     q0: tuple[float, ...]
     n_draws: int
+    design: ArmDescription | None = None
 
 
 def _design(rng: np.random.Generator) -> ArmDescription:
@@ -205,12 +207,15 @@ def random_scaled_arm(
     lengths (every DH a and d, the tool; not the mount) multiplied by s. The start rule is checked on the unscaled
     design (so the start keeps its margins to the limits, which scaling does not move); `accept` sees the scaled
     arm. Masses and inertias stay the unscaled design's: the family is for kinematic mode (a scaled body's
-    inertia would need its own model)."""
+    inertia would need its own model). The draw keeps the unscaled design (`RandomArm.design`): it is the arm's
+    catalogue (the robot a model-based controller is given), so the scale factor is an error of the catalogue that
+    only an estimate can find (release 0.4; in 0.3 the catalogue held the scaled arm and the condition tested
+    nothing for the nominal-model controllers)."""
     s = float(rng.uniform(*SCALE_RANGE))
 
     def scaled(draw: RandomArm) -> RandomArm:
         arm = draw.arm.scaled_lengths([s] * len(draw.arm.length_slots)).replace(name=f"{draw.arm.name}-x{s:.3f}")
-        return RandomArm(arm, draw.q0, draw.n_draws)
+        return RandomArm(arm, draw.q0, draw.n_draws, design=draw.arm)
 
     draw = random_arm(rng, None if accept is None else (lambda d: accept(scaled(d))), max_draws=max_draws)
     return scaled(draw)

@@ -9,7 +9,7 @@ the episode's nominal robot and start configuration drawn from the env's generat
 | `ur5` | `UR5` | `STARTS["ur5"]` | nothing |
 | `panda` | `PANDA` | `STARTS["panda"]` | nothing |
 | `random` | a new arm of `random_arm`'s family per reset | the draw's start | the design, its start and redraws |
-| `random-scaled` | a new arm of `random_scaled_arm`'s family per reset: a family arm with every length times one factor in [0.7, 1.4] | the draw's start | the factor, the design, its start and redraws |
+| `random-scaled` | a new arm of `random_scaled_arm`'s family per reset: a family arm with every length times one factor in [0.7, 1.4]; its catalogue (nominal robot) is the design before scaling | the draw's start | the factor, the design, its start and redraws |
 
 Every start has heading pi (`mobman_env.env.PAPER_BASE_POSE`); `mobman_env.robots.starts` says how the named
 starts were chosen. A random arm is accepted when it passes the start rule of `random_arms` and the kinematic
@@ -40,8 +40,9 @@ from mobman_env.robots.starts import STARTS, kinematic_ceiling
 
 __all__ = ["ROBOT_NAMES", "RobotSource", "robot_source"]
 
-#: the memo of `RobotSource.draw`: (family, generator state) -> (nominal robot, start, generator state after)
-_DRAWS: dict[tuple[str, str], tuple[RobotParams, tuple[float, ...], Any]] = {}
+#: the memo of `RobotSource.draw`: (family, generator state) -> (nominal robot, start, built robot, generator state
+#: after)
+_DRAWS: dict[tuple[str, str], tuple[RobotParams, tuple[float, ...], RobotParams, Any]] = {}
 #: draws kept (least recently used dropped first)
 MAX_MEMO = 1024
 #: The drawn families: `robot` name -> the function drawing (arm, start) from the env's generator.
@@ -67,16 +68,18 @@ class RobotSource:
         """The nominal robot before the first reset (for the random family: a placeholder of the family)."""
         if self.arm is not None:
             return RobotParams.nominal(self.arm)
-        return RobotParams.nominal(FAMILIES[self.name](np.random.default_rng(0)).arm)
+        draw = FAMILIES[self.name](np.random.default_rng(0))
+        return RobotParams.nominal(draw.design or draw.arm)
 
     @property
     def default_start(self) -> tuple[float, ...] | None:
         """The start configuration (rad, n angles) of a fixed arm; None for the random family."""
         return STARTS[self.name].q0 if self.arm is not None else None
 
-    def draw(self, rng: np.random.Generator) -> tuple[RobotParams, tuple[float, ...]] | None:
-        """The episode's nominal robot and its start (rad) drawn from `rng`; None for a fixed arm (nothing is
-        drawn: the constructor's nominal robot and start hold).
+    def draw(self, rng: np.random.Generator) -> tuple[RobotParams, tuple[float, ...], RobotParams] | None:
+        """The episode's nominal robot, its start (rad) and the robot built (before wear: the nominal one, except
+        for the scaled family, whose catalogue is the design before scaling) drawn from `rng`; None for a fixed arm
+        (nothing is drawn: the constructor's nominal robot and start hold).
 
         A draw is a pure function of the generator's state (its candidates and their ceiling checks, about 0.2 s
         each, use `rng` only), so it is memoised on that state: the same state gives the same arm and leaves the
@@ -88,14 +91,16 @@ class RobotSource:
         hit = _DRAWS.get(key)
         if hit is None:
             draw = FAMILIES[self.name](rng, kinematic_ceiling)
-            hit = (RobotParams.nominal(draw.arm), draw.q0, rng.bit_generator.state)
+            built = RobotParams.nominal(draw.arm)
+            catalogue = built if draw.design is None else RobotParams.nominal(draw.design)
+            hit = (catalogue, draw.q0, built, rng.bit_generator.state)
             _DRAWS[key] = hit
             while len(_DRAWS) > MAX_MEMO:
                 _DRAWS.pop(next(iter(_DRAWS)))
         else:
             _DRAWS[key] = _DRAWS.pop(key)  # most recently used last
-            rng.bit_generator.state = hit[2]
-        return hit[0], hit[1]
+            rng.bit_generator.state = hit[3]
+        return hit[0], hit[1], hit[2]
 
 
 def robot_source(name: str) -> RobotSource:
