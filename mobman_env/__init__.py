@@ -54,7 +54,7 @@ __all__ = [
     "register_envs",
 ]
 #: The one source of mobman's version (pyproject.toml reads it; Semantic Versioning, CHANGELOG.md).
-__version__ = "0.3.0.dev0"
+__version__ = "0.4.0.dev0"
 
 #: id -> path spec of each PUMA task (all start at the paper's theta(0), heading pi).
 TASKS = {f"WheeledPuma-{name.title()}-v0": spec for name, spec in TASK_SPECS.items()}
