@@ -46,7 +46,8 @@ class CheckedFunctionCache(FunctionCache):
 
     def _drop(self, sig: Any, target_context: Any, exc: Exception) -> None:
         """Remove the file that could not be loaded: the index if it does not unpickle, else this signature's
-        data file (the index keeps its name, and numba's save writes the file again under it)."""
+        data file (the index keeps its name, and numba's save writes the file again under it); only ever one of
+        this kernel's own cache files (`_own_file`)."""
         files = self._cache_file
         bad = files._index_path
         try:
@@ -56,17 +57,34 @@ class CheckedFunctionCache(FunctionCache):
         else:
             if name is not None:
                 bad = os.path.join(files._cache_path, name)
-        with contextlib.suppress(OSError):
-            os.remove(bad)
+        base = self._impl.filename_base
+        if not _own_file(bad, files._cache_path, base):  # an index naming a file elsewhere is itself damaged
+            bad = files._index_path
+        removed = False
+        if _own_file(bad, files._cache_path, base):
+            with contextlib.suppress(OSError):
+                os.remove(bad)
+                removed = True
         if bad not in _REPORTED:
             _REPORTED.add(bad)
             reason = (str(exc).splitlines() or [""])[0][:200]
             func = f"{self._py_func.__qualname__} ({self._py_func.__code__.co_filename})"
+            done = "it was removed" if removed else "it was left in place (remove it by hand)"
             print(
-                f"mobman: numba's cache file {bad} could not be loaded ({type(exc).__name__}: {reason}); it was "
-                f"removed and {func} is compiled again",
+                f"mobman: numba's cache file {bad} could not be loaded ({type(exc).__name__}: {reason}); {done} "
+                f"and {func} is compiled again",
                 file=sys.stderr,
             )
+
+
+def _own_file(path: str, folder: str, base: str) -> bool:
+    """Whether `path` is one of this kernel's cache files (`base` + `.nbi`, or `base` + `.N.nbc`) directly in the
+    cache `folder`: the only files `_drop` removes, whatever name a damaged index holds (never `../x`, a link
+    elsewhere or another kernel's file)."""
+    name = os.path.basename(path)
+    inside = os.path.dirname(os.path.realpath(path)) == os.path.realpath(folder) and not os.path.islink(path)
+    ours = name == f"{base}.nbi" or (name.startswith(f"{base}.") and name.endswith(".nbc"))
+    return inside and ours
 
 
 def _checked(dispatcher: Any) -> Any:

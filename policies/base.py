@@ -129,6 +129,17 @@ class EnvFacts:
         return len(self.action_scale) - 2
 
 
+def missing_keys_error(observation: dict, keys: Any) -> ValueError:
+    """The error for an observation that lacks keys a policy reads: the missing ones, the ones it reads, the ones
+    the observation holds and the fix (a bare KeyError named one key and nothing else)."""
+    missing = [k for k in keys if k not in observation]
+    return ValueError(
+        f"the observation has no {', '.join(map(repr, missing))}: this policy reads {list(keys)}, the observation "
+        f"holds {sorted(map(str, observation))}; pass the env's whole Dict observation (not a flattened or "
+        f"filtered one)"
+    )
+
+
 def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dict, bool]:
     """Return (single observation with 1-D float64 arrays, whether the input was a batch of one).
 
@@ -147,9 +158,12 @@ def unbatch(observation: dict, keys: tuple[str, ...] | None = None) -> tuple[dic
         )
     if keys is None:
         keys = tuple(observation)
-    if batched:
-        return {k: np.asarray(observation[k], dtype=float)[0] for k in keys}, True
-    return {k: np.asarray(observation[k], dtype=float) for k in keys}, False
+    try:
+        if batched:
+            return {k: np.asarray(observation[k], dtype=float)[0] for k in keys}, True
+        return {k: np.asarray(observation[k], dtype=float) for k in keys}, False
+    except KeyError:
+        raise missing_keys_error(observation, keys) from None
 
 
 def reject_extra(owner: object, extra: dict, accepted: str = "") -> None:

@@ -168,6 +168,19 @@ def _update_scalar(x, y, r, qf, est, var, cap, i, k):
     var[i, k] = min(p - g * x * p, cap[i, k])
 
 
+@njit(cache=True, inline="always")
+def _finite_row(ee, pc, pc_vel, yaw, jp, i):
+    """Whether row i's measurements (end-effector, mount position and velocity, heading, joints) are all finite."""
+    ok = math.isfinite(yaw[i])
+    for a in range(3):
+        ok = ok and math.isfinite(ee[i, a])
+    for a in range(2):
+        ok = ok and math.isfinite(pc[i, a]) and math.isfinite(pc_vel[i, a])
+    for a in range(jp.shape[1]):
+        ok = ok and math.isfinite(jp[i, a])
+    return ok
+
+
 @njit(cache=True)
 def calibrate_rows(
     points, start, count, code, ee, pc, pc_vel, yaw, jp, dt, theta, P, cap, plat, pvar, pcap, head,
@@ -180,15 +193,24 @@ def calibrate_rows(
     code (K,): which length each unit row is (k < n: a_k; n + k: d_k; 2n: the tool); ee (N, 3), pc (N, 2),
     pc_vel (N, 2), yaw (N,), jp (N, n + 2): the observation; dt: the control period (s); theta (N, kmax),
     P (N, kmax, kmax), cap (N, kmax): the arm's estimate, covariance and prior variances; plat, pvar, pcap (N, 3):
-    alpha, beta, gamma, their variances and prior variances; head (N, 5): beta's filter (heading, its variance,
-    its covariance with beta) and the last left and right wheel angles; r_pos, r_vel, r_yaw: the noise variances;
-    qf: process noise per step as a fraction of the prior variance."""
+    alpha, beta, gamma, their variances and prior variances; head (N, 6): beta's filter (heading, its variance,
+    its covariance with beta), the last left and right wheel angles, and 1 after a skipped step (else 0);
+    r_pos, r_vel, r_yaw: the noise variances; qf: process noise per step as a fraction of the prior variance.
+
+    A row whose measurements are not all finite (a NaN or inf reading) is skipped: a measurement that is not a
+    number carries no information, so its estimates stay as they are (a NaN once made the whole row NaN for the
+    rest of the episode, and the model's Jacobian with it). The row keeps its last wheel angles; on its next
+    finite step the heading filter uses their whole change (exact over any number of steps) while alpha and
+    gamma wait a step (the angles' change no longer measures one step's wheel speeds)."""
     nrow = ee.shape[0]
     m = arm.shape[2]
     n = m - 2
     kmax = theta.shape[1]
     g = np.empty(kmax)
     for i in range(nrow):
+        if not _finite_row(ee, pc, pc_vel, yaw, jp, i):
+            head[i, 5] = 1.0
+            continue
         c, s = math.cos(yaw[i]), math.sin(yaw[i])
         dx, dy, dz = ee[i, 0] - pc[i, 0], ee[i, 1] - pc[i, 1], ee[i, 2] - prm[i, E.P_H]
         kk = count[i]
@@ -244,8 +266,10 @@ def calibrate_rows(
         dl, dr = jp[i, n] - head[i, 3], jp[i, n + 1] - head[i, 4]
         head[i, 3], head[i, 4] = jp[i, n], jp[i, n + 1]
         wl, wr = dl / dt, dr / dt
-        _update_scalar(wl + wr, vf, r_vel, qf, plat, pvar, pcap, i, 0)
-        _update_scalar(wr - wl, vl, r_vel, qf, plat, pvar, pcap, i, 2)
+        if head[i, 5] == 0.0:
+            _update_scalar(wl + wr, vf, r_vel, qf, plat, pvar, pcap, i, 0)
+            _update_scalar(wr - wl, vl, r_vel, qf, plat, pvar, pcap, i, 2)
+        head[i, 5] = 0.0
         # beta from the heading: a Kalman filter on (heading psi, beta), psi_k = psi_k-1 + beta dW (dW: the
         # change of the wheels' angle difference), the measured heading = psi + noise
         dw = dr - dl
@@ -332,7 +356,7 @@ class CalibQPLaw(QPLaw):
         self.platform = np.zeros((n, 3))
         self._pvar = np.zeros((n, 3))
         self._pcap = np.zeros((n, 3))
-        self._head = np.zeros((n, 5))
+        self._head = np.zeros((n, 6))
         self.n_lengths = np.zeros(n, dtype=np.intp)
         # per row: the codes of its lengths and its unit rows (arm, prm); joined into one batch once all rows started
         self._units: list[tuple[np.ndarray, np.ndarray, np.ndarray] | None] = [None] * n
@@ -362,7 +386,8 @@ class CalibQPLaw(QPLaw):
             self.platform[i] = alpha, beta, d * beta
             # beta is a ratio of two worn lengths, gamma a product of three: their relative variances add
             self._pvar[i] = self._pcap[i] = rel2 * np.array([alpha**2, 2.0 * beta**2, 3.0 * (d * beta) ** 2])
-            self._head[i] = obs["base_yaw"][i, 0], c.yaw_std**2, 0.0, obs["joint_pos"][i, m], obs["joint_pos"][i, m + 1]
+            jl, jr = obs["joint_pos"][i, m], obs["joint_pos"][i, m + 1]
+            self._head[i] = obs["base_yaw"][i, 0], c.yaw_std**2, 0.0, jl, jr, 0.0
         if all(u is not None for u in self._units):  # (re)build the batch of unit rows
             units = [u for u in self._units if u is not None]
             self._start_of = np.r_[0, np.cumsum(self.n_lengths)[:-1]].astype(np.intp)

@@ -11,7 +11,7 @@ bits do not depend on the BLAS build or kernel.
 the whole-body Jacobian of each row's robot (nominal or true) with `mobman_env.engine.jacobians`, the env's own
 chain (so a model-based controller sees the env's numbers for its model). The model is the robot's, not the law.
 
-Imports numpy, numba, the standard library and `mobman_env` modules only.
+Imports numpy, numba, the standard library, `mobman_env` modules and `policies.base` only.
 """
 
 from __future__ import annotations
@@ -24,6 +24,7 @@ import numpy as np
 
 from mobman_env import engine as E
 from mobman_env.numba_cache import njit
+from policies.base import missing_keys_error
 
 _THIRD_TURN = 2.0 * math.pi / 3.0
 
@@ -92,14 +93,19 @@ def damped_pinv_apply_rows(J: np.ndarray, v: np.ndarray, damping: float, sigma_t
 
     lambda as in `policies.nnbc` (zero unless J_i's smallest singular value is below sigma_threshold:
     lambda^2 = damping^2 (1 - sigma_min^2 / threshold^2)). A row whose damped J J^T is exactly singular
-    (damping = 0 and a rank-deficient J) gets the least-squares solution.
+    (damping = 0 and a rank-deficient J) gets the least-squares solution; a row holding NaN or inf (a non-finite
+    observation) gets NaN: that row's problem, which the env refuses naming the robot, never a LAPACK error that
+    would fail the whole batch.
     """
     J = np.ascontiguousarray(J, dtype=float)
     v = np.ascontiguousarray(v, dtype=float)
     u = np.empty((J.shape[0], J.shape[2]))
     singular = _dpinv_rows(J, v, float(damping), float(sigma_threshold), u)
     for i in np.flatnonzero(singular).tolist():
-        u[i] = np.linalg.lstsq(J[i], v[i], rcond=None)[0]
+        if np.isfinite(J[i]).all() and np.isfinite(v[i]).all():
+            u[i] = np.linalg.lstsq(J[i], v[i], rcond=None)[0]
+        else:
+            u[i] = np.nan
     return u
 
 
@@ -129,11 +135,15 @@ def damped_pinv(J: np.ndarray, damping: float, sigma_threshold: float) -> np.nda
 
 
 def obs_rows(observation: dict, keys: Sequence[str]) -> dict[str, np.ndarray]:
-    """The observation keys `keys` as float64 (N, k) arrays (a 1-D observation becomes a batch of one)."""
+    """The observation keys `keys` as float64 (N, k) arrays (a 1-D observation becomes a batch of one); a missing
+    key raises ValueError naming it, the keys read and the fix (`policies.base.missing_keys_error`)."""
     out = {}
-    for k in keys:
-        x = np.asarray(observation[k], dtype=float)
-        out[k] = x[None] if x.ndim == 1 else x
+    try:
+        for k in keys:
+            x = np.asarray(observation[k], dtype=float)
+            out[k] = x[None] if x.ndim == 1 else x
+    except KeyError:
+        raise missing_keys_error(observation, keys) from None
     return out
 
 

@@ -219,8 +219,14 @@ class QPLaw(BatchedController):
         f = np.zeros((len(q), na + 3))
         f[:, :na] = -self._w * z
         u = np.empty((len(q), na))
+        # a row with a non-finite observation gets NaN (that row's problem: the env refuses it naming the robot),
+        # never the solver or LAPACK's least squares, whose error on NaN would fail every row of the batch
+        finite = np.isfinite(J).all(axis=(1, 2)) & np.isfinite(v).all(axis=1) & np.isfinite(z).all(axis=1)
         A, lbx, ubx = self._A, self._lb, self._ub
         for i in range(len(q)):
+            if not finite[i]:
+                u[i] = self.last_slack[i] = np.nan
+                continue
             A[:, :na] = J[i]
             lbx[:na], ubx[:na] = lb[i], ub[i]
             x = self._solve_qp(self._P, f[i], A=A, b=v[i], lb=lbx, ub=ubx, solver=c.solver)

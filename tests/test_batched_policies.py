@@ -400,3 +400,67 @@ def test_the_model_free_law_as_plain_python_gives_the_compiled_bits():
     proc = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert json.loads(proc.stdout.strip().splitlines()[-1]) == model_free_digests()
+
+
+def _known_specs() -> list[str]:
+    from policies.registry import KNOWN_POLICIES
+
+    return list(KNOWN_POLICIES)
+
+
+@pytest.mark.parametrize("key", ["joint_pos", "ee_pos", "base_yaw", "target_pos"])
+@pytest.mark.parametrize("spec", _known_specs())
+def test_a_non_finite_observation_row_is_that_rows_problem(spec, key, capfd):
+    """One robot's NaN or inf reading gives that robot a non-finite action (the env refuses it, naming the robot)
+    and leaves the other rows' actions as they are, bit for bit: no LinAlgError (`qp`, `calib-qp`, `clik` once
+    failed the whole batch on a NaN joint angle or heading, with LAPACK's complaint on stderr)."""
+    venv = _venv(ENV_ID, 3)
+    clean, dirty = policies.make(spec, venv), policies.make(spec, venv)
+    try:
+        obs, info = venv.reset(seed=10_500)
+        for pol in (clean, dirty):
+            pol.reset(obs, info, seed=10_500)
+        bad = {k: v.copy() for k, v in obs.items()}
+        bad[key][1, 0] = np.nan if key != "base_yaw" else np.inf
+        a_clean, a_dirty = clean.predict(obs)[0], dirty.predict(bad)[0]
+    finally:
+        venv.close()
+    assert np.array_equal(a_clean[[0, 2]], a_dirty[[0, 2]])
+    assert np.isfinite(a_dirty[[0, 2]]).all()
+    assert "DLASCL" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("spec", _known_specs())
+def test_a_missing_observation_key_is_named_with_the_fix(spec):
+    """An observation without a key the law reads (a filtered or renamed dict) raised a bare KeyError naming the
+    key only: it names the key, the keys the policy reads and the fix, for the batched policy (reset and predict)
+    and the single one. A law that reads no key (`zero`, `random`) does not care."""
+    import re
+
+    venv = _venv(ENV_ID, 2)
+    env = WheeledPumaEnv(dynamics="kinematic")
+    try:
+        batched, single = policies.make(spec, venv), policies.make(spec, env)
+        obs, info = venv.reset(seed=10_600)
+        keys = tuple(getattr(batched, "uses_keys", ()))
+        drop = keys[-1] if keys else "ee_pos"
+        partial = {k: v for k, v in obs.items() if k != drop}
+        single_partial = {k: v[0] for k, v in partial.items()}
+        calls = [
+            lambda: batched.reset(partial, info, seed=10_600),
+            lambda: batched.predict(partial),
+            lambda: single.reset(single_partial, None, seed=1),
+            lambda: single.predict(single_partial),
+        ]
+        for call in calls:
+            if not keys:
+                call()
+                continue
+            message = rf"the observation has no '{drop}': this policy reads \[.*'{drop}'.*\], the observation holds"
+            with pytest.raises(ValueError, match=message) as info_:
+                call()
+            assert "pass the env's whole Dict observation" in str(info_.value)
+            assert re.search(r"holds \['", str(info_.value))
+    finally:
+        venv.close()
+        env.close()

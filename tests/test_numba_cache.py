@@ -70,3 +70,27 @@ def test_every_cached_kernel_recovers_from_a_corrupt_file(module):
     assert kernels
     for kernel in kernels:
         assert isinstance(kernel._cache, CheckedFunctionCache), kernel
+
+
+def test_a_damaged_index_never_removes_a_file_outside_the_cache(tmp_path):
+    """An index whose entry names `../FILE` (a damaged or crafted index) makes the load fail: the index itself is
+    removed, never the file it names outside the kernel's cache folder."""
+    import pickle
+
+    (tmp_path / "tiny.py").write_text(KERNEL)
+    assert _run(tmp_path).returncode == 0
+    index = next((tmp_path / "cache").rglob("tiny.add-*.nbi"))
+    data = next((tmp_path / "cache").rglob("tiny.add-*.nbc"))
+    victim = index.parent.parent / data.name
+    victim.write_bytes(b"not a cache file: someone's data")
+    with open(index, "rb") as f:
+        version = pickle.load(f)
+        stamp, overloads = pickle.loads(f.read())
+    overloads = {key: f"../{name}" for key, name in overloads.items()}
+    index.write_bytes(pickle.dumps(version) + pickle.dumps((stamp, overloads)))
+    again = _run(tmp_path)
+    assert again.returncode == 0 and again.stdout == "3\n", again.stderr
+    said = _said(again.stderr)
+    assert len(said) == 1 and f"cache file {index} could not be loaded" in said[0], again.stderr
+    assert victim.read_bytes() == b"not a cache file: someone's data"
+    assert not _said(_run(tmp_path).stderr)
