@@ -15,6 +15,8 @@ from eval.errors import EvalError
 from eval.output.files import write_error
 
 JOURNAL = "episodes.jsonl"
+#: Cap on a journal read back (a record is about 2 kB: a million episodes).
+MAX_JOURNAL_BYTES = 4 * 2**30
 
 
 def episode_key(rec: Any) -> tuple:
@@ -45,9 +47,15 @@ class Journal:
         """({key: record}, number of lines dropped). A torn last line (the process was killed while writing
         it) is cut off the file; a line that is valid JSON but not an object is skipped with a warning; any
         other unreadable line is an error naming it."""
+        from policies.untrusted import FileRefused, read_regular
+        from policies.untrusted_json import parse_json
+
         if not self.path.exists():
             return {}, 0
-        data = self.path.read_bytes()
+        try:  # a regular file under a cap (never a FIFO or a device); each line through the one JSON parser
+            data = read_regular(self.path, MAX_JOURNAL_BYTES, "journal")
+        except FileRefused as exc:
+            raise EvalError(str(exc)) from None
         records: dict[tuple, dict] = {}
         dropped = 0
         end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
@@ -55,8 +63,8 @@ class Journal:
             if not line.strip():
                 continue
             try:
-                rec = json.loads(line)
-            except ValueError as exc:
+                rec = parse_json(line, f"line {n}")
+            except FileRefused as exc:
                 raise EvalError(
                     f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
                     f"damaged: delete that line (its episode then runs again)"
