@@ -14,7 +14,6 @@ from conftest import SHORT_CIRCLE
 
 import policies
 from eval.cli import main
-from policies.registry import data_spec_problem
 
 USER_MODULE = """
 import numpy as np
@@ -94,10 +93,17 @@ def test_a_marked_factory_and_a_class_are_called_an_unmarked_function_is_not(env
     assert not (usermod / "CALLED").exists()
 
 
-def test_an_option_naming_the_env_parameter_is_refused(env, usermod):
+def test_an_option_naming_the_env_parameter_is_refused(env, tmp_path, monkeypatch):
     """`Ctrl:env=3` called `Ctrl(env=3)`: the env silently replaced by the option."""
+    plain = USER_MODULE.split("@policies.controller_factory")[0].replace("import policies\n", "")
+    (tmp_path / "usermod_plain.py").write_text(plain)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert policies.make("usermod_plain:Ctrl:gain=2", env).gain == 2
     with pytest.raises(ValueError, match=r"the option env=3 names the parameter Ctrl receives the env in"):
-        policies.make("usermod_specs:Ctrl:env=3", env)
+        policies.make("usermod_plain:Ctrl:env=3", env)
+
+
+def test_an_option_naming_a_factorys_env_parameter_is_refused(env, usermod):
     with pytest.raises(ValueError, match=r"the option env='x' names the parameter tuned receives the env in"):
         policies.make("usermod_specs:tuned:env=x", env)
 
@@ -118,6 +124,8 @@ def test_option_values_with_unicode_digits_or_control_characters_are_refused(env
 
 
 def test_a_file_may_name_only_built_in_specs_and_sb3_agents():
+    from policies.registry import data_spec_problem
+
     assert data_spec_problem("qp") is None and data_spec_problem("oracle:gamma=10") is None
     assert data_spec_problem("sb3:ppo-circle") is None and data_spec_problem("sb3:runs/x/model.zip") is None
     for spec in ("os:system:command=id", "mymod:Ctrl", "sb3:", "", 3, "nnbc:gamma=\uff12"):
