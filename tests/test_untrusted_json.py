@@ -255,3 +255,45 @@ def test_train_resume_refuses_a_damaged_config_json(tmp_path, monkeypatch, capsy
     assert train_main(["--resume", str(out)]) == 2
     err = capsys.readouterr().err
     assert "config.json is not a readable JSON file" in err and SAYS[kind] in err and "Traceback" not in err
+
+
+# --- the other readers: a sweep's record and journal, an agent's config.json ---------------------------------
+
+
+@pytest.mark.timeout(120)
+@pytest.mark.parametrize("name", ["config.json", "episodes.jsonl"])
+def test_a_sweep_folder_whose_record_or_journal_is_a_fifo_is_refused(tmp_path, capsys, name):
+    """Resuming a sweep whose config.json or episodes.jsonl is a FIFO hung (reading it, or opening the journal
+    for appending); both are refused, naming the file."""
+    import yaml
+
+    spec = {"envs": ["WheeledPuma-Circle-v0"], "policies": ["zero"], "seeds": {"start": 10_000, "count": 1}}
+    (tmp_path / "s.yaml").write_text(yaml.safe_dump({**spec, "dynamics": ["kinematic"], "env_kwargs": SHORT}))
+    args = ["sweep", "--config", str(tmp_path / "s.yaml"), "--out", str(tmp_path / "o"), "--quiet", "--no-plots"]
+    assert main(args) == 0
+    _damage(tmp_path / "o" / name, "fifo")
+    capsys.readouterr()
+    assert main(args) == 2
+    err = capsys.readouterr().err
+    assert f"{name} is " in err and "not a regular file" in err and "Traceback" not in err
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("kind", ["fifo", "dev_zero", "deep"])
+def test_an_agents_config_json_is_read_by_the_one_reader(tmp_path, kind):
+    import shutil
+
+    import gymnasium as gym
+
+    import policies
+
+    pytest.importorskip("stable_baselines3")
+    d = tmp_path / "agent"
+    shutil.copytree(policies.resolve_model_path("sac-circle").parent, d)
+    _damage(d / "config.json", kind)
+    env = gym.make("WheeledPuma-Circle-v0")
+    try:
+        with pytest.raises(ValueError, match=re.escape(SAYS[kind])):
+            policies.make(f"sb3:{d}", env)
+    finally:
+        env.close()

@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -92,11 +93,16 @@ class Journal:
     def open(self, fresh: bool = False) -> None:
         """Open for appending, holding an exclusive lock: two sweeps cannot write one directory at once.
         `fresh`: empty the file once the lock is held (a run starts a new journal)."""
-        try:
+        try:  # O_NONBLOCK: a FIFO planted under the journal's name fails here instead of blocking the run
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0), 0o644)
         except OSError as exc:
+            if self.path.exists() and not self.path.is_file():
+                raise EvalError(f"{self.path} is not a regular file; delete it (the journal is a plain file)") from None
             raise write_error(self.path, exc) from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise EvalError(f"{self.path} is not a regular file; delete it (the journal is a plain file)")
         lock_exclusive(fd, self.path.parent, self.command)
         if fresh:
             os.ftruncate(fd, 0)
