@@ -45,22 +45,19 @@ MAX_RESULTS_BYTES = 1024 * 2**20
 _STATS = Nullable(MapOf(AnyJSON))
 _INTERVAL = Nullable(ListOf(Nullable(Num)))
 
-#: The rows of a scorecard's tables: who, where, how many; statistics are objects or null.
-_ROW = Obj(
-    {"policy": Str},
-    {
-        "condition": Str,
-        "track": Str,
-        "env": Nullable(Str),
-        "robot": Nullable(Str),
-        "knowledge": Nullable(Str),
-        "n": Int,
-        "n_failed": Int,
-        "success_rate": Nullable(Num),
-        "success_rate_ci95": _INTERVAL,
-        "max_error_m": _STATS,
-    },
-)
+#: The rows of a scorecard's tables: who, how many; statistics are objects or null. `rows`, `pooled` and
+#: `by_robot` are per condition (`tracks` pools the conditions of a track).
+_ROW_FIELDS = {"policy": Str, "track": Str, "n": Int, "n_failed": Int}
+_ROW_OPTIONAL = {
+    "env": Nullable(Str),
+    "robot": Nullable(Str),
+    "knowledge": Nullable(Str),
+    "success_rate": Nullable(Num),
+    "success_rate_ci95": _INTERVAL,
+    "max_error_m": _STATS,
+}
+_TRACK_ROW = Obj(_ROW_FIELDS, _ROW_OPTIONAL)
+_ROW = Obj({**_ROW_FIELDS, "condition": Str}, _ROW_OPTIONAL)
 
 #: A committed episode that `bench --against` runs again.
 _SAMPLE = Obj({"condition": Str, "env": Str, "policy": Str, "seed": Int, "fields": MapOf(AnyJSON)})
@@ -93,7 +90,7 @@ SCORECARD: Schema = Obj(
         "notes": ListOf(Str),
         "rows": ListOf(_ROW),
         "pooled": ListOf(_ROW),
-        "tracks": ListOf(_ROW),
+        "tracks": ListOf(_TRACK_ROW),
         "samples": ListOf(_SAMPLE),
     },
     {
@@ -178,7 +175,7 @@ def check_scorecard_names(sc: dict, where: str, typed: Iterable[str] = ()) -> No
     envs = [(f"samples[{i}].env", s["env"]) for i, s in enumerate(sc["samples"])]
     envs += [(f"protocol.envs[{i}]", e) for i, e in enumerate(sc["protocol"].get("envs") or [])]
     for name, c in sc["protocol"]["conditions"].items():
-        envs += [(f"protocol.conditions.{name}.envs[{i}]", e) for i, e in enumerate(c.get("envs") or [])]
+        envs += [(f"protocol.conditions[{name!r}].envs[{i}]", e) for i, e in enumerate(c.get("envs") or [])]
     for field, env_id in envs:
         problem = registered_env_problem(env_id)
         if problem is not None:

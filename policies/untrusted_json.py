@@ -175,8 +175,11 @@ class Obj(Schema):
 
 
 def _key(where: str, key: str) -> str:
-    """The field path of `key` inside `where` ("" is the top level)."""
-    return f"{where}.{key}" if where else str(key)
+    """The field path of `key` inside `where` ("" is the top level): dotted for a plain name, else quoted
+    (`conditions['a.b']`), so a key with a terminal escape or a dot cannot garble or fake the message."""
+    if key.replace("_", "a").replace("-", "a").isalnum() and key.isascii():
+        return f"{where}.{key}" if where else key
+    return f"{where}[{key!r}]"
 
 
 def json_depth(data: Any) -> int:

@@ -20,7 +20,7 @@ from eval.bench.run import run_bench
 from eval.cli import main
 from eval.errors import EvalError
 from policies.untrusted import FileRefused
-from policies.untrusted_json import MAX_DEPTH, Int, ListOf, Obj, Str, read_json
+from policies.untrusted_json import MAX_DEPTH, Int, ListOf, MapOf, Obj, Str, read_json
 
 DEEP = b"[" * 100_000 + b"]" * 100_000
 
@@ -82,6 +82,9 @@ def test_read_json_checks_the_shape_naming_the_field_found_and_expected(tmp_path
     f.write_text(json.dumps({"row": []}))
     with pytest.raises(FileRefused, match=r"rows is missing; expected a list"):
         read_json(f, 2**20, "test file", schema)
+    f.write_text(json.dumps({"rows": [], "by": {"\x1b[2J": 1}}))  # a key is quoted: no raw escape in a message
+    with pytest.raises(FileRefused, match=re.escape("by['\\x1b[2J'] is the number 1; expected a list")):
+        read_json(f, 2**20, "test file", Obj({"rows": ListOf(Int)}, {"by": MapOf(ListOf(Int))}))
     nested: list = []
     for _ in range(MAX_DEPTH):  # [] wrapped 32 times: 33 deep; parses, but deeper than any mobman file
         nested = [nested]
@@ -186,6 +189,7 @@ def _del(d: dict, key: str) -> None:
         (lambda d: d["protocol"].update(policies="zero"), "protocol.policies is the string 'zero'; expected a list"),
         (lambda d: d["samples"][0].update(seed=None), "samples[0].seed is null; expected an integer"),
         (lambda d: d.update(pooled={"a": 1}), "pooled is an object with 1 keys; expected a list"),
+        (lambda d: d["rows"][0].pop("n_failed"), "rows[0].n_failed is missing; expected an integer"),
     ],
 )
 def test_bench_against_a_malformed_scorecard_is_refused_before_anything_runs(tmp_path, committed, capsys, edit, says):
