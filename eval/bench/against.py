@@ -4,7 +4,10 @@ A researcher wants their controller's row beside the built-in ones, not hours of
 run already. So:
 
 1. the committed scorecard (`DIR/scorecard.json`) names its protocol; the bench asked for must be the same
-   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset);
+   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset). The file is
+   data from someone else: it is read through the one JSON reader and its shape checked (`eval.schemas`), and
+   the controllers and env ids it names must be built-in controllers, `sb3:` agents and registered env ids
+   (`eval.schemas.check_scorecard_names`), all before anything runs;
 2. a fixed sample of the committed baseline episodes (`SAMPLE_SIZE`, spread over the conditions and controllers:
    `samples`) is run again here; their metric fields must equal the committed ones **bit for bit** (the engine
    and the compiled laws do not depend on the BLAS kernel: `mobman_env.engine`). If they do, the committed rows
