@@ -21,7 +21,8 @@ every module and fails on a cycle or an upward import):
 1. `errors` (EvalError; imports nothing), `metrics` (pure functions over recorded arrays), `heldout` (protocol
    v3's held-out family and its draw; imports numpy only)
 2. `rollout` (make_env, make_vector_env, make_policy, the one rollout loop: `rollout` for one env, `rollout_batch`
-   for a vector env and a batched policy)
+   for a vector env and a batched policy), `schemas` (the JSON files eval reads: their reader, caps and shapes,
+   and the names a scorecard may hold)
 3. `config` (EvalConfig)
 4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-

@@ -25,7 +25,6 @@ blocks of docs/performance.md) into `--out` and prints a table.
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import tempfile
@@ -321,12 +320,13 @@ def paper_kinematic_seconds() -> dict:
     """CPU seconds of the kinematic half of `mobman-eval paper` (`eval.paper.reproduce(dynamics="kinematic",
     workers=1)`, in this process, into a temporary folder), and its wall seconds."""
     from eval.paper import reproduce
+    from eval.schemas import MAX_RESULTS_BYTES, read_eval_json
 
     with tempfile.TemporaryDirectory(prefix="mobman-speed-paper-") as tmp:
         c0, w0 = CLOCK(), time.perf_counter()
         out = reproduce(out=tmp, dynamics="kinematic", workers=1, overwrite=True, progress=False)
         cpu, wall = CLOCK() - c0, time.perf_counter() - w0
-        episodes = json.loads((out / "results.json").read_text())["episodes"]
+        episodes = read_eval_json(out / "results.json", MAX_RESULTS_BYTES, "paper results file")["episodes"]
     return {
         "cpu_s": cpu,
         "wall_s": wall,

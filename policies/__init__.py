@@ -21,7 +21,7 @@ action, _ = policy.predict(obs)
 | `calib-qp` | `qp`'s QP on a model calibrated online from the catalogue: the adaptive baseline (class nominal; `policies.calib_qp`) |
 | `zero`, `random` | floor references (`policies.simple`) |
 | `sb3:PATH` | a Stable-Baselines3 agent (`policies.sb3`) |
-| `module:attr` | your own policy object, class or factory |
+| `module:attr` | your own policy object, controller class or `@policies.controller_factory` function (`policies.user_specs`) |
 
 What each policy knows about the robot, its knowledge class (`none`, `structure`, `nominal`, `true`), is
 `policies.knowledge_of(policy_or_spec)` (`policies.knowledge`).
@@ -41,6 +41,7 @@ from policies.nnbc import NNBC, NNBCConfig
 from policies.registry import KNOWN_POLICIES, SPEC_FORMS, make, parse_spec, true_params_provider
 from policies.sb3 import SB3Policy, resolve_model_path
 from policies.simple import Random, RandomConfig, Zero, ZeroConfig
+from policies.user_specs import controller_factory
 
 __all__ = [
     "CLIK",
@@ -62,6 +63,7 @@ __all__ = [
     "SB3Policy",
     "Zero",
     "ZeroConfig",
+    "controller_factory",
     "knowledge_of",
     "make",
     "parse_spec",

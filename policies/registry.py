@@ -7,14 +7,17 @@ Spec grammar (one string, as the CLI takes it):
 * `sb3:PATH` - a Stable-Baselines3 agent; the whole rest of the string is the path (a `model.zip` or its run
   folder), or the alias of a shipped baseline (a folder name of `policies/models/`: `sb3:sac-circle`,
   `sb3:ppo-circle`, ...).
-* `module:attr[:key=value,...]` - your own policy: `attr` (dotted for nested attributes) in `module` is a
-  Policy object, or a class / factory that is called with the env if its signature accepts one positional
-  argument, else with no arguments, and with the options as keyword arguments (parsed as for built-in specs:
-  `mymod:Ctrl:gain=5,horizon=3` calls `Ctrl(env, gain=5, horizon=3)`; options its signature does not take are
-  refused naming the ones it does). The result must have `reset` and `predict` (see `policies.base.Policy`).
-  `module` is imported from `sys.path`, else from the working directory (`import_user_module`: only that
-  module is loaded from there; the working directory is not put on `sys.path`). `mymod.py:Ctrl` is refused
-  with the fix (drop the .py).
+* `module:attr[:key=value,...]` - your own policy (`policies.user_specs`): `attr` (dotted for nested
+  attributes) in `module` is a Policy object, a class whose instances have `reset` and `predict`, or a function
+  marked `@policies.controller_factory`, checked to be one before it is called; a class or factory is called
+  with the env if its signature has a positional parameter, else without, and with the options as keyword
+  arguments (parsed as for built-in specs: `mymod:Ctrl:gain=5,horizon=3` calls `Ctrl(env, gain=5, horizon=3)`;
+  options its signature does not take are refused naming the ones it does, an option naming the env's
+  parameter is refused). `mymod.py:Ctrl` is refused with the fix (drop the .py). Only a spec you typed may
+  have this form: a file's specs are checked with `data_spec_problem`.
+
+Option values: bool, int, float or string; a value with a control character or a non-ASCII digit (`２０`,
+which Python's `int` and `float` would read as 20) is refused, naming it.
 
 Who gets what: the controllers that read no parameter (`nnbc`, `nnbc-full`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
 `rls`, `zero`, `random`) are built from `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
@@ -29,19 +32,15 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import importlib
-import importlib.machinery
-import importlib.util
-import inspect
-import os
-import sys
-import types
 import typing
+import unicodedata
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
 from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_native_vector_env, is_vector_env
+from policies.user_specs import make_user
 from policies.views import KnowledgeView
 
 
@@ -183,13 +182,36 @@ KNOWN_POLICIES: dict[str, str] = {name: e.description for name, e in _REGISTRY.i
 #: The two spec forms that are not names.
 SPEC_FORMS: dict[str, str] = {
     "sb3:PATH": "a Stable-Baselines3 agent: DIR/model.zip of a mobman-train run (or a shipped baseline, e.g. sb3:ppo-circle)",
-    "module:attr": "your own Policy object, class or factory, importable as module:attr (from the working "
-    "directory too); module:attr:key=value,... passes keyword arguments to the class or factory",
+    "module:attr": "your own Policy object, controller class (with reset and predict) or "
+    "@policies.controller_factory function, importable as module:attr (from the working directory too); "
+    "module:attr:key=value,... passes keyword arguments to the class or factory",
 }
 
 
 def _known_text() -> str:
     return ", ".join([*_REGISTRY, *SPEC_FORMS])
+
+
+def data_spec_problem(spec: object) -> str | None:
+    """Why `spec`, read from a file someone else wrote (a scorecard, a results file), may not be built and run
+    here, or None if it may: only a built-in name with options (`qp`, `oracle:gamma=10`) and an `sb3:` agent
+    (a path or an alias, read through `policies.untrusted`'s checks) are data. `module:attr` names code, which
+    only a spec you type may do (`policies.user_specs`)."""
+    if not isinstance(spec, str) or not spec.strip():
+        return f"{spec!r} is not a policy spec (a non-empty string)"
+    if spec.startswith("sb3:") and len(spec) > 4:
+        return None
+    name, _, rest = spec.partition(":")
+    if name not in _REGISTRY:
+        return (
+            f"{spec!r} names code; a file may name only built-in controllers (known: {', '.join(_REGISTRY)}) and "
+            f"sb3: agents"
+        )
+    try:
+        parse_options(rest, spec)
+    except ValueError as exc:
+        return str(exc)
+    return None
 
 
 def parse_spec(spec: str) -> tuple[str, dict[str, Any]]:
@@ -211,11 +233,21 @@ def parse_options(rest: str, spec: str) -> dict[str, Any]:
             )
         if key in kwargs:
             raise ValueError(f"option {key!r} given twice in policy spec {spec!r}")
-        kwargs[key] = _parse_value(text)
+        kwargs[key] = _parse_value(text, spec)
     return kwargs
 
 
-def _parse_value(text: str) -> Any:
+def _parse_value(text: str, spec: str = "") -> Any:
+    """`text` as bool, int, float or str; ValueError for a control character (a terminal escape, a NUL, a
+    right-to-left override) or a non-ASCII digit, which `int`/`float` would accept (`２０` is 20): what a
+    spec shows must be what it means."""
+    bad = [c for c in text if unicodedata.category(c) in ("Cc", "Cf") or (c.isdigit() and not c.isascii())]
+    if bad:
+        kind = "a control character" if unicodedata.category(bad[0]).startswith("C") else "a non-ASCII digit"
+        raise ValueError(
+            f"option value {text!r} in policy spec {spec!r} holds {kind} ({bad[0]!r}, U+{ord(bad[0]):04X}); write "
+            f"numbers with the ASCII digits 0-9 and values without control characters"
+        )
     low = text.lower()
     if low in ("true", "false"):
         return low == "true"
@@ -304,7 +336,7 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         return _make_builtin(spec, env, seed)
     attr, _, options = rest.partition(":")
     if attr and "=" not in attr:  # module:attr[:key=value,...]
-        return _make_user(name, attr, parse_options(options, spec), env, spec)
+        return make_user(name, attr, parse_options(options, spec), env, spec, _known_text())
     hint = difflib.get_close_matches(name, list(_REGISTRY), n=1)
     did = f" (did you mean {hint[0]!r}?)" if hint else ""
     raise ValueError(f"unknown policy {name!r} in spec {spec!r}{did}; known: {_known_text()}")
@@ -387,93 +419,3 @@ def true_params_provider(env: Any) -> Callable[[], Any]:
         return base.true_params
 
     return provider
-
-
-def import_user_module(module_name: str) -> types.ModuleType:
-    """`module_name` as `import` finds it on `sys.path`, else from the working directory: the module (for a
-    dotted name, its top-level package) is loaded from there by name, and the working directory is never put
-    on `sys.path`, so no other import of the run can pick up a file there (a planted `defusedxml.py`).
-    ModuleNotFoundError when neither has it."""
-    top = module_name.partition(".")[0]
-    if top not in sys.modules and importlib.util.find_spec(top) is None:
-        spec = importlib.machinery.PathFinder.find_spec(top, [os.getcwd()])
-        if spec is not None and spec.loader is not None:
-            module = importlib.util.module_from_spec(spec)
-            sys.modules[top] = module
-            try:
-                spec.loader.exec_module(module)
-            except BaseException:
-                del sys.modules[top]
-                raise
-    return importlib.import_module(module_name)
-
-
-def _make_user(module_name: str, attr: str, options: dict[str, Any], env: Any, spec: str) -> Any:
-    if module_name.endswith(".py"):
-        raise ValueError(
-            f"policy spec {spec!r}: {module_name!r} is a file name; name the module, without .py: "
-            f"{module_name[:-3]}:{attr}"
-        )
-    try:
-        module = import_user_module(module_name)
-    except ModuleNotFoundError as exc:
-        # the module itself (or its package) is missing: an unknown spec. A missing import *inside* the user's
-        # module is their error and propagates unchanged.
-        if exc.name is not None and (module_name == exc.name or module_name.startswith(exc.name + ".")):
-            raise ValueError(
-                f"unknown policy {spec!r}: {module_name!r} is neither a known policy nor an importable "
-                f"module ({exc}: put {module_name.split('.')[0]}.py in the working directory or on PYTHONPATH); "
-                f"known: {_known_text()}"
-            ) from None
-        raise
-    obj: Any = module
-    for part in attr.split("."):
-        try:
-            obj = getattr(obj, part)
-        except AttributeError:
-            raise ValueError(f"policy spec {spec!r}: module {module_name!r} has no attribute {attr!r}") from None
-    if not inspect.isclass(obj) and _is_policy(obj):
-        if options:
-            raise ValueError(
-                f"policy spec {spec!r}: {attr} is a policy object, which takes no options {sorted(options)}; name "
-                f"a class or factory to pass options to it, or drop them"
-            )
-        return obj
-    if not callable(obj):
-        raise TypeError(f"policy spec {spec!r}: {attr!r} is neither a policy (reset + predict) nor a class or factory")
-    try:
-        sig = inspect.signature(obj)
-    except (TypeError, ValueError):
-        sig = None
-    if sig is not None and _binds(sig, env, **options):
-        policy = obj(env, **options)
-    elif sig is None or _binds(sig, **options):
-        policy = obj(**options)
-    elif options and (_binds(sig, env) or _binds(sig)):
-        params = list(sig.parameters.values())[1 if _binds(sig, env) else 0 :]  # not the env's parameter
-        accepted = [p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
-        raise ValueError(
-            f"policy spec {spec!r}: {attr}{sig} does not take the options {sorted(options)}; its keyword "
-            f"arguments are {accepted} (module:attr:key=value,... passes them)"
-        )
-    else:
-        raise TypeError(f"policy spec {spec!r}: {attr}{sig} can be called neither with (env) nor with no arguments")
-    if not _is_policy(policy):
-        raise TypeError(
-            f"policy spec {spec!r}: {attr} returned a {type(policy).__name__}, which lacks "
-            f"reset(obs, info=None, *, seed=None) and/or predict(observation, state=None, "
-            f"episode_start=None, deterministic=True); see policies.base.Policy"
-        )
-    return policy
-
-
-def _binds(sig: inspect.Signature, *args: Any, **kwargs: Any) -> bool:
-    try:
-        sig.bind(*args, **kwargs)
-    except TypeError:
-        return False
-    return True
-
-
-def _is_policy(obj: Any) -> bool:
-    return callable(getattr(obj, "reset", None)) and callable(getattr(obj, "predict", None))

@@ -65,7 +65,6 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 
 from __future__ import annotations
 
-import json
 import warnings
 from pathlib import Path
 from typing import Any
@@ -84,6 +83,10 @@ from policies.sb3_files import (
     zoo_normalize,
 )
 from policies.untrusted import file_sha256
+from policies.untrusted_json import read_json
+
+#: Cap on an agent's config.json (the shipped ones: 2 kB).
+MAX_CONFIG_BYTES = 16 * 2**20
 
 #: Folder of the models shipped as package data (found through this file's own location, so a user's
 #: `train.py` or `policies.py` beside their script cannot hide it).
@@ -203,14 +206,14 @@ def _algo_from_zip(data: dict) -> str | None:
 
 def _read_config(path: Path) -> dict:
     """The run folder's config.json ({} without one); ValueError naming the file when it is not JSON."""
-    if not path.is_file():
+    if not path.exists() and not path.is_symlink():
         return {}
-    try:
-        data = json.loads(path.read_text())
+    try:  # the one JSON reader: a regular file under a cap (a FIFO or /dev/zero is refused), UTF-8, bounded nesting
+        data = read_json(path, MAX_CONFIG_BYTES, "run config")
     except (ValueError, OSError) as exc:
         raise ValueError(
-            f"{path} is not a readable JSON file ({type(exc).__name__}: {exc}); copy it again from the training "
-            f"run, or delete it to load model.zip on its own"
+            f"{path} is not a readable JSON file ({exc}); copy it again from the training run, or delete it to "
+            f"load model.zip on its own"
         ) from None
     if not isinstance(data, dict):
         raise ValueError(f"{path} must hold a JSON object (the run's config), got {type(data).__name__}")

@@ -397,7 +397,9 @@ def test_a_corrupt_record_is_named_as_corrupt_not_missing(tmp_path, capsys, comm
     assert main(args) == 2
     err = capsys.readouterr().err
     assert (
-        f"{record} is not readable (JSONDecodeError" in err and "restore it" in err and "no " + record.name not in err
+        f"{record} is not readable ({record}: not valid JSON" in err
+        and "restore it" in err
+        and "no " + record.name not in err
     )
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before
 

@@ -118,7 +118,7 @@ class ExitOnOddSeed(HoldStill):
         return super().predict(observation, state, episode_start, deterministic)
 
 
-class ExitInConstructor:
+class ExitInConstructor(HoldStill):
     """`sys.exit(3)` while being built (a user's script-style module): a failure with a message, not a silent
     exit of the CLI."""
 

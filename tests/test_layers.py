@@ -24,6 +24,7 @@ EVAL_LAYERS = {
     "eval.metrics": 1,
     "eval.heldout": 1,
     "eval.rollout": 2,
+    "eval.schemas": 2,
     "eval.config": 3,
     "eval.execution": 4,
     "eval.checks": 5,

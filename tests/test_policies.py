@@ -486,6 +486,7 @@ def test_sb3_paths_and_alias_fail_clearly(kin_env, monkeypatch, tmp_path):
 
 USER_MODULE = """
 import numpy as np
+import policies
 
 class EnvPolicy:
     def __init__(self, env):
@@ -501,6 +502,7 @@ class Fixed:
     def predict(self, observation, state=None, episode_start=None, deterministic=True):
         return np.full(8, 0.1, dtype=np.float32), state
 
+@policies.controller_factory
 def factory():
     return Fixed()
 
@@ -510,6 +512,7 @@ class NotAPolicy:
     def __init__(self):
         pass
 
+@policies.controller_factory
 def needs_two(a, b):
     return None
 """

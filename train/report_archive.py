@@ -37,7 +37,8 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from mobman_env.validation import folder_name
-from policies.untrusted import FileRefused, read_regular
+from policies.untrusted import FileRefused
+from policies.untrusted_json import read_json as read_json_checked
 from train.curve import read_curve
 
 #: The schema of the report results this module reads (`train.report.build_report` writes it).
@@ -63,12 +64,12 @@ MAX_JSON_BYTES = 64 * 2**20
 
 def read_json(path: Path) -> dict:
     """The JSON object in `path`; ValueError naming the file when it is not a regular file of at most
-    `MAX_JSON_BYTES` (`policies.untrusted.read_regular`), unreadable or not an object."""
-    try:
-        data = json.loads(read_regular(path, MAX_JSON_BYTES, "JSON file"))
+    `MAX_JSON_BYTES`, not UTF-8 JSON or nested too deep (`policies.untrusted_json.read_json`), or not an object."""
+    try:  # the one JSON reader (`policies.untrusted_json`): regular file, cap, UTF-8, bounded nesting
+        data = read_json_checked(path, MAX_JSON_BYTES, "JSON file")
     except FileRefused:
         raise
-    except (OSError, ValueError) as exc:
+    except OSError as exc:
         raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path} holds {type(data).__name__}, expected a JSON object")

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import pickle
@@ -12,6 +11,7 @@ from typing import Any
 
 from eval.output.provenance import versions
 from mobman_env.validation import folder_name
+from policies.untrusted_json import read_json
 from train.callbacks import write_json
 from train.config import TrainConfig
 
@@ -54,12 +54,18 @@ def run_config_dict(config: TrainConfig) -> dict:
     }
 
 
+#: Cap on a run folder's JSON file (config.json: 2 kB; summary.json and latest.json: less).
+MAX_RUN_JSON_BYTES = 16 * 2**20
+
+
 def read_json_file(path: Path) -> dict:
-    """A JSON object from a run folder's file; ValueError naming the file when it is not one."""
+    """A JSON object from a run folder's file (config.json, summary.json, checkpoints/latest.json) through the
+    one JSON reader (`policies.untrusted_json.read_json`: a regular file of at most `MAX_RUN_JSON_BYTES`, so a
+    FIFO or a symlink to /dev/zero is refused; UTF-8; bounded nesting); ValueError naming the file otherwise."""
     try:
-        data = json.loads(Path(path).read_text())
+        data = read_json(path, MAX_RUN_JSON_BYTES, "run file")
     except (OSError, ValueError) as exc:
-        raise ValueError(f"{path} is not a readable JSON file ({type(exc).__name__}: {exc})") from None
+        raise ValueError(f"{path} is not a readable JSON file ({exc})") from None
     if not isinstance(data, dict):
         raise ValueError(f"{path} must hold a JSON object, got {type(data).__name__}")
     return data
@@ -190,7 +196,7 @@ def save_if_best(model: Any, row: dict, config: TrainConfig, out: Path) -> bool:
     folder of its own (model.zip, vecnormalize.pkl, config.json, best.json), like rl-zoo's best_model."""
     best_dir = out / "best"
     info_path = best_dir / "best.json"
-    previous = json.loads(info_path.read_text()) if info_path.exists() else None
+    previous = read_json_file(info_path) if info_path.exists() else None
     if previous is not None and previous[BEST_KEY] <= row[BEST_KEY]:
         return False
     best_dir.mkdir(exist_ok=True)

@@ -4,7 +4,10 @@ A researcher wants their controller's row beside the built-in ones, not hours of
 run already. So:
 
 1. the committed scorecard (`DIR/scorecard.json`) names its protocol; the bench asked for must be the same
-   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset);
+   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset). The file is
+   data from someone else: it is read through the one JSON reader and its shape checked (`eval.schemas`), and
+   the controllers and env ids it names must be built-in controllers, `sb3:` agents and registered env ids
+   (`eval.schemas.check_scorecard_names`), all before anything runs;
 2. a fixed sample of the committed baseline episodes (`SAMPLE_SIZE`, spread over the conditions and controllers:
    `samples`) is run again here; their metric fields must equal the committed ones **bit for bit** (the engine
    and the compiled laws do not depend on the BLAS kernel: `mobman_env.engine`). If they do, the committed rows
@@ -21,7 +24,6 @@ Imports `eval.bench.*`, `eval.metrics`, `eval.rollout`, `eval.output`.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 from collections.abc import Iterable
@@ -49,19 +51,29 @@ CONFIG_KEYS = {
 SAME = ("version", *CONFIG_KEYS.values())
 
 
-def load_against(path: str | Path) -> tuple[dict, str]:
-    """The committed scorecard of `path` (a bench folder or its scorecard.json) and its sha256."""
+def load_against(path: str | Path, typed: Iterable[str] = ()) -> tuple[dict, str]:
+    """The committed scorecard of `path` (a bench folder or its scorecard.json) and its sha256, read through
+    the one JSON reader and checked before anything runs: its shape (`eval.schemas.SCORECARD`) and its names,
+    since its baselines and samples are built and run here (`eval.schemas.check_scorecard_names`: built-in
+    controllers, `sb3:` agents, registered env ids; `typed`, the controllers of --policy, are the user's own)."""
+    from eval.schemas import check_scorecard_names
+    from policies.untrusted import FileRefused, file_sha256
+
     path = Path(path)
     file = path / "scorecard.json" if path.is_dir() else path
     sc = S.load_scorecard(file)
-    return sc, hashlib.sha256(file.read_bytes()).hexdigest()
+    check_scorecard_names(sc, str(file), typed)
+    try:
+        return sc, file_sha256(file)
+    except FileRefused as exc:
+        raise EvalError(str(exc)) from None
 
 
 def committed_settings(path: str | Path, given: Iterable[str]) -> dict[str, Any]:
     """The committed scorecard's value of every `CONFIG_KEYS` field not in `given` (the fields the command line
     set): `--against DIR` alone runs the committed protocol, and a value given that differs is refused by
     `check_protocol`, naming it."""
-    protocol = load_against(path)[0]["protocol"]
+    protocol = S.load_scorecard(Path(path) / "scorecard.json" if Path(path).is_dir() else path)["protocol"]
     given = set(given)
     return {f: protocol[k] for f, k in CONFIG_KEYS.items() if f not in given and k in protocol}
 

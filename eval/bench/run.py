@@ -130,7 +130,7 @@ def run_bench(
                 "--against runs only your controllers beside the committed scorecard's: name them with --policy "
                 "(e.g. --policy mymod:Ctrl)"
             )
-        committed, sha = A.load_against(against)
+        committed, sha = A.load_against(against, typed=config.policies)
         against_record = {"scorecard": str(against), "sha256": sha}
     cfg, notes = config.resolved()
     out = Path(out) if out is not None else DEFAULT_OUT

@@ -255,14 +255,16 @@ def scorecard_json_text(sc: dict) -> str:
 
 
 def load_scorecard(path: str | Path) -> dict:
-    """Read a scorecard.json; EvalError when it is missing or not a scorecard."""
+    """Read a scorecard.json through the one JSON reader (`eval.schemas`: a regular file of at most
+    `MAX_SCORECARD_BYTES`, UTF-8, bounded nesting) and check its kind, schema number and shape (`SCORECARD`)
+    before anything uses it; EvalError naming the file, the field and the fix otherwise."""
+    from eval.schemas import MAX_SCORECARD_BYTES, SCORECARD, check_shape, read_eval_json
+
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = read_eval_json(path, MAX_SCORECARD_BYTES, "scorecard")
     except FileNotFoundError:
         raise EvalError(f"scorecard {str(path)!r} not found (a bench writes DIR/scorecard.json)") from None
-    except (OSError, ValueError) as exc:
-        raise EvalError(f"cannot read scorecard {str(path)!r}: {exc}") from None
     if not isinstance(data, dict) or data.get("kind") != KIND:
         raise EvalError(f"{str(path)!r} is not a bench scorecard (its 'kind' is not {KIND!r})")
     if data.get("schema") != SCHEMA:
@@ -270,6 +272,7 @@ def load_scorecard(path: str | Path) -> dict:
             f"{str(path)!r} has scorecard schema {data.get('schema')!r}; this mobman reads {SCHEMA} (protocol v2). A "
             "schema-2 scorecard is protocol v1's (release 0.2): read its scorecard.md, or run the bench again"
         )
+    check_shape(data, SCORECARD, str(path))
     return data
 
 

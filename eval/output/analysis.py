@@ -74,7 +74,7 @@ def load_results(path: str | Path) -> Results:
     path = Path(path)
     if path.is_dir():
         folder, path = path, path / "results.json"
-        if not path.is_file():
+        if not path.exists() and not path.is_symlink():  # a FIFO or a device there is refused by the reader
             bench = sorted(str(p.relative_to(folder)) for p in folder.glob("conditions/*/results.json"))
             hint = (
                 f"it is a bench: load a condition's file, one of {', '.join(bench)}"

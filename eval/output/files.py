@@ -225,19 +225,25 @@ def check_out(out: Path, overwrite: bool, flag: str = "--out") -> None:
                 folder.rmdir()
 
 
+#: Cap on a folder's record (a sweep's config.json, a bench's bench.json: a few kB).
+MAX_RECORD_BYTES = 16 * 2**20
+
+
 def read_folder_record(out: Path, name: str, command: str) -> dict:
     """The record `out/name` (a sweep's config.json, a bench's bench.json) of an existing, non-empty output
     folder of `command`; EvalError telling a missing file, an unreadable one (named with its error: restore
     it, or delete the folder to start over) and one of another command apart."""
+    from policies.untrusted_json import read_json
+
     path = Path(out) / name
     if not path.exists():
         raise EvalError(f"--out {str(out)!r} exists and does not hold a {command} (no {name}); choose another --out")
-    try:
-        record = json.loads(path.read_text())
+    try:  # the one JSON reader: a regular file under a cap, UTF-8, bounded nesting
+        record = read_json(path, MAX_RECORD_BYTES, f"{command} record")
     except (OSError, ValueError) as exc:
         raise EvalError(
-            f"{path} is not readable ({type(exc).__name__}: {exc}); restore it from a backup, or delete "
-            f"{str(out)!r} to start over, or choose another --out"
+            f"{path} is not readable ({exc}); restore it from a backup, or delete {str(out)!r} to start over, or "
+            f"choose another --out"
         ) from None
     if not isinstance(record, dict) or record.get("command") != command:
         raise EvalError(

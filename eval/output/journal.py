@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import stat
 import warnings
 from collections.abc import Callable
 from pathlib import Path
@@ -15,6 +16,8 @@ from eval.errors import EvalError
 from eval.output.files import write_error
 
 JOURNAL = "episodes.jsonl"
+#: Cap on a journal read back (a record is about 2 kB: a million episodes).
+MAX_JOURNAL_BYTES = 4 * 2**30
 
 
 def episode_key(rec: Any) -> tuple:
@@ -54,9 +57,15 @@ class Journal:
         it) is cut off the file (with `repair`; without, it is only left out: a check before the lock is held
         changes nothing); a line that is valid JSON but not an object is skipped with a warning; any
         other unreadable line is an error naming it."""
+        from policies.untrusted import FileRefused, read_regular
+        from policies.untrusted_json import parse_json
+
         if not self.path.exists():
             return {}, 0
-        data = self.path.read_bytes()
+        try:  # a regular file under a cap (never a FIFO or a device); each line through the one JSON parser
+            data = read_regular(self.path, MAX_JOURNAL_BYTES, "journal")
+        except FileRefused as exc:
+            raise EvalError(str(exc)) from None
         records: dict[tuple, dict] = {}
         dropped = 0
         end = data.rfind(b"\n") + 1  # everything after the last newline is a torn write
@@ -64,8 +73,8 @@ class Journal:
             if not line.strip():
                 continue
             try:
-                rec = json.loads(line)
-            except ValueError as exc:
+                rec = parse_json(line, f"line {n}")
+            except FileRefused as exc:
                 raise EvalError(
                     f"{self.path} line {n} is not an episode record ({exc}); the file was edited or "
                     f"damaged: delete that line (its episode then runs again)"
@@ -94,11 +103,16 @@ class Journal:
     def open(self, fresh: bool = False) -> None:
         """Open for appending, holding an exclusive lock: two sweeps cannot write one directory at once.
         `fresh`: empty the file once the lock is held (a run starts a new journal)."""
-        try:
+        try:  # O_NONBLOCK: a FIFO planted under the journal's name fails here instead of blocking the run
             self.path.parent.mkdir(parents=True, exist_ok=True)
-            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_NONBLOCK", 0), 0o644)
         except OSError as exc:
+            if self.path.exists() and not self.path.is_file():
+                raise EvalError(f"{self.path} is not a regular file; delete it (the journal is a plain file)") from None
             raise write_error(self.path, exc) from None
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            os.close(fd)
+            raise EvalError(f"{self.path} is not a regular file; delete it (the journal is a plain file)")
         lock_exclusive(fd, self.path.parent, self.command)
         if fresh:
             os.ftruncate(fd, 0)

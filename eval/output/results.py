@@ -178,15 +178,19 @@ def upgrade_results(data: dict, source: str = "results") -> dict:
 
 
 def load_results(path: str | Path) -> dict:
-    """Read a results.json of schema 1, 2 or 3 (`upgrade_results` gives them one shape) as a dict;
-    `eval.load_results` wraps it for analysis (pandas DataFrames)."""
+    """Read a results.json of schema 1, 2 or 3 (`upgrade_results` gives them one shape) as a dict, through the
+    one JSON reader (`eval.schemas`: a regular file of at most `MAX_RESULTS_BYTES`, UTF-8, bounded nesting) and
+    its shape checked (`eval.schemas.RESULTS`) before anything uses it; `eval.load_results` wraps it for analysis
+    (pandas DataFrames). EvalError naming the file, the field and the fix otherwise."""
+    from eval.schemas import MAX_RESULTS_BYTES, RESULTS, check_shape, read_eval_json
+
     path = Path(path)
     try:
-        data = json.loads(path.read_text())
+        data = read_eval_json(path, MAX_RESULTS_BYTES, "results file")
     except FileNotFoundError:
         raise EvalError(f"results file {str(path)!r} not found") from None
-    except (OSError, ValueError) as exc:
-        raise EvalError(f"cannot read results file {str(path)!r}: {exc}") from None
+    if isinstance(data, dict) and data.get("schema") in READABLE_SCHEMAS:  # else upgrade_results names the schema
+        check_shape(data, RESULTS, str(path))
     return upgrade_results(data, str(path))
 
 
