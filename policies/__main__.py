@@ -24,7 +24,7 @@ def warm() -> float:
     nnbc._residual_rows(J, v, np.ones((1, 8)), rows, np.empty((1, 3)))
     three, two, ints = np.ones((1, 3)), np.ones((1, 2)), np.zeros(1, dtype=np.intp)
     obs = (three, two, two, np.ones(1), np.ones((1, 8)), 0.01)
-    est = (np.zeros((1, 13)), np.zeros((1, 13, 13)), np.zeros((1, 13)), three, three, three, np.zeros((1, 5)))
+    est = (np.zeros((1, 13)), np.zeros((1, 13, 13)), np.zeros((1, 13)), three, three, three, np.zeros((1, 6)))
     calib_qp.calibrate_rows(
         three, ints, ints, ints, *obs, *est, 1.0, 1.0, 1.0, 0.0, np.zeros((1, 8, 8)), np.ones((1, 64))
     )

@@ -94,3 +94,13 @@ def test_a_damaged_index_never_removes_a_file_outside_the_cache(tmp_path):
     assert len(said) == 1 and f"cache file {index} could not be loaded" in said[0], again.stderr
     assert victim.read_bytes() == b"not a cache file: someone's data"
     assert not _said(_run(tmp_path).stderr)
+
+
+@pytest.mark.parametrize("package", ["mobman_env", "policies"])
+def test_the_warm_up_commands_exit_cleanly(package):
+    """`python -m mobman_env` and `python -m policies` (CI's and a fresh install's compile step) exit 0: their
+    warm-up calls every kernel with arrays of the shapes the kernels write (numba does not check bounds: a state
+    array one column short was written past its end and the process aborted at exit, "free(): invalid pointer")."""
+    proc = subprocess.run([sys.executable, "-m", package], capture_output=True, text=True, cwd=ROOT, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "kernels ready" in proc.stdout
