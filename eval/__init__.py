@@ -22,7 +22,8 @@ every module and fails on a cycle or an upward import):
 2. `rollout` (make_env, make_vector_env, make_policy, the one rollout loop: `rollout` for one env, `rollout_batch`
    for a vector env and a batched policy)
 3. `config` (EvalConfig)
-4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
+4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run; `warmup`: numba's compile,
+   announced, before the first episode)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
    `tables` <- `results`, `styles` <- `plots` <- `stat_plots`, `video`, `picture`, `journal`, `readme` <-
    `layout`: what is written)
