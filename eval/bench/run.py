@@ -26,6 +26,7 @@ from typing import Any
 
 from eval.bench import against as A
 from eval.bench.config import CONDITIONS, HELDOUT_COMMIT, HELDOUT_SHA256, PROTOCOL_VERSION, BenchConfig
+from eval.bench.preflight import check_cells
 from eval.bench.scorecard import (
     build_scorecard,
     scorecard_figures,
@@ -137,6 +138,11 @@ def run_bench(
         raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
     EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
     integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
+    assert cfg.conditions is not None and cfg.policies is not None
+    preflown = cfg.policies  # every cell of every spec given, built before any episode (the --against samples too)
+    for line in check_cells(cfg, {name: sweep_for(cfg, name) for name in cfg.conditions}):
+        if progress:
+            print(f"bench: {line}", file=sys.stderr)
     protocol = protocol_dict(cfg)
     baselines: list[str] = []
     if committed is not None:
@@ -160,7 +166,7 @@ def run_bench(
     _check_out_dir(out, protocol)
     sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
     checked = {  # every condition's envs, policies and folder, before bench.json changes
-        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size)
+        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size, checked=preflown)
         for name, sweep in sweeps.items()
     }
     out.mkdir(parents=True, exist_ok=True)

@@ -139,10 +139,12 @@ def check_sweep(
     workers: int = 1,
     batch_size: int = EvalConfig.batch_size,
     user: dict[str, Any] | None = None,
+    checked: tuple[str, ...] = (),
 ) -> tuple[EvalConfig, bytes | None, bool]:
     """Every check of `run_sweep` before it writes anything (the settings, the output folder, every env and
     policy of the grid): (the episodes' EvalConfig, the pickled user policies, whether `out` is resumed);
-    EvalError naming what is wrong. A bench checks all its conditions with it before writing bench.json."""
+    EvalError naming what is wrong. A bench checks all its conditions with it before writing bench.json
+    (`checked`: the specs its pre-flight built on these envs already, `eval.checks.check_all`)."""
     user = user or {}
     base = _episode_config(sweep, out, backend, address, workers, batch_size)
     base.validate()
@@ -150,7 +152,7 @@ def check_sweep(
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
     user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
     resuming = _check_out_dir(out, sweep, check_out)
-    check_all(base, user)
+    check_all(base, user, checked)
     _check_conditions(sweep)
     return base, user_bytes, resuming
 
