@@ -5,7 +5,8 @@
 * The tutorial notebook becomes a Markdown page beside the `.ipynb` download: it is stored without outputs
   (checked here), executed when the site is built (nbclient, the checkout's packages; a failing cell fails the
   build) and shown with what it printed and drew: Markdown cells as they are, code cells as Python blocks, text
-  outputs as text blocks, images inline. Running it logs a line per code cell (mkdocs shows INFO lines).
+  outputs as text blocks, images inline. Running it logs a line per code cell, and a page of the API reference
+  a line before mkdocstrings renders it (mkdocs shows INFO lines), so the build is never silent for long.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
 * Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
@@ -108,9 +109,9 @@ def notebook_markdown(nb: dict, name: str) -> str:
 def execute_notebook(nb: dict, cwd: Path, timeout: int = 900, name: str = "the notebook") -> dict:
     """A copy of notebook `nb` executed in `cwd` (nbclient, a python3 kernel; outputs kept), as JSON.
 
-    The tutorial takes about two minutes, so the build says what it is doing: one INFO line (mkdocs prints them)
-    when the run starts and one as each code cell ends, with its seconds and the total, so that neither a
-    terminal nor a CI log sits silent."""
+    Running the tutorial is one of the build's long steps (it runs benchmarks), so the build says what it is
+    doing: one INFO line (mkdocs prints them) when the run starts and one as each code cell ends, with its
+    seconds and the total, so that neither a terminal nor a CI log sits silent."""
     import time
 
     import nbformat
@@ -129,7 +130,7 @@ def execute_notebook(nb: dict, cwd: Path, timeout: int = 900, name: str = "the n
         )
         last[0] = now
 
-    log.info(f"{name}: running its {len(code)} code cells (the tutorial takes about two minutes)")
+    log.info(f"{name}: running its {len(code)} code cells")
     client = NotebookClient(node, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(cwd)}})
     client.on_cell_executed = cell_done
     client.execute()
@@ -195,7 +196,12 @@ def conditions_table(root: Path) -> str:
     return conditions_markdown({n: c.to_dict() for n, c in CONDITIONS.items()})
 
 
+_DIRECTIVE = re.compile(r"^::: *[\w.]+", flags=re.M)
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
+    if n := len(_DIRECTIVE.findall(markdown)):  # mkdocstrings renders these next: the build's other long step
+        log.info(f"{page.file.src_uri}: rendering the API reference of {n} modules (mkdocstrings)")
     if POLICY_TABLE in markdown:
         markdown = markdown.replace(POLICY_TABLE, policy_table(_root(config)))
     if CONDITIONS_TABLE in markdown:

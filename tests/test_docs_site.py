@@ -171,9 +171,22 @@ def test_running_a_notebook_logs_a_line_per_code_cell(hooks, tmp_path, caplog):
     with caplog.at_level("INFO", logger="mkdocs.hooks.mobman"):
         ran = hooks.execute_notebook(nb, tmp_path, name="tiny.ipynb")
     lines = [r.getMessage() for r in caplog.records if r.name == "mkdocs.hooks.mobman"]
-    assert lines[0].startswith("tiny.ipynb: running its 2 code cells")
+    assert lines[0] == "tiny.ipynb: running its 2 code cells"
     assert [line.split(" ran in ")[0] for line in lines[1:]] == [
         "tiny.ipynb: code cell 1/2",
         "tiny.ipynb: code cell 2/2",
     ]
     assert "".join(ran["cells"][2]["outputs"][0]["text"]) == "2\n"
+
+
+def test_a_reference_page_says_it_is_rendered(hooks, caplog):
+    """mkdocstrings renders the API reference silently for tens of seconds: each page says so first."""
+    from types import SimpleNamespace
+
+    page = SimpleNamespace(file=SimpleNamespace(src_uri="reference/x.md"))
+    config = SimpleNamespace(config_file_path=str(ROOT / "mkdocs.yml"))
+    with caplog.at_level("INFO", logger="mkdocs.hooks.mobman"):
+        hooks.on_page_markdown("# X\n\n::: eval.grid\n\n::: eval.checks\n", page, config, None)
+        hooks.on_page_markdown("# Y\n\nno directive\n", page, config, None)
+    lines = [r.getMessage() for r in caplog.records if r.name == "mkdocs.hooks.mobman"]
+    assert lines == ["reference/x.md: rendering the API reference of 2 modules (mkdocstrings)"]

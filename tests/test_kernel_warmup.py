@@ -111,3 +111,37 @@ def test_a_first_run_on_an_empty_cache_says_it_compiles_and_the_second_does_not(
         errs.append(done.stderr)
     assert "compiling the kernels once" in errs[0] and "kernels compiled in" in errs[0]
     assert "compiling" not in errs[1]
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_picture_and_speed_compile_and_say_so_before_their_work(tmp_path, monkeypatch, capsys):
+    """The commands that run kernels outside a grid (picture's episode or gallery, speed's first timing) compile
+    a cold cache first, announced, so that neither sits silent nor times the compile."""
+    from eval.cli import main
+    from eval.speed import SpeedConfig, measure
+
+    events: list[str] = []
+    monkeypatch.setattr(warmup, "cold_parts", lambda: ["engine"])
+    monkeypatch.setattr(engine, "warm", lambda: events.append("compile") or 0.0)
+
+    def gallery(config):
+        events.append("render")
+        return {"robots": {}}
+
+    monkeypatch.setattr("eval.cli.picture.render_gallery", gallery)
+    assert main(["picture", "--gallery", str(tmp_path / "g"), "--width", "64", "--height", "64"]) == 0
+    assert events == ["compile", "render"]
+    assert "compiling the kernels once" in capsys.readouterr().err
+
+    def first_timing(*args, **kwargs):
+        events.append("time")
+        raise _Stop
+
+    monkeypatch.setattr("eval.speed.env_vs_bare", first_timing)
+    with pytest.raises(_Stop):
+        measure(SpeedConfig(), progress=lambda message: None)
+    assert events[2:] == ["compile", "time"]
+    assert "compiling the kernels once" in capsys.readouterr().err

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from eval.cli.options import Opt, add_options, build
 from eval.config import DYNAMICS_CHOICES
+from eval.execution.warmup import warm_kernels
 from eval.output import picture
 from eval.output.picture import PictureConfig, render_gallery, render_picture
 
@@ -34,6 +35,8 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     config = build(PictureConfig, args, OPTIONS)
+    config.validate()
+    warm_kernels()  # a cold numba cache compiles here, said: the episode would otherwise sit silent for ~30 s
     if config.gallery is not None:
         record = render_gallery(config)
         print(f"{config.gallery}: {', '.join(f'{stem}.png' for stem in record['robots'])} and gallery.json")
