@@ -63,8 +63,9 @@ class PolicyCheck:
     """Every policy spec built once on each env of a grid, the failures collected rather than raised at the first
     one, so that a refusal names every cell a spec cannot run on and why, before any episode runs.
 
-    Warnings raised while building (an agent evaluated on another env than it was trained on: one per env) are
-    kept per spec, not printed: `warning_lines` sums them up in one line per spec."""
+    The user warnings raised while building (an agent evaluated on another env than it was trained on: one per
+    env) are kept per spec, not printed: `warning_lines` sums them up in one line per spec; other categories (a
+    library's DeprecationWarning) pass through Python's filters as usual."""
 
     def __init__(self, specs: tuple[str, ...], seed: int | None):
         self.specs, self.seed = specs, seed
@@ -83,8 +84,12 @@ class PolicyCheck:
                 except EvalError as exc:
                     reason = str(exc).removeprefix(f"policy {spec!r}: ")
                     self.failures.setdefault(spec, {}).setdefault(reason, []).append(cell)
+            mine = [w for w in caught if w.category is UserWarning]
+            for w in caught:  # a library's deprecation and the like: shown as Python would have shown it
+                if w not in mine:
+                    warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
             seen = self.warnings.setdefault(spec, [])
-            seen += [m for m in dict.fromkeys(str(w.message) for w in caught) if m not in seen]
+            seen += [m for m in dict.fromkeys(str(w.message) for w in mine) if m not in seen]
 
     def warning_lines(self) -> list[str]:
         """One line per spec whose building warned: its first warning and how many more like it."""
