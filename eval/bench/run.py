@@ -140,6 +140,9 @@ def run_bench(
     integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
     assert cfg.conditions is not None and cfg.policies is not None
     preflown = cfg.policies  # every cell of every spec given, built before any episode (the --against samples too)
+    if progress:  # an sb3: agent loads torch and is built on each of ~100 cells: seconds, not silent
+        n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
+        print(f"bench: building {len(cfg.policies)} controller(s) on each of {n_cells} cells ...", file=sys.stderr)
     for line in check_cells(cfg, {name: sweep_for(cfg, name) for name in cfg.conditions}):
         if progress:
             print(f"bench: {line}", file=sys.stderr)
