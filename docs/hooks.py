@@ -5,7 +5,8 @@
 * The tutorial notebook becomes a Markdown page beside the `.ipynb` download: it is stored without outputs
   (checked here), executed when the site is built (nbclient, the checkout's packages; a failing cell fails the
   build) and shown with what it printed and drew: Markdown cells as they are, code cells as Python blocks, text
-  outputs as text blocks, images inline.
+  outputs as text blocks, images inline. Running it logs a line per code cell, and a page of the API reference
+  a line before mkdocstrings renders it (mkdocs shows INFO lines), so the build is never silent for long.
 * Every module of the four packages must appear in a `::: module` directive of docs/reference/: a new module
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
 * Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
@@ -105,13 +106,34 @@ def notebook_markdown(nb: dict, name: str) -> str:
     return f"{title}\n\n{download}\n{rest}\n"
 
 
-def execute_notebook(nb: dict, cwd: Path, timeout: int = 900) -> dict:
-    """A copy of notebook `nb` executed in `cwd` (nbclient, a python3 kernel; outputs kept), as JSON."""
+def execute_notebook(nb: dict, cwd: Path, timeout: int = 900, name: str = "the notebook") -> dict:
+    """A copy of notebook `nb` executed in `cwd` (nbclient, a python3 kernel; outputs kept), as JSON.
+
+    Running the tutorial is one of the build's long steps (it runs benchmarks), so the build says what it is
+    doing: one INFO line (mkdocs prints them) when the run starts and one as each code cell ends, with its
+    seconds and the total, so that neither a terminal nor a CI log sits silent."""
+    import time
+
     import nbformat
     from nbclient import NotebookClient
 
     node = nbformat.reads(json.dumps(nb), as_version=4)
-    NotebookClient(node, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(cwd)}}).execute()
+    code = [i for i, c in enumerate(node.cells) if c.cell_type == "code" and c.source.strip()]
+    t0 = time.perf_counter()
+    last = [t0]
+
+    def cell_done(cell: Any, cell_index: int, execute_reply: Any) -> None:
+        now = time.perf_counter()
+        log.info(
+            f"{name}: code cell {code.index(cell_index) + 1}/{len(code)} ran in {now - last[0]:.0f} s "
+            f"({now - t0:.0f} s so far)"
+        )
+        last[0] = now
+
+    log.info(f"{name}: running its {len(code)} code cells")
+    client = NotebookClient(node, timeout=timeout, kernel_name="python3", resources={"metadata": {"path": str(cwd)}})
+    client.on_cell_executed = cell_done
+    client.execute()
     return json.loads(nbformat.writes(node))
 
 
@@ -148,7 +170,8 @@ def on_files(files: Files, config: Any) -> Files:
                 f"{shown} is stored with outputs: clear them (jupyter nbconvert --clear-output --inplace {shown})"
             )
         md = rel.removesuffix(".ipynb") + ".md"
-        files.append(File.generated(config, md, content=notebook_markdown(execute_notebook(nb, root), path.name)))
+        ran = execute_notebook(nb, root, name=rel)
+        files.append(File.generated(config, md, content=notebook_markdown(ran, path.name)))
     return files
 
 
@@ -173,7 +196,12 @@ def conditions_table(root: Path) -> str:
     return conditions_markdown({n: c.to_dict() for n, c in CONDITIONS.items()})
 
 
+_DIRECTIVE = re.compile(r"^::: *[\w.]+", flags=re.M)
+
+
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Files) -> str:
+    if n := len(_DIRECTIVE.findall(markdown)):  # mkdocstrings renders these next: the build's other long step
+        log.info(f"{page.file.src_uri}: rendering the API reference of {n} modules (mkdocstrings)")
     if POLICY_TABLE in markdown:
         markdown = markdown.replace(POLICY_TABLE, policy_table(_root(config)))
     if CONDITIONS_TABLE in markdown:

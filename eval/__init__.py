@@ -24,7 +24,8 @@ every module and fails on a cycle or an upward import):
    for a vector env and a batched policy), `schemas` (the JSON files eval reads: their reader, caps and shapes,
    and the names a scorecard may hold)
 3. `config` (EvalConfig)
-4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run)
+4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run; `warmup`: numba's compile,
+   announced, before the first episode)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
    `tables` <- `results`, `styles` <- `plots` <- `stat_plots`, `video`, `picture`, `journal`, `readme` <-
    `layout`: what is written)

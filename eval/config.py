@@ -59,7 +59,7 @@ class EvalConfig:
     again episode by episode; Ctrl-C loses the episodes of the batch in progress."""
     backend: str = "local"
     """Where episodes run: "local" (this machine's processes) or "ray" (one Ray task per batch or episode; needs
-    `pip install "mobman[ray]"`)."""
+    `pip install "mobman[cluster]"`)."""
     address: str | None = None
     """Ray cluster to connect to ("auto", "HOST:6379", "ray://HOST:10001"); None: start a local Ray instance
     (or use the one this process already initialised). Only with backend="ray"."""

@@ -6,8 +6,9 @@ batched through vector envs), takes every record as its episode ends, appends it
 (`eval.output.journal`: what finished survives a crash, a full disk or a kill) and advances one progress bar. A
 record without a result at all (a dead worker, a failed Ray task: `pid` None) is kept aside and not journaled,
 so a resumed sweep runs that episode again. Ctrl-C or SIGTERM stops the workers and returns what finished
-(`interrupted`); the caller writes its report from it and then raises. Everything before (the checks) and after
-(the files) is the caller's: `run` writes a run folder, `sweep` rebuilds its table from the journal.
+(`interrupted`); the caller writes its report from it and then raises. Before the bar starts, a cold numba
+cache is compiled and announced (`eval.execution.warmup`), so the bar's ETA holds no compile. Everything before
+(the checks) and after (the files) is the caller's: `run` writes a run folder, `sweep` rebuilds its table from the journal.
 
 **One code version per result.** Every record gets `code`: the hash of the code that ran it
 (`eval.output.provenance.code_hash`, the four packages' source; this process's, which its local workers share:
@@ -36,6 +37,7 @@ from eval.config import EvalConfig
 from eval.errors import EvalError
 from eval.execution.dispatch import execute
 from eval.execution.tasks import ExecutionInterrupted, Task
+from eval.execution.warmup import warm_kernels
 from eval.output.files import to_jsonable
 from eval.output.journal import Journal, episode_key
 from eval.output.progress import progress_bar
@@ -76,6 +78,8 @@ def run_tasks(
     """Run `tasks` (see the module docstring); never raises for an interruption (`GridRun.interrupted`)."""
     grid = GridRun()
     code = code_hash()
+    if tasks:
+        warm_kernels(announce=progress)  # a cold numba cache compiles here, said, and before the bar's clock starts
     bar = progress_bar(len(tasks), desc, "ep", progress and bool(tasks))
 
     def on_result(rec: dict) -> None:

@@ -269,7 +269,8 @@ def _known_policies_text() -> str:
 
 
 def make_policy(spec: str, env, seed: int | None):
-    """`policies.make(spec, env, seed)`; errors become `EvalError` naming the spec and the known names."""
+    """`policies.make(spec, env, seed)`; errors become `EvalError` naming the spec (and, from the registry, the
+    known names when the name is unknown)."""
     try:
         import policies
     except Exception as exc:
@@ -281,9 +282,9 @@ def make_policy(spec: str, env, seed: int | None):
     except KeyboardInterrupt:
         raise
     except BaseException as exc:  # SystemExit from a user's constructor too: named, not a silent exit
+        # no list of the known policies here: the registry adds it where the name is the problem; an env the
+        # policy cannot run on or a bad option is not about the name, and a list there only hides the reason
         msg = str(exc) if isinstance(exc, Exception) else f"{type(exc).__name__}({exc}) raised while building it"
-        if "known" not in msg:
-            msg += f" ({_known_policies_text()})"
         raise EvalError(f"policy {spec!r}: {msg}") from None
 
 

@@ -455,6 +455,9 @@ def measure(config: SpeedConfig | None = None, progress=print) -> dict:
             "control_freq_hz": 100.0,
         },
     }
+    from eval.execution.warmup import warm_kernels
+
+    warm_kernels(announce=c.progress)  # a cold numba cache compiles here, said, and not inside the first timing
     progress("timing env vs bare PyBullet (kinematic, physics at 2/4/10 substeps) ...")
     blocks = [env_vs_bare("kinematic", 2, steps, repeats)]
     blocks += [env_vs_bare("physics", n, steps, repeats) for n in SUBSTEPS]

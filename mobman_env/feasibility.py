@@ -30,9 +30,9 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from mobman_env import engine as E
+from mobman_env.numba_cache import njit
 
 #: The default margin: a path is feasible when its peak speed ratio is at most 1 - FEASIBILITY_MARGIN.
 FEASIBILITY_MARGIN = 0.1

@@ -137,9 +137,21 @@ def _base_link(params: RobotParams) -> list[str]:
         f'<visual><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry>'
         '<material name="deck"/></visual>',
         _segment((params.mount_offset, 0, top), (params.mount_offset, 0, h - r), 0.08, "deck"),
+        _first_link(params),
         f'<collision><origin xyz="0 0 {deck_z:.10g}"/><geometry><box size="{_f(DECK)}"/></geometry></collision>',
         "</link>",
     ]
+
+
+def _first_link(params: RobotParams) -> str:
+    """Modified DH only: the arm from the mount (DH frame 0) to joint 1, drawn on the platform. In modified DH,
+    joint 1 sits at Rx(alpha_0) Tx(a_0) Tz(d_0) from frame 0 (the Panda: 0.333 m up), a length no arm link
+    carries (standard DH draws d_1 in link 1); without it the arm floats above its pedestal. Visual only."""
+    if not params.arm.modified:
+        return ""
+    mount = np.array([params.mount_offset, 0.0, params.shoulder_height - params.wheel_radius])
+    a, d, alpha = params.dh_a[0], params.dh_d[0], params.dh_alpha[0]
+    return _segment(mount, mount + _rx(alpha) @ np.array([a, 0.0, d]), ARM_RADIUS, "arm")
 
 
 def _wheels(params: RobotParams) -> list[str]:

@@ -1,49 +1,6 @@
 """`python -m policies`: compile the controllers' numba kernels once (numba keeps their machine code in its cache),
 so that no later process pays the first compile; as `python -m mobman_env` does for the engine."""
 
-import time
+from policies.warm import warm
 
-import numpy as np
-
-from policies import calib_qp, nnbc
-from policies.base import EnvFacts
-from policies.broyden_rls import RLS, Broyden
-from policies.estimators import BroydenEstimator
-from policies.kernels import damped_pinv_apply_rows
-from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
-
-
-def warm() -> float:
-    """Compile (or load from numba's cache) every controller kernel for the argument types the package passes;
-    returns the seconds it took."""
-    t0 = time.perf_counter()
-    J, v = np.ones((1, 3, 8)), np.ones((1, 3))
-    damped_pinv_apply_rows(J, v, 0.02, 0.02)
-    rows = np.arange(1)
-    nnbc._znn_rows(J, np.zeros((1, 3)), v, np.ones((1, 8)), rows, 0.9, 1e-3)
-    nnbc._residual_rows(J, v, np.ones((1, 8)), rows, np.empty((1, 3)))
-    three, two, ints = np.ones((1, 3)), np.ones((1, 2)), np.zeros(1, dtype=np.intp)
-    obs = (three, two, two, np.ones(1), np.ones((1, 8)), 0.01)
-    est = (np.zeros((1, 13)), np.zeros((1, 13, 13)), np.zeros((1, 13)), three, three, three, np.zeros((1, 6)))
-    calib_qp.calibrate_rows(
-        three, ints, ints, ints, *obs, *est, 1.0, 1.0, 1.0, 0.0, np.zeros((1, 8, 8)), np.ones((1, 64))
-    )
-    # the model-free law (policies.model_free_kernels): each estimator kind through the probe into the estimate
-    facts = EnvFacts(dt=0.01, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=())
-    sizes = {"ee_pos": 3, "ee_vel": 3, "arm_base_pos": 2, "arm_base_vel": 2, "joint_pos": 8, "joint_vel": 8}
-    single = {k: np.full(m, 0.01) for k, m in {**sizes, "target_pos": 3, "target_vel": 3, "base_yaw": 1}.items()}
-    for policy in (
-        NNBCPlus(facts),
-        NNBCPlus(facts, NNBCPlusConfig(formulation="whole_body")),
-        Broyden(facts),
-        RLS(facts),
-    ):
-        policy.reset(single, seed=0)
-        for _ in range(2 * 8 + 2):
-            policy.predict(single)
-    BroydenEstimator(8, step=1.0, min_speed=0.01).update(np.ones(8), np.ones(3))
-    return time.perf_counter() - t0
-
-
-if __name__ == "__main__":
-    print(f"policies: controller kernels ready in {warm():.1f} s")
+print(f"policies: controller kernels ready in {warm():.1f} s")

@@ -153,3 +153,40 @@ def test_every_relative_link_of_the_readme_names_a_file_of_the_repository():
     assert targets
     missing = [t for t in targets if not (ROOT / t.split("#")[0]).exists()]
     assert not missing, f"README.md links to what the repository does not have: {missing}"
+
+
+def test_running_a_notebook_logs_a_line_per_code_cell(hooks, tmp_path, caplog):
+    """The docs build runs the tutorial for minutes: it says so at the start and after every code cell."""
+    pytest.importorskip("nbclient")
+    nb = {
+        "cells": [
+            {"cell_type": "markdown", "metadata": {}, "source": ["# title"]},
+            {"cell_type": "code", "metadata": {}, "source": ["x = 1"], "outputs": [], "execution_count": None},
+            {"cell_type": "code", "metadata": {}, "source": ["print(x + 1)"], "outputs": [], "execution_count": None},
+        ],
+        "metadata": {"kernelspec": {"name": "python3", "display_name": "Python 3", "language": "python"}},
+        "nbformat": 4,
+        "nbformat_minor": 5,
+    }
+    with caplog.at_level("INFO", logger="mkdocs.hooks.mobman"):
+        ran = hooks.execute_notebook(nb, tmp_path, name="tiny.ipynb")
+    lines = [r.getMessage() for r in caplog.records if r.name == "mkdocs.hooks.mobman"]
+    assert lines[0] == "tiny.ipynb: running its 2 code cells"
+    assert [line.split(" ran in ")[0] for line in lines[1:]] == [
+        "tiny.ipynb: code cell 1/2",
+        "tiny.ipynb: code cell 2/2",
+    ]
+    assert "".join(ran["cells"][2]["outputs"][0]["text"]) == "2\n"
+
+
+def test_a_reference_page_says_it_is_rendered(hooks, caplog):
+    """mkdocstrings renders the API reference silently for tens of seconds: each page says so first."""
+    from types import SimpleNamespace
+
+    page = SimpleNamespace(file=SimpleNamespace(src_uri="reference/x.md"))
+    config = SimpleNamespace(config_file_path=str(ROOT / "mkdocs.yml"))
+    with caplog.at_level("INFO", logger="mkdocs.hooks.mobman"):
+        hooks.on_page_markdown("# X\n\n::: eval.grid\n\n::: eval.checks\n", page, config, None)
+        hooks.on_page_markdown("# Y\n\nno directive\n", page, config, None)
+    lines = [r.getMessage() for r in caplog.records if r.name == "mkdocs.hooks.mobman"]
+    assert lines == ["reference/x.md: rendering the API reference of 2 modules (mkdocstrings)"]

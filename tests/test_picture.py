@@ -48,3 +48,44 @@ def test_bad_options_stop_before_the_episode(tmp_path, monkeypatch, capsys, argv
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err, err
     assert not any(tmp_path.rglob("*")), "nothing is written"
+
+
+def test_the_gallery_command_writes_every_robot(tmp_path, capsys):
+    """`--gallery DIR`: one PNG per robot of GALLERY, of the asked size, each a rendered scene, the random arms
+    three different draws, and gallery.json whose command renders the same gallery again."""
+    from eval.output.picture import GALLERY
+
+    folder = tmp_path / "gallery"
+    assert main(["picture", "--gallery", str(folder), "--width", "96", "--height", "72"]) == 0
+    pixels = {}
+    for stem in GALLERY:
+        with Image.open(folder / f"{stem}.png") as img:
+            assert img.format == "PNG" and img.size == (96, 72)
+            pixels[stem] = list(img.getdata())
+        assert len(set(pixels[stem])) > 10, stem  # a rendered scene, not a blank frame
+    assert len({tuple(pixels[f"random-arm-{i}"]) for i in range(3)}) == 3  # three different arms
+    record = json.loads((folder / "gallery.json").read_text())
+    assert set(record["robots"]) == set(GALLERY) and record["size"] == [96, 72]
+    again = build(PictureConfig, build_parser().parse_args(shlex.split(record["command"])[1:]), picture_cli.OPTIONS)
+    assert again == PictureConfig(gallery=str(folder), width=96, height=72)
+    assert "gallery.json" in capsys.readouterr().out
+
+
+def test_the_robots_page_shows_the_committed_gallery():
+    """docs/tasks.md shows every image of the gallery, each committed, small (<= 100 KB) and of the size its
+    gallery.json records."""
+    import re
+    from pathlib import Path
+
+    from eval.output.picture import GALLERY
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    shown = re.findall(r"\]\(assets/gallery/([\w-]+\.png)\)", (docs / "tasks.md").read_text())
+    assert sorted(shown) == sorted(f"{stem}.png" for stem in GALLERY)
+    record = json.loads((docs / "assets" / "gallery" / "gallery.json").read_text())
+    assert set(record["robots"]) == set(GALLERY)
+    for name in shown:
+        path = docs / "assets" / "gallery" / name
+        assert path.stat().st_size <= 100_000, f"{name}: {path.stat().st_size} bytes"
+        with Image.open(path) as img:
+            assert list(img.size) == record["size"], name

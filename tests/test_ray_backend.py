@@ -229,10 +229,10 @@ def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatc
         ]
     )
     assert rc == 2
-    assert 'pip install "mobman[ray]"' in capsys.readouterr().err
+    assert 'pip install "mobman[cluster]"' in capsys.readouterr().err
     assert not out.exists()
     spy = HoldStill()
-    with pytest.raises(EvalError, match=r'pip install "mobman\[ray\]"'):
+    with pytest.raises(EvalError, match=r'pip install "mobman\[cluster\]"'):
         run(_config(tmp_path, policies=(), backend="ray"), policies={"spy": spy})
     assert spy.n_reset == 0 and spy.n_predict == 0
     sweep_yaml = tmp_path / "sweep.yaml"
@@ -241,7 +241,7 @@ def test_without_ray_the_ray_backend_says_how_to_install_it(tmp_path, monkeypatc
         main(["sweep", "--config", str(sweep_yaml), "--out", str(tmp_path / "sweep"), "--quiet", "--backend", "ray"])
         == 2
     )
-    assert 'pip install "mobman[ray]"' in capsys.readouterr().err
+    assert 'pip install "mobman[cluster]"' in capsys.readouterr().err
     assert not (tmp_path / "sweep").exists()
     assert (
         main(

@@ -422,3 +422,19 @@ def test_the_scaled_family_scales_every_length_of_a_family_arm_by_one_factor():
         assert scaled.arm.alpha == design.arm.alpha and scaled.arm.joint_lower == design.arm.joint_lower
         assert scaled.arm.mount_offset == design.arm.mount_offset and scaled.q0 == design.q0
         assert scaled == RA.random_scaled_arm(np.random.default_rng(seed))
+
+
+def test_a_modified_dh_arm_is_drawn_from_its_mount_to_joint_1():
+    """The Panda's joint 1 sits d_0 = 0.333 m above its mount (modified DH), a length no arm link carries: the
+    platform draws it, so the arm does not float above its pedestal in a picture (standard DH draws it in link 1)."""
+    import re
+
+    from mobman_env.params import RobotParams
+    from mobman_env.urdf import ARM_RADIUS, urdf_string
+
+    def base_arm_segments(arm) -> list[float]:
+        base = urdf_string(RobotParams(arm=arm)).split('<link name="base_link">')[1].split("</link>")[0]
+        return [float(x) for x in re.findall(rf'<cylinder radius="{ARM_RADIUS}" length="([^"]+)"', base)]
+
+    assert base_arm_segments(PANDA) == pytest.approx([0.333], abs=1e-12)
+    assert base_arm_segments(PUMA560) == base_arm_segments(UR5) == []

@@ -27,6 +27,7 @@ from typing import Any
 
 from eval.bench import against as A
 from eval.bench.config import CONDITIONS, HELDOUT_COMMIT, HELDOUT_SHA256, PROTOCOL_VERSION, BenchConfig
+from eval.bench.preflight import check_cells
 from eval.bench.scorecard import (
     build_scorecard,
     scorecard_figures,
@@ -140,6 +141,14 @@ def run_bench(
         raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
     EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
     integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
+    assert cfg.conditions is not None and cfg.policies is not None
+    preflown = cfg.policies  # every cell of every spec given, built before any episode (the --against samples too)
+    if progress:  # an sb3: agent loads torch and is built on each of ~100 cells: seconds, not silent
+        n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
+        print(f"bench: building {len(cfg.policies)} controller(s) on each of {n_cells} cells ...", file=sys.stderr)
+    for line in check_cells(cfg, {name: sweep_for(cfg, name) for name in cfg.conditions}):
+        if progress:
+            print(f"bench: {line}", file=sys.stderr)
     protocol = protocol_dict(cfg)
     baselines: list[str] = []
     if committed is not None:
@@ -163,7 +172,17 @@ def run_bench(
     _check_out_dir(out, protocol)
     sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
     checked = {  # every condition's envs, policies and folder, before bench.json changes
-        name: check_sweep(sweep, out / "conditions" / name, backend, address, workers, batch_size, None, rerun_changed)
+        name: check_sweep(
+            sweep,
+            out / "conditions" / name,
+            backend,
+            address,
+            workers,
+            batch_size,
+            None,
+            rerun_changed,
+            checked=preflown,
+        )
         for name, sweep in sweeps.items()
     }
     out.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,6 @@
 """`mobman-eval picture`: the README's picture, one rendered frame of the robot tracking a path (parses into
-`PictureConfig`, calls `eval.output.picture.render_picture`, which writes the PNG and a JSON record beside it)."""
+`PictureConfig`, calls `eval.output.picture.render_picture`, which writes the PNG and a JSON record beside it;
+with `--gallery DIR`, `render_gallery`: the robots, one PNG each)."""
 
 from __future__ import annotations
 
@@ -7,11 +8,13 @@ from pathlib import Path
 
 from eval.cli.options import Opt, add_options, build
 from eval.config import DYNAMICS_CHOICES
+from eval.execution.warmup import warm_kernels
 from eval.output import picture
-from eval.output.picture import PictureConfig, render_picture
+from eval.output.picture import PictureConfig, render_gallery, render_picture
 
 OPTIONS = (
     Opt("out", metavar="PNG"),
+    Opt("gallery", metavar="DIR"),
     Opt("env", metavar="ID"),
     Opt("policy", metavar="SPEC"),
     Opt("seed", metavar="S"),
@@ -32,6 +35,12 @@ def add_parser(sub) -> None:
 
 def main(args) -> int:
     config = build(PictureConfig, args, OPTIONS)
+    config.validate()
+    warm_kernels()  # a cold numba cache compiles here, said: the episode would otherwise sit silent for ~30 s
+    if config.gallery is not None:
+        record = render_gallery(config)
+        print(f"{config.gallery}: {', '.join(f'{stem}.png' for stem in record['robots'])} and gallery.json")
+        return 0
     record = render_picture(config)
     print(
         f"{config.out} and its record {Path(config.out).with_suffix('.json')}: {config.policy} on {config.env} "

@@ -31,7 +31,7 @@ them).
   built in the workers: on a cluster, mobman, the user's modules and model files must be available on every
   node (installed, or shipped with a Ray `runtime_env` given to your own `ray.init`).
 
-Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[ray]"`; an
+Without Ray installed, `--backend ray` stops before any rollout saying `pip install "mobman[cluster]"`; an
 `--address HOST:PORT` (or `ray://HOST:PORT`) that refuses a TCP connection, or does not take one within
 `CONNECT_TIMEOUT_S` (10 s), is refused before any rollout too (Ray's own connection attempts retry for minutes).
 """
@@ -62,7 +62,7 @@ OBJECT_STORE_BYTES = 128 * 2**20
 #: How long the driver waits for finished tasks before it looks again (progress latency), s.
 POLL_S = 0.2
 
-INSTALL_HINT = 'pip install "mobman[ray]"'
+INSTALL_HINT = 'pip install "mobman[cluster]"'
 
 _ANSI = re.compile(r"\x1b\[[0-9;]*m")
 

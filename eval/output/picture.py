@@ -6,6 +6,11 @@ One episode runs through the same loop as every evaluation (`eval.rollout.rollou
 "rgb_array"`), the trace is the true end-effector (`info["ee_pos_true"]`) every `TRACE_EVERY` control steps, and
 the frame is PyBullet's TinyRenderer (headless, no GPU): the same image on every machine that runs the same
 PyBullet. Next to the PNG, `<stem>.json` records the command, the episode's figures and the provenance.
+
+`--gallery DIR` renders the robots instead (`render_gallery`): the PUMA 560, the UR5, the Panda and three
+random arms, each on its platform in its start configuration of the Circle task with the desired path drawn, one
+PNG each (`GALLERY`) and `gallery.json` (the command, the robots, the provenance). No episode runs: the env is
+reset (kinematic mode) and rendered, and the camera frames every body but the ground.
 """
 
 from __future__ import annotations
@@ -31,6 +36,18 @@ TRACE_EVERY = 5
 CAMERA_YAW, CAMERA_PITCH = 30.0, -30.0
 #: the accepted image sizes, pixels per side
 SIZE_RANGE = (64, 4096)
+#: the gallery: file stem -> (env id, reset seed). The random arms are the draws of dev seeds 0, 1 and 2 (an
+#: illustration, not a result); the named arms do not depend on the seed.
+GALLERY: dict[str, tuple[str, int]] = {
+    "puma": ("WheeledPuma-Circle-v0", 0),
+    "ur5": ("WheeledUR5-Circle-v0", 0),
+    "panda": ("WheeledPanda-Circle-v0", 0),
+    "random-arm-0": ("WheeledRandomArm-Circle-v0", 0),
+    "random-arm-1": ("WheeledRandomArm-Circle-v0", 1),
+    "random-arm-2": ("WheeledRandomArm-Circle-v0", 2),
+}
+#: the gallery's camera: degrees about the vertical and below the horizon
+GALLERY_YAW, GALLERY_PITCH = 30.0, -20.0
 
 
 @dataclass(frozen=True)
@@ -47,13 +64,18 @@ class PictureConfig:
     """The episode's seed (reported seeds start at 10000)."""
     dynamics: str = "physics"
     """The env's dynamics mode: physics (PyBullet contact dynamics) or kinematic."""
+    gallery: str | None = None
+    """A folder: render the gallery of robots into it (`GALLERY`: one PNG per robot and gallery.json) instead of
+    an episode; --out, --env, --policy, --seed and --dynamics are then not used."""
     width: int = 960
     """Image width, pixels (64-4096)."""
     height: int = 540
     """Image height, pixels (64-4096)."""
 
     def command(self) -> str:
-        """The command line that renders this picture."""
+        """The command line that renders this picture (or this gallery)."""
+        if self.gallery is not None:
+            return f"mobman-eval picture --gallery {self.gallery} --width {self.width} --height {self.height}"
         return (
             f"mobman-eval picture --out {self.out} --env {self.env} --policy {self.policy} --seed {self.seed} "
             f"--dynamics {self.dynamics} --width {self.width} --height {self.height}"
@@ -61,7 +83,7 @@ class PictureConfig:
 
     def validate(self) -> None:
         """Raise EvalError naming an `out` that is not a .png file or a size out of range, with the fix."""
-        if Path(self.out).suffix.lower() != ".png":
+        if self.gallery is None and Path(self.out).suffix.lower() != ".png":
             raise EvalError(f"picture: --out {self.out!r} must name a .png file, e.g. --out docs/assets/robot.png")
         low, high = SIZE_RANGE
         for name in ("width", "height"):
@@ -114,11 +136,7 @@ def render_picture(config: PictureConfig | None = None) -> dict:
         img = sim.render(target, distance, width=c.width, height=c.height, yaw=CAMERA_YAW, pitch=CAMERA_PITCH)
     finally:
         env.close()
-    from PIL import Image
-
-    buf = io.BytesIO()
-    Image.fromarray(img).save(buf, format="PNG", optimize=True)
-    atomic_write_bytes(out, buf.getvalue())
+    _write_png(out, img)
     record = {
         "command": c.command(),
         "env": env_id,
@@ -131,4 +149,51 @@ def render_picture(config: PictureConfig | None = None) -> dict:
         "provenance": provenance(),
     }
     atomic_write_json(out.with_suffix(".json"), record)
+    return record
+
+
+def _write_png(path: Path, img: np.ndarray) -> None:
+    """`img` (height, width, 3) as an optimised PNG, written atomically."""
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", optimize=True)
+    atomic_write_bytes(path, buf.getvalue())
+
+
+def render_robot(env_id: str, seed: int, width: int, height: int) -> np.ndarray:
+    """The robot of `env_id` reset with `seed` (kinematic mode), on its platform with the desired path drawn, as
+    an RGB image; the camera looks at the middle of the box holding every body but the ground."""
+    from eval.rollout import make_env
+
+    env = make_env(env_id, dynamics="kinematic", render_mode="rgb_array")
+    try:
+        env.reset(seed=seed)
+        env.render()  # builds the PyBullet world of the engine's state, path markers included
+        sim = env.unwrapped.sim
+        c = sim.client
+        bodies = [c.getBodyUniqueId(i) for i in range(c.getNumBodies())]
+        boxes = [c.getAABB(b, j) for b in bodies if b != sim.plane for j in range(-1, c.getNumJoints(b))]
+        lo, hi = np.min([b[0] for b in boxes], axis=0), np.max([b[1] for b in boxes], axis=0)
+        distance = 0.4 + 1.3 * float((hi - lo).max())
+        return sim.render(0.5 * (lo + hi), distance, width, height, yaw=GALLERY_YAW, pitch=GALLERY_PITCH)
+    finally:
+        env.close()
+
+
+def render_gallery(config: PictureConfig) -> dict:
+    """Write one PNG per robot of `GALLERY` into `config.gallery` (`config.width` x `config.height`) and
+    gallery.json beside them; returns that record."""
+    config.validate()
+    assert config.gallery is not None
+    folder = Path(config.gallery)
+    for stem, (env_id, seed) in GALLERY.items():
+        _write_png(folder / f"{stem}.png", render_robot(env_id, seed, config.width, config.height))
+    record = {
+        "command": config.command(),
+        "robots": {stem: {"env": env_id, "seed": seed} for stem, (env_id, seed) in GALLERY.items()},
+        "size": [config.width, config.height],
+        "provenance": provenance(),
+    }
+    atomic_write_json(folder / "gallery.json", record)
     return record

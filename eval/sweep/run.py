@@ -143,11 +143,13 @@ def check_sweep(
     batch_size: int = EvalConfig.batch_size,
     user: dict[str, Any] | None = None,
     rerun_changed: bool = False,
+    checked: tuple[str, ...] = (),
 ) -> tuple[EvalConfig, bytes | None, bool]:
     """Every check of `run_sweep` before it writes anything (the settings, the output folder and the code of its
     journal's episodes, every env and policy of the grid): (the episodes' EvalConfig, the pickled user
     policies, whether `out` is resumed); EvalError naming what is wrong. A bench checks all its conditions with
-    it before writing bench.json."""
+    it before writing bench.json (`checked`: the specs its pre-flight built on these envs already,
+    `eval.checks.check_all`)."""
     user = user or {}
     base = _episode_config(sweep, out, backend, address, workers, batch_size)
     base.validate()
@@ -158,7 +160,7 @@ def check_sweep(
     if resuming:  # read only (no lock yet): run_sweep checks again under the lock
         done, _ = Journal(out / JOURNAL).load(repair=False)
         same_code(done, grid_tasks(sweep, list(sweep.policies) + list(user)), rerun_changed, f"--out {str(out)!r}")
-    check_all(base, user)
+    check_all(base, user, checked)
     _check_conditions(sweep)
     return base, user_bytes, resuming
 
