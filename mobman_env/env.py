@@ -596,6 +596,15 @@ class WheeledPumaEnv(gym.Env):
             return self._nominal_params
         return self._batch.true_params(0)
 
+    @property
+    def true_actuator_tau(self) -> float:
+        """The time constant of the episode's actuator lag, s: the `actuator_tau` condition the episode runs
+        under (a reset option included; the constructor's before the first reset). Part of the true model: for
+        oracles (`mpc-oracle`) and tests only; it never appears in `info`."""
+        if not self._started:
+            return float(self.actuator_tau)
+        return float(self._batch.prm[0, E.P_TAU])
+
     # --- read-only conveniences ------------------------------------------------------------------------
     @property
     def path(self) -> Path | None:

@@ -29,6 +29,8 @@ EXPECTED = {
     "qp": "nominal",
     "qp-oracle": "true",
     "calib-qp": "structure",
+    "mpc": "nominal",
+    "mpc-oracle": "true",
     "zero": "none",
     "random": "none",
 }
