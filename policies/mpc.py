@@ -1,18 +1,19 @@
 """`mpc`, `mpc-oracle`: receding-horizon whole-body QP with the path's preview, the actuator lag and the speed
 limits in its prediction model.
 
-Why: the reactive laws (`qp-oracle` included) see only r_d(t) and r_d_dot(t) and assume the command is the
+Why: the reactive laws (`qp-oracle` included) see only r_d(t) and r_d_dot(t) and take the command for the
 speed: on fast paths they meet the actuator limits late, and under actuator lag they lag behind. This law plans
-the next `horizon` x `step` control periods (0.2 s by default) against the path ahead, so it starts the motions
-early and commands through the lag. It may import `mobman_env` (validation), `policies.base`,
-`policies.batched`, `policies.kernels`, `policies.qp` (the dampers, the QP backends) and `policies.mpc_model`
-(the prediction model, its kernels and their docstring).
+the next `horizon` x `step` control periods (60 ms by default) against the path ahead, through the lag, so it
+starts the motions early and commands through the lag. It may import `mobman_env` (engine, validation),
+`policies.base`, `policies.batched`, `policies.kernels`, `policies.qp` (the dampers, the QP backends) and
+`policies.mpc_model` (the prediction model and its kernels, with their docstring).
 
-The law (per control step, at the measured joint angles, heading and realised speeds w_0 = `joint_vel`)
-------------------------------------------------------------------------------------------------------------
+The law (per control step, at the measured joint angles and heading)
+--------------------------------------------------------------------
 Decision variable: B blocked commands x = [u_0; ...; u_{B-1}] (B (n + 2) rad/s; `policies.mpc_model`: the first
 block is the move applied now). With the predicted end-effector r_k = r_0 + J D_k (D_k the actuators' angle
-changes through the exact lag, J the whole-body Jacobian of the model at the measured state):
+changes through the exact lag from the realised speeds w_0, J the whole-body Jacobian of the model at the
+measured state, r_0 the measured `ee_pos`):
 
     minimise    sum_k omega_k ||r_d(t + k h) - r_k||^2 / h^2                      (tracking, k = 1 .. H)
               + effort_weight sum_b len_b (u_b - z)^T W (u_b - z)                  (effort and posture)
@@ -21,7 +22,17 @@ changes through the exact lag, J the whole-body Jacobian of the model at the mea
 
 omega_k = 1, and `terminal_weight` at k = H; W = 1 for the arm joints, `wheel_weight` for the wheels; z the
 posture pull of `policies.qp` (arm: posture_gain (q_0 - q)); u_prev the previous command. The realised speeds are
-convex combinations of w_0 and the commands, so the speed bounds on u bound w too. The first block's u_0 is sent.
+convex combinations of w_0 and the commands, so the speed bounds on u bound w too. u_0 is sent.
+
+w_0 is the law's own lag state: the measured `joint_vel` at the episode start, then propagated through the
+commands the env applied (`MPCLaw._lag_state`). In kinematic mode it equals `joint_vel` to its float32 rounding
+(the same results on every figure below); in physics mode `joint_vel` is PyBullet's joint speed, while the lag
+state that shapes the motors' next commands is the engine's. With the measured speeds `mpc-oracle` chattered in
+physics under 50 ms lag (Circle, radius 0.3 m in 6 s, dev seeds 3 and 4: max errors 26.4 and 14.2 mm,
+cmd_accel_rms 1336 and 1476 rad/s^2); with its own lag state 2.8 and 4.9 mm (16, 19 rad/s^2; `qp-oracle` 7.8 and
+8.1 mm). Without lag, in physics, `mpc-oracle` is behind `qp-oracle` on those two (6.2 and 6.9 mm against 1.6 and
+2.9 mm): it has no feedback gain beyond re-planning from the measured point, and contact dynamics are not in its
+model.
 
 Models: `mpc-oracle` solves with the true robot (`params_provider`) and the true lag (`lag_provider`: the env's
 `true_actuator_tau`), both read at every episode start: the known-model reference of protocol v3. `mpc` has the
@@ -29,12 +40,35 @@ catalogue robot, which lists no lag, so it identifies the one parameter online f
 measured speeds (observations only): per control period (w_{k+1} - u_k) = a (w_k - u_k) for every actuator,
 a = exp(-dt/tau), least squares over the episode (speeds normalised by their limits), used once the accumulated
 excitation passes 1e-6 (`policies.mpc_model.lag_fit_rows`); without lag it finds under 1 ms (the float32 speeds'
-rounding), and 0.1 s within 1e-8 s after 10 steps. Measured against assuming tau = 0 (PUMA, the four tasks, dev seeds 0-19,
-max-error IQM): 0.254 vs 0.260 mm under 100 ms lag, 0.259 vs 0.347 mm under 150 ms; so it identifies.
+rounding), and 0.1 s within 1e-8 s after 10 steps.
+
+Preview: the path of `info["task"]` (`policies.mpc_model`); a row started without it extrapolates the target.
+
+Measured (kinematic, PUMA, development seeds; max tracking error per episode; IQM over episodes)
+-------------------------------------------------------------------------------------------------
+* The 2.5 s rung of the difficulty ladder (random path, 0.3 m, 5 harmonics, 2.5 s; seeds 0-99): within 6 mm,
+  `mpc-oracle` 77/100 (IQM 0.98 mm), `qp-oracle` 61/100 (5.65 mm), `mpc` 74/100 (2.01 mm), `qp` 23/100 (8.22
+  mm). 26 paths look infeasible (r_d_dot lies more than 1 cm/s outside what the speed limits give at
+  `mpc-oracle`'s configurations); on the other 74 `mpc-oracle` tracks 73 (98.6%), `qp-oracle` 58 (78.4%).
+  Without the path (the target extrapolated with constant acceleration) `mpc-oracle` tracks 75/100 (1.44 mm).
+* Actuator lag (the four tasks, seeds 0-19 each), max-error IQM: at 100 ms `mpc-oracle` 0.013 mm against
+  `qp-oracle`'s 0.977 mm, `mpc` 0.215 mm against `qp`'s 1.324 mm; at 150 ms 0.013 / 1.453 and 0.220 / 1.790 mm;
+  without lag 0.006 / 0.046 and 0.141 / 0.704 mm. `mpc` assuming tau = 0 instead of identifying it: 0.257 mm at
+  100 ms, 0.344 mm at 150 ms, 0.141 mm without lag: so it identifies.
+* Horizon: 6 steps of 10 ms in 3 blocks. On the rung (seeds 0-99): 10 steps in 4 blocks 75/100 (IQM 1.63 mm
+  with the measured speeds), 8 in 8 78/100 (1.01 mm), 12 in 4 72/100 (1.75 mm); prediction steps of 20 ms (seeds
+  0-29) 22/30 against 24/30 for 10 ms, and a 15-step 0.3 s horizon 8/30: the Jacobian held over the horizon is
+  what limits it. Re-linearising along the previous plan (the Jacobian of each prediction step at its predicted
+  state, heading included) raised the rung to 25/30 (IQM 1.04 against 1.34 mm) but made the commands chatter
+  (cmd_accel_rms median 285 against 48 rad/s^2): deleted. With 10 steps in 4 blocks, effort_weight 1e-5,
+  rate_weight 1e-4, terminal_weight 10, posture_gain 0 or 5 and wheel_weight 3 moved the rung by -3 to +2
+  episodes of 100; with the default horizon rate_weight 1e-3 lost 4 and raised the 100 ms lag IQM to 0.035 mm.
+* Cost (interleaved with `qp-oracle` in one process, on a shared machine: ratios only): a single env's
+  `predict` takes 1.2 times `qp-oracle`'s, a robot-step of 64 batched rows 1.03 times.
 
 Solver: DAQP on the dense QP (box bounds only: `daqp.solve` directly, as `policies.qp.daqp_solve_qp`), other
 backends through `qpsolvers.solve_qp`. If it returns no solution the row falls back to the unconstrained
-minimiser clipped to the bounds and `qp_failures` counts it.
+minimiser clipped to the bounds and `qp_failures` counts it (none seen on the development seeds above).
 
 One law for N robots (`MPCLaw`); the single-env `MPC` is its N = 1 case, so row i of a batch equals the single
 policy bit for bit (`tests/test_batched_policies.py`): the QP of each row is assembled by a scalar numba kernel.
@@ -68,11 +102,11 @@ from policies.qp import SOLVERS, damper_bounds
 class MPCConfig:
     """Options of the receding-horizon QP. Spec keys: `mpc:horizon=10,step=2,...` (also `mpc-oracle:...`)."""
 
-    horizon: int = 10
+    horizon: int = 6
     """Prediction steps H of the horizon."""
     step: int = 1
-    """Control periods per prediction step (h = step dt: the default horizon is 10 x 10 ms = 0.1 s)."""
-    blocks: int = 4
+    """Control periods per prediction step (h = step dt: the default horizon is 6 x 10 ms = 60 ms)."""
+    blocks: int = 3
     """Input blocks B over the horizon (move blocking: the QP has B (n + 2) variables)."""
     terminal_weight: float = 4.0
     """Weight of the last predicted error relative to the others (1 each)."""
@@ -190,6 +224,7 @@ class MPCLaw(BatchedController):
         self.last_plan = np.zeros((n, B, m))
         self.qp_failures = np.zeros(n, dtype=int)
         self._tasks: Any = None
+        self._w = np.zeros((n, m))  # the lag state (`_lag_state`)
 
     @property
     def params(self) -> list[Any]:
@@ -226,13 +261,23 @@ class MPCLaw(BatchedController):
         self._sxy[rows] = self._sxx[rows] = 0.0
         self.qp_failures[rows] = 0
 
-    def _update_lag(self, w: np.ndarray) -> None:
-        """The online lag fit (the nominal model) of the rows with a previous step, from the command the
-        env applied (the float32 action times the scale) and the measured speeds."""
+    def _lag_state(self, measured: np.ndarray, applied: np.ndarray) -> np.ndarray:
+        """w_0 (N, m), rad/s: the realised speeds as the lag model has them, propagated from the measured speeds at
+        the episode start through the commands the env applied (`applied`, the last control period's). In
+        kinematic mode this equals `joint_vel` to its float32 rounding; in physics mode `joint_vel` is PyBullet's
+        joint speed while the lag state that shapes the motors' next commands is the engine's, this one (see the
+        module docstring for what the measured speeds did there)."""
+        decay = np.exp(-self.facts.dt / np.where(self.tau > 0.0, self.tau, 1.0))
+        decay = np.where(self.tau > 0.0, decay, 0.0)[:, None]
+        self._w = np.where(self._fresh[:, None], measured, applied + (self._w - applied) * decay)
+        return self._w
+
+    def _update_lag(self, w: np.ndarray, applied: np.ndarray) -> None:
+        """The online lag fit (the nominal model) of the rows with a previous step, from the commands the env
+        applied (the float32 action times the scale) and the measured speeds `w`."""
         rows = np.flatnonzero(~self._fresh)
         if not len(rows):
             return
-        applied = (self.last_u / self._scale).astype(np.float32).astype(float) * self._scale
         before = self.tau.copy()
         lag_fit_rows(rows, self._w_prev, w, applied, self._scale, self.facts.dt, self._sxy, self._sxx, self.tau)
         for i in np.flatnonzero(self.tau != before).tolist():
@@ -241,9 +286,11 @@ class MPCLaw(BatchedController):
     def _act(self, obs: dict) -> np.ndarray:
         c = self.config
         m, na = self._m, self._n_arm
-        w0, tvel = obs["joint_vel"], obs["target_vel"]
+        tvel = obs["target_vel"]
+        applied = (self.last_u / self._scale).astype(np.float32).astype(float) * self._scale  # as the env applies it
         if self._identify:
-            self._update_lag(w0)
+            self._update_lag(obs["joint_vel"], applied)
+        w0 = self._lag_state(obs["joint_vel"], applied)
         acc = np.where(self._fresh[:, None], 0.0, (tvel - self._tvel_prev) / self.facts.dt)
         n = len(w0)
         d = np.empty((n, c.horizon, 3))
@@ -267,7 +314,7 @@ class MPCLaw(BatchedController):
                 x = np.clip(np.linalg.lstsq(P, -f, rcond=None)[0], lbx, ubx)
             self.last_plan[i] = x.reshape(c.blocks, m)
             u[i] = x[:m]
-        self._w_prev[:] = w0
+        self._w_prev[:] = obs["joint_vel"]
         self._tvel_prev[:] = tvel
         self._fresh[:] = False
         return u
