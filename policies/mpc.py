@@ -39,15 +39,16 @@ Models: `mpc-oracle` solves with the true robot (`params_provider`) and the true
 catalogue robot, which lists no lag, so it identifies the one parameter online from its own commands and the
 measured speeds (observations only): per control period (w_{k+1} - u_k) = a (w_k - u_k) for every actuator,
 a = exp(-dt/tau), least squares over the episode (speeds normalised by their limits), used once the accumulated
-excitation passes 1e-6 (`policies.mpc_model.lag_fit_rows`); without lag it finds under 1 ms (the float32 speeds'
-rounding), and 0.1 s within 1e-8 s after 10 steps.
+excitation passes 1e-6 (`policies.mpc_model.lag_fit_rows`), a decay below 1e-3 per period read as no lag (the
+float32 speeds' rounding reads as a lag of about 0.5 ms, and fitting it made `mpc` chaotic: see
+`eval.output.precision`); it finds 0 without lag and 0.1 s within 1e-8 s after 10 steps.
 
 Preview: the path of `info["task"]` (`policies.mpc_model`); a row started without it extrapolates the target.
 
 Measured (kinematic, PUMA, development seeds; max tracking error per episode; IQM over episodes)
 -------------------------------------------------------------------------------------------------
 * The 2.5 s rung of the difficulty ladder (random path, 0.3 m, 5 harmonics, 2.5 s; seeds 0-99): within 6 mm,
-  `mpc-oracle` 77/100 (IQM 0.98 mm), `qp-oracle` 61/100 (5.65 mm), `mpc` 74/100 (2.01 mm), `qp` 23/100 (8.22
+  `mpc-oracle` 77/100 (IQM 0.98 mm), `qp-oracle` 61/100 (5.65 mm), `mpc` 74/100 (2.02 mm), `qp` 23/100 (8.22
   mm). 26 paths look infeasible (r_d_dot lies more than 1 cm/s outside what the speed limits give at
   `mpc-oracle`'s configurations); on the other 74 `mpc-oracle` tracks 73 (98.6%), `qp-oracle` 58 (78.4%).
   Without the path (the target extrapolated with constant acceleration) `mpc-oracle` tracks 75/100 (1.44 mm).

@@ -155,14 +155,18 @@ def condensed_qp(J, d, w0, c, G, omega, h, reg, z, rate, u_prev, P, f):
 
 #: the accumulated excitation sum_k sum_j ((w_k - u_k) / scale_j)^2 above which `lag_fit_rows` trusts its fit
 LAG_MIN_EXCITATION = 1e-6
+#: the fitted decay per control period a below which `lag_fit_rows` reads no lag: the float32 rounding of the
+#: measured speeds reads as a ~ 1e-8 (tau ~ dt / 18) without lag, and a lag that decays by 1e-3 within a control
+#: period (tau < dt / 6.9) moves nothing the next prediction step can see
+LAG_MIN_DECAY = 1e-3
 
 
 @njit(cache=True)
 def lag_fit_rows(rows, w_prev, w, u, scale, dt, sxy, sxx, tau):
     """One step of the online lag fit of the rows `rows`: with x = (w_prev - u) / scale, y = (w - u) / scale per
     actuator (w_prev, w the measured speeds before and after the command u of the last control period), adds
-    sum x y and sum x^2 to sxy, sxx (N,) and sets tau (N,) to -dt / ln(a), a = sxy / sxx clipped to [0, 0.999]
-    (tau = 0 for a = 0), once sxx passes `LAG_MIN_EXCITATION`."""
+    sum x y and sum x^2 to sxy, sxx (N,) and sets tau (N,) to -dt / ln(a), a = sxy / sxx capped at 0.999
+    (tau = 0 for a <= `LAG_MIN_DECAY`), once sxx passes `LAG_MIN_EXCITATION`."""
     m = w.shape[1]
     for r in range(rows.shape[0]):
         i = rows[r]
@@ -172,8 +176,8 @@ def lag_fit_rows(rows, w_prev, w, u, scale, dt, sxy, sxx, tau):
             sxy[i] += x * y
             sxx[i] += x * x
         if sxx[i] > LAG_MIN_EXCITATION:
-            a = min(max(sxy[i] / sxx[i], 0.0), 0.999)
-            tau[i] = -dt / math.log(a) if a > 0.0 else 0.0
+            a = min(sxy[i] / sxx[i], 0.999)
+            tau[i] = -dt / math.log(a) if a > LAG_MIN_DECAY else 0.0
 
 
 def task_coefficients(info: Any, i: int) -> np.ndarray | None:
