@@ -192,6 +192,7 @@ def test_rows_equal_the_single_law_under_lag():
                 np.testing.assert_array_equal(actions[i], pol.predict({k: v[i] for k, v in obs.items()})[0])
             obs, *_ = venv.step(actions)
         assert batched.tau.tolist() == [pol.tau for pol in singles]
+        assert np.allclose(batched.tau, 0.05, rtol=0, atol=1e-6)  # the oracle's true lag, the fit's estimate
     venv.close()
 
 
