@@ -237,7 +237,8 @@ class WheeledPumaEnv(gym.Env):
     ## Privileged attributes
     `nominal_params` (the catalogue robot, or the episode's drawn design for `robot="random"`: what a
     model-based method may know) and `true_params` (the current
-    true robot: for oracles and tests only) are the documented doors to robot models. `sim` also holds the true
+    true robot: for oracles and tests only) are the documented doors to robot models; `true_actuator_tau` (the
+    episode's lag, s) is the door to the actuators' for the same readers (`mpc-oracle`). `sim` also holds the true
     robot (the PyBullet body, the kinematic state), so reading it goes through `true_params` too: a guard that
     makes `true_params` raise covers it. The generated URDF is deleted as soon as PyBullet has loaded it. Names
     with a leading underscore are not an interface.
@@ -595,6 +596,15 @@ class WheeledPumaEnv(gym.Env):
         if not self._started:
             return self._nominal_params
         return self._batch.true_params(0)
+
+    @property
+    def true_actuator_tau(self) -> float:
+        """The time constant of the episode's actuator lag, s: the `actuator_tau` condition the episode runs
+        under (a reset option included; the constructor's before the first reset). Part of the true model: for
+        oracles (`mpc-oracle`) and tests only; it never appears in `info`."""
+        if not self._started:
+            return float(self.actuator_tau)
+        return float(self._batch.prm[0, E.P_TAU])
 
     # --- read-only conveniences ------------------------------------------------------------------------
     @property

@@ -172,6 +172,13 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             return self._nominals[i]
         return self._batch.true_params(i)
 
+    def true_actuator_tau(self, i: int) -> float:
+        """Robot i's actuator lag time constant this episode, s (for oracles and tests only; see the single env's
+        `true_actuator_tau`)."""
+        if not self._started:
+            return self._template.true_actuator_tau
+        return float(self._batch.prm[i, E.P_TAU])
+
     @property
     def dt(self) -> float:
         """The control period, s."""
@@ -347,6 +354,9 @@ class PhysicsVectorEnv(gym.vector.SyncVectorEnv):
 
     def true_params(self, i: int) -> RobotParams:
         return self._robot(i).true_params
+
+    def true_actuator_tau(self, i: int) -> float:
+        return self._robot(i).true_actuator_tau
 
 
 def _masked(info: dict[str, Any], mask: np.ndarray) -> dict[str, Any]:

@@ -14,8 +14,9 @@ actions, _ = policy.predict(obs, episode_start=mask)   # re-initialise the rows 
 Two kinds behind one interface (`BatchedPolicy`):
 
 * Vectorised laws (`BatchedController`): `zero`, `random`, `jmpi`, `jmpi-full`, `clik`, `clik-full`, `oracle`,
-  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle`, `calib-qp` (batched up to the QP, which is solved row by
-  row; `calib-qp`'s calibration is one per-row kernel), and the model-free `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
+  `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle`, `calib-qp`, `mpc`, `mpc-oracle` (batched up to the QP,
+  which is solved row by row; `calib-qp`'s calibration is one per-row kernel; `mpc`'s QP is assembled per row by
+  one kernel), and the model-free `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
   `rls` (one per-row numba kernel, `policies.model_free_kernels`: each row draws its dither signs from its own
   Generator as the single controller does). The
   law's state is (N, ...) arrays and one `predict` advances every row with whole-array numpy operations
@@ -93,6 +94,11 @@ class _RobotView(_VectorEnvPart):
     def true_params(self) -> Any:
         """Robot i's current true robot (the oracle's provider reads it at each episode start)."""
         return self._venv.true_params(self._i)
+
+    @property
+    def true_actuator_tau(self) -> float:
+        """Robot i's actuator lag this episode, s (`mpc-oracle`'s provider reads it at each episode start)."""
+        return float(self._venv.true_actuator_tau(self._i))
 
     @property
     def nominal_params(self) -> Any:
@@ -383,6 +389,23 @@ def check_vector_env(venv: Any) -> None:
             f"vector env or a SyncVectorEnv of mobman envs (whose robots it can read); make it with "
             f'gym.make_vec(id, num_envs=N, vectorization_mode="vector_entry_point") or vectorization_mode="sync"'
         )
+
+
+def info_rows(info: Any, rows: slice) -> dict | None:
+    """The rows `rows` of a vector env's info (Gymnasium's dict of per-row arrays and `_key` masks, nested dicts
+    included), as the info of a vector env of those rows; None for no info. `StackedPolicy` hands each part its
+    rows' reset info (the path a controller with preview reads, `policies.mpc`)."""
+    if not isinstance(info, dict):
+        return None
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        if isinstance(value, dict):
+            out[key] = info_rows(value, rows)
+        elif isinstance(value, np.ndarray) and value.ndim >= 1:
+            out[key] = value[rows]
+        else:
+            out[key] = value
+    return out
 
 
 def _row(observation: dict, i: int) -> dict:

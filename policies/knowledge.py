@@ -6,12 +6,12 @@ Every built-in policy class declares `knowledge`, one of `KNOWLEDGE_CLASSES` (DE
 |---|---|---|
 | `none` | no kinematic parameter and no structure | `nnbc`, `nnbc-full`, `nnbc-plus-wb`, `broyden`, `rls`, `zero`, `random`, every `sb3:` agent; `nnbc-plus:formulation=whole_body` or `=paper` |
 | `structure` | the kind of chain and platform (which joints, a planar base, a sensed mount), no parameter value | `nnbc-plus` (its default structured estimate) |
-| `nominal` | the catalogue's parameters | `jmpi`, `jmpi-full`, `clik`, `clik-full`, `qp`, `calib-qp` (it calibrates the catalogue online: the catalogue is its start, release 0.4; it was labelled `structure` in 0.3); `nnbc:j0=nominal` |
-| `true` | the worn robot's parameters | `oracle`, `oracle-full`, `qp-oracle` |
+| `nominal` | the catalogue's parameters | `jmpi`, `jmpi-full`, `clik`, `clik-full`, `qp`, `mpc`, `calib-qp` (it calibrates the catalogue online: the catalogue is its start, release 0.4; it was labelled `structure` in 0.3); `nnbc:j0=nominal` |
+| `true` | the worn robot's parameters | `oracle`, `oracle-full`, `qp-oracle`, `mpc-oracle` (the worn robot and the episode's actuator lag) |
 
 Where the class depends on an option, `knowledge` is a property of the built object: `nnbc-plus` follows its
 `formulation`, `nnbc` its `j0` (`"unknown"` for a `J0=` matrix of the Python API, whose origin it cannot tell),
-`QP` its model source. A user's policy without the attribute is `"unknown"`. Scorecards, tables and plots group
+`QP` and `MPC` their model source. A user's policy without the attribute is `"unknown"`. Scorecards, tables and plots group
 by the class; "model-free" is said only of class `none`.
 
 ```python

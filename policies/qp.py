@@ -129,6 +129,35 @@ def daqp_solve_qp(
     return x if exitflag > 0 else None
 
 
+def damper_bounds(
+    q_arm: np.ndarray,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    scale: np.ndarray,
+    influence: float,
+    stop: float,
+    gain: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """(lb, ub) of the actuator speeds, (N, n + 2) each, at the arm angles `q_arm` (N, n) (rad) of robots whose
+    joint limits are `lower`, `upper` (N, n) (rad): the speed limits `scale` (n + 2,) (rad/s) tightened by NEO's
+    velocity dampers (see the module docstring: within `influence` rad of a limit the speed towards it is at most
+    gain (rho - stop) / (influence - stop)). The one implementation of the dampers (`qp`, `mpc`)."""
+    m = q_arm.shape[1]
+    ramp = gain / (influence - stop)  # (rad/s) per rad of distance beyond `stop`
+    lb = np.broadcast_to(-scale, (len(q_arm), m + 2)).copy()
+    ub = np.broadcast_to(scale, (len(q_arm), m + 2)).copy()
+    d_up = upper - q_arm
+    d_lo = q_arm - lower
+    near_up = d_up < influence
+    near_lo = d_lo < influence
+    if near_up.any():
+        ub[:, :m] = np.where(near_up, np.minimum(ub[:, :m], ramp * (d_up - stop)), ub[:, :m])
+    if near_lo.any():
+        lb[:, :m] = np.where(near_lo, np.maximum(lb[:, :m], -ramp * (d_lo - stop)), lb[:, :m])
+    # inside the stop distance a damper pushes away; keep every box non-empty and within the speed limits
+    return np.minimum(lb, scale), np.maximum(ub, -scale)
+
+
 class QPLaw(BatchedController):
     """The whole-body QP of this module for N robots (see the module docstring); `params(i)` returns row i's
     `RobotParams` (nominal or true), read at each of the row's episode starts. `QP` is its N = 1 case.
@@ -159,7 +188,6 @@ class QPLaw(BatchedController):
         self._A[:, na:] = np.eye(3)
         self._lb = np.r_[-self._scale, np.full(3, -np.inf)]
         self._ub = np.r_[self._scale, np.full(3, np.inf)]
-        self._ramp = c.damper_gain / (c.influence - c.stop)  # (rad/s) per rad of distance beyond `stop`
         self._lower = np.zeros((n, m))
         self._upper = np.zeros((n, m))
         self._q0 = np.zeros((n, m))
@@ -188,22 +216,9 @@ class QPLaw(BatchedController):
 
     def bounds(self, q_arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(lb, ub) of u, (N, n + 2) each, at the arm angles `q_arm` (N, n) (rad): the speed limits tightened by
-        the joint-limit dampers."""
+        the joint-limit dampers (`damper_bounds`)."""
         c = self.config
-        m = self._n_arm
-        scale = self._scale
-        lb = np.broadcast_to(-scale, (len(q_arm), m + 2)).copy()
-        ub = np.broadcast_to(scale, (len(q_arm), m + 2)).copy()
-        d_up = self._upper - q_arm
-        d_lo = q_arm - self._lower
-        near_up = d_up < c.influence
-        near_lo = d_lo < c.influence
-        if near_up.any():
-            ub[:, :m] = np.where(near_up, np.minimum(ub[:, :m], self._ramp * (d_up - c.stop)), ub[:, :m])
-        if near_lo.any():
-            lb[:, :m] = np.where(near_lo, np.maximum(lb[:, :m], -self._ramp * (d_lo - c.stop)), lb[:, :m])
-        # inside the stop distance a damper pushes away; keep every box non-empty and within the speed limits
-        return np.minimum(lb, scale), np.maximum(ub, -scale)
+        return damper_bounds(q_arm, self._lower, self._upper, self._scale, c.influence, c.stop, c.damper_gain)
 
     def _act(self, obs: dict) -> np.ndarray:
         c = self.config

@@ -20,11 +20,11 @@ Option values: bool, int, float or string; a value with a control character or a
 which Python's `int` and `float` would read as 20) is refused, naming it.
 
 Who gets what: the controllers that read no parameter (`nnbc`, `nnbc-full`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
-`rls`, `zero`, `random`) are built from `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp` (and `nnbc:j0=nominal`) receive a provider of the env's
+`rls`, `zero`, `random`) are built from `EnvFacts.from_env(env)` only. `jmpi`, `clik`, `qp`, `mpc` (and `nnbc:j0=nominal`) receive a provider of the env's
 `nominal_params`, read at each episode start (a random-arm env draws a new nominal robot per reset); so does
 `calib-qp`, for which the nominal robot is only the prior it calibrates from (its knowledge class is
-`structure`, `policies.knowledge`). The oracles (`oracle`, `qp-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
-package that touches `true_params`.
+`structure`, `policies.knowledge`). The oracles (`oracle`, `qp-oracle`, `mpc-oracle`) receive a provider that reads the env's current `true_params` at each episode start - the only code in this
+package that touches `true_params`; `mpc-oracle` also gets one of its `true_actuator_tau` (the episode's lag).
 """
 
 from __future__ import annotations
@@ -170,6 +170,22 @@ _REGISTRY: dict[str, _Entry] = {
         {},
         "nominal",
     ),
+    "mpc": _Entry(
+        "receding-horizon whole-body QP on the nominal model: path preview, actuator lag (identified online), speed limits",
+        "policies.mpc",
+        "MPC",
+        "MPCConfig",
+        {},
+        "nominal",
+    ),
+    "mpc-oracle": _Entry(
+        "the receding-horizon QP on the true robot and the true actuator lag: the known-model reference",
+        "policies.mpc",
+        "MPC",
+        "MPCConfig",
+        {},
+        "true",
+    ),
     "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
     "random": _Entry(
         "uniform random actions from the policy's own seed", "policies.simple", "Random", "RandomConfig", {}, "none"
@@ -304,7 +320,7 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
     For a Gymnasium vector env (`mobman_env.vector`) it returns one `policies.batched.BatchedPolicy` for its N
     robots: on the native vector env the spec's vectorised law where its class has one (a `batched`
     constructor: `zero`, `random`, `jmpi`, `clik`, `oracle`, `nnbc`, their `-full` forms, `qp`, `qp-oracle`,
-    `calib-qp`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`, `rls`),
+    `calib-qp`, `mpc`, `mpc-oracle`, `nnbc-plus`, `nnbc-plus-wb`, `broyden`, `rls`),
     else (every other spec, `sb3:` and `module:attr` included, and every spec on a `SyncVectorEnv` of single
     envs: mobman's physics mode and random arm) a loop of this spec built for each robot. Other vector envs
     (e.g. `AsyncVectorEnv`) are refused naming the fix.
@@ -354,6 +370,8 @@ def _make_builtin(spec: str, env: Any, seed: int | None) -> Any:
         extra["nominal_params"] = nominal_params_provider(view)
     elif view.knowledge == "true":
         extra["params_provider"] = true_params_provider(view)
+        if getattr(cls, "reads_true_lag", False):
+            extra["lag_provider"] = true_lag_provider(view)
     return cls(facts, config, seed, **extra)
 
 
@@ -385,6 +403,8 @@ def _make_builtin_batched(spec: str, venv: Any, seed: int | None) -> Any:
         extra["nominal_params"] = lambda i: nominal_of(view, i)
     elif knowledge == "true":
         extra["params_provider"] = view.true_params
+        if getattr(cls, "reads_true_lag", False):
+            extra["lag_provider"] = view.true_actuator_tau
     law = getattr(cls, "batched")(facts, config, venv.num_envs, seed, **extra)  # noqa: B009  (not every class has it)
     law.spec = spec
     return law
@@ -417,5 +437,16 @@ def true_params_provider(env: Any) -> Callable[[], Any]:
 
     def provider() -> Any:
         return base.true_params
+
+    return provider
+
+
+def true_lag_provider(env: Any) -> Callable[[], float]:
+    """A callable returning the time constant of the env's current actuator lag, s (`true_actuator_tau`: the
+    episode's condition). `mpc-oracle` calls it at every episode start, beside `true_params_provider`."""
+    base = unwrap_env(env)
+
+    def provider() -> float:
+        return float(base.true_actuator_tau)
 
     return provider

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.batched import BatchedPolicy, _VectorEnvPart, check_vector_env
+from policies.batched import BatchedPolicy, _VectorEnvPart, check_vector_env, info_rows
 
 
 class VectorEnvRows(_VectorEnvPart):
@@ -45,6 +45,10 @@ class VectorEnvRows(_VectorEnvPart):
     def true_params(self, j: int) -> Any:
         """Row j's current true robot: robot rows.start + j of the underlying vector env."""
         return self._venv.true_params(self._start + j)
+
+    def true_actuator_tau(self, j: int) -> float:
+        """Row j's actuator lag this episode, s: robot rows.start + j's."""
+        return float(self._venv.true_actuator_tau(self._start + j))
 
     def nominal_params_of(self, j: int) -> Any:
         """Row j's nominal robot: robot rows.start + j's of the underlying vector env."""
@@ -81,7 +85,7 @@ class StackedPolicy(BatchedPolicy):
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
         seeds = self._seeds(seed)
         for pol, sl in self.parts:
-            pol.reset({k: v[sl] for k, v in obs.items()}, None, seed=seeds[sl])
+            pol.reset({k: v[sl] for k, v in obs.items()}, info_rows(info, sl), seed=seeds[sl])
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         self._check(observation)

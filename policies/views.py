@@ -10,7 +10,7 @@ A knowledge class (`policies.knowledge`) was a declaration: `calib-qp` read the 
 | `none` | the spaces, `dt`, `action_scale` (`EnvFacts`), the number of robots of a vector env |
 | `structure` | the same: the kind of chain and platform is the controller's own design (the structured estimate knows the platform is planar and the mount is sensed; no value comes from the env) |
 | `nominal` | that, plus the catalogue: `nominal_params` (`nominal_params_of(i)` on a vector env) |
-| `true` | that, plus the worn robot: `true_params` (`true_params(i)` on a vector env) |
+| `true` | that, plus the worn robot: `true_params` (`true_params(i)` on a vector env) and the episode's actuator lag, `true_actuator_tau` |
 
 The class a spec is built with is the one `policies.knowledge_of(spec)` reports (a test checks both agree for
 every built-in), so a controller that reads more than its class fails when it is built or at its first episode
@@ -43,7 +43,7 @@ ALLOWED: dict[str, frozenset[str]] = {
     "none": _FACTS,
     "structure": _FACTS,
     "nominal": _FACTS | {"nominal_params", "nominal_params_of"},
-    "true": _FACTS | {"nominal_params", "nominal_params_of", "true_params"},
+    "true": _FACTS | {"nominal_params", "nominal_params_of", "true_params", "true_actuator_tau"},
 }
 
 

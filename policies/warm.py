@@ -8,15 +8,17 @@ import time
 
 import numpy as np
 
-from policies import calib_qp, kernels, model_free_kernels, nnbc
+from mobman_env.params import RobotParams
+from policies import calib_qp, kernels, model_free_kernels, mpc_model, nnbc
 from policies.base import EnvFacts
 from policies.broyden_rls import RLS, Broyden
 from policies.estimators import BroydenEstimator
 from policies.kernels import damped_pinv_apply_rows
+from policies.mpc import MPC, MPCConfig
 from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 #: every module of `policies` with `@njit(cache=True)` kernels (a test checks the list is complete)
-KERNEL_MODULES = (kernels, nnbc, calib_qp, model_free_kernels)
+KERNEL_MODULES = (kernels, nnbc, calib_qp, model_free_kernels, mpc_model)
 
 
 def warm() -> float:
@@ -48,4 +50,14 @@ def warm() -> float:
         for _ in range(2 * 8 + 2):
             policy.predict(single)
     BroydenEstimator(8, step=1.0, min_speed=0.01).update(np.ones(8), np.ones(3))
+    # mpc: one row and two (numba types a column of one row as contiguous, of two as strided), with a path
+    nominal = RobotParams.nominal()
+    task = {"task": {"path": {"type": "circle", "duration": 2.0}, "start": [0.0, 0.0, 1.0]}}
+    one = {**single, "time": np.zeros(1)}
+    mpc = MPC(facts, nominal_params=nominal)
+    mpc.reset(one, task)
+    mpc.predict(one)
+    law = MPC.batched(facts, MPCConfig(), 2, None, nominal_params=lambda i: nominal)
+    law.reset({k: np.stack([v, v]) for k, v in one.items()})
+    law.predict({k: np.stack([v, v]) for k, v in one.items()})
     return time.perf_counter() - t0

@@ -13,11 +13,12 @@ import policies
 from mobman_env import TASKS, WheeledPumaEnv
 from mobman_env import kinematics as K
 from mobman_env.params import RobotParams
+from mobman_env.vector import _row_info
 from policies.base import policy_seed
 from policies.batched import BatchedController, BatchedPolicy, _RobotView
 from policies.kernels import ModelJacobians, damped_pinv_apply_rows
 
-SPECS = ("zero", "random", "jmpi", "clik", "clik-full", "oracle", "nnbc", "nnbc-plus", "broyden", "rls")
+SPECS = ("zero", "random", "jmpi", "clik", "clik-full", "oracle", "nnbc", "nnbc-plus", "broyden", "rls", "mpc-oracle")
 ENV_ID = "WheeledPuma-Lemniscate-v0"
 
 
@@ -84,7 +85,7 @@ def test_bad_batches_raise():
 
 
 #: the specs with a vectorised law (`policies.batched.BatchedController`); the others loop their rows
-VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp") + tuple(
+VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp", "mpc", "mpc-oracle") + tuple(
     f"{law}{form}" for law in ("jmpi", "clik", "oracle", "nnbc") for form in ("", "-full")
 )
 #: the model-free laws of `policies.nnbc_plus.ModelFreeLaw` (one numba kernel over the rows)
@@ -109,8 +110,8 @@ def test_vectorised_law_equals_single_policies(spec, env_id):
     singles = [policies.make(spec, _RobotView(venv, i)) for i in range(n)]
     obs, info = venv.reset(seed=seed)
     batched.reset(obs, info, seed=seed)
-    for i, pol in enumerate(singles):
-        pol.reset({k: v[i] for k, v in obs.items()}, None, seed=policy_seed(seed + i))
+    for i, pol in enumerate(singles):  # row i's reset info, as a single env hands it out (mpc previews its path)
+        pol.reset({k: v[i] for k, v in obs.items()}, _row_info(info, i), seed=policy_seed(seed + i))
     restart = np.isin(np.arange(n), [1, 3])
     for t in range(200):
         starts = restart if t == 60 else None

@@ -29,6 +29,8 @@ EXPECTED = {
     "qp": "nominal",
     "qp-oracle": "true",
     "calib-qp": "nominal",
+    "mpc": "nominal",
+    "mpc-oracle": "true",
     "zero": "none",
     "random": "none",
 }

@@ -275,10 +275,12 @@ CONTROLLERS = [
     "oracle-full",
     "qp",
     "qp-oracle",
+    "mpc",
+    "mpc-oracle",
     "zero",
     "random",
 ]
-ORACLES = ("oracle", "oracle-full", "qp-oracle")
+ORACLES = ("oracle", "oracle-full", "qp-oracle", "mpc-oracle")
 
 
 class _Recorder:
@@ -373,7 +375,7 @@ def test_batch_of_one_and_longer_batches(kin_env):
 class _ModelGuard(gym.Wrapper):
     """Raises on any access to the robot model, through `unwrapped` or the wrapper-attribute lookup."""
 
-    FORBIDDEN = ("true_params", "nominal_params", "sim")  # sim holds the true robot too
+    FORBIDDEN = ("true_params", "nominal_params", "sim", "true_actuator_tau")  # sim holds the true robot too
 
     def __init__(self, env):
         super().__init__(env)
@@ -428,7 +430,8 @@ def test_model_free_controllers_never_touch_the_model(spec, env_id):
 
 @pytest.mark.parametrize("env_id", ROBOT_CIRCLES)
 @pytest.mark.parametrize(
-    "spec", ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle", "calib-qp"]
+    "spec",
+    ["jmpi", "oracle", "nnbc:j0=nominal", "clik", "clik-full", "qp", "qp-oracle", "calib-qp", "mpc", "mpc-oracle"],
 )
 def test_the_guard_catches_model_based_controllers(spec, env_id):
     env = _ModelGuard(gym.make(env_id, dynamics="kinematic", path=SHORT_CIRCLE))

@@ -33,6 +33,8 @@ commit 2bb11a9 (gamma 10 for the oracles), the second at 626b74f (release 0.2 ba
 | `qp-oracle` | 8.5e-5 | 1.4e-7 | 4 |
 | `nnbc-plus` (626b74f) | 2.2e-6 | 0 | 4 |
 | `calib-qp` (6b8f08d) | 8.2e-5 (Circle; Line 5.0e-6) | 1.1e-7 | 4 |
+| `mpc` (issue 36, branch mpc) | 1.5e-4 | 5.0e-6 | 3 |
+| `mpc-oracle` (issue 36, branch mpc; its errors are ~0.006 mm, so 1e-3 is ~6e-9 m) | 1.0e-3 | 8.9e-5 | 2 |
 
 The median max error of `nnbc` over the first 40 episodes moved from 161 mm to 321 mm under this change.
 An entry may be a whole spec (`oracle:gamma=10`), looked up before the policy's name.
@@ -61,6 +63,8 @@ SIGNIFICANT_DIGITS: dict[str, int] = {
     "qp": 4,
     "qp-oracle": 4,
     "calib-qp": 4,
+    "mpc": 3,
+    "mpc-oracle": 2,
     "nnbc-plus": 4,
     "jmpi": 4,
     "jmpi-full": 4,

@@ -40,6 +40,8 @@ BUILTIN_COLORS: dict[str, str] = {
     "qp": "#8c564b",  # brown
     "qp-oracle": "#17becf",  # cyan
     "calib-qp": "#c49c94",  # light brown: the qp family's light shade (line style: its class, nominal)
+    "mpc": "#f7b6d2",  # light pink (tab20's last free shade; dashed: class nominal)
+    "mpc-oracle": "#9edae5",  # light cyan: qp-oracle's light shade (dotted, class true)
     "zero": "#7f7f7f",  # grey
     "random": "#c7c7c7",
 }
