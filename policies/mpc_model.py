@@ -33,9 +33,9 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from mobman_env import engine as E
+from mobman_env.numba_cache import njit
 from mobman_env.paths import path_from_spec
 
 
