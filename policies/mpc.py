@@ -276,7 +276,9 @@ class MPCLaw(BatchedController):
     def _update_lag(self, w: np.ndarray, applied: np.ndarray) -> None:
         """The online lag fit (the nominal model) of the rows with a previous step, from the commands the env
         applied (the float32 action times the scale) and the measured speeds `w`."""
-        rows = np.flatnonzero(~self._fresh)
+        # a row whose speeds or commands are not finite this step adds nothing (a NaN would stop its fit for good)
+        ok = np.isfinite(w).all(axis=1) & np.isfinite(self._w_prev).all(axis=1) & np.isfinite(applied).all(axis=1)
+        rows = np.flatnonzero(~self._fresh & ok)
         if not len(rows):
             return
         before = self.tau.copy()
@@ -305,7 +307,18 @@ class MPCLaw(BatchedController):
         lb, ub = damper_bounds(q, self._lower, self._upper, self._scale, c.influence, c.stop, c.damper_gain)
         u = np.empty((n, m))
         P, f, lbx, ubx = self._P, self._f, self._lbx, self._ubx
+        # a row with a non-finite observation gets NaN (that row's problem, as in `policies.qp`: the env refuses it
+        # naming the robot), never the solver or LAPACK's least squares, whose error would fail every row
+        finite = (
+            np.isfinite(J).all(axis=(1, 2))
+            & np.isfinite(d).all(axis=(1, 2))
+            & np.isfinite(w0).all(axis=1)
+            & np.isfinite(z).all(axis=1)
+        )
         for i in range(n):
+            if not finite[i]:
+                u[i] = np.nan
+                continue
             condensed_qp(J[i], d[i], w0[i], self._c[i], self._G[i], self._omega, self._h, self._reg, z[i],
                          c.rate_weight, self.last_u[i], P, f)  # fmt: skip
             lbx[:m], ubx[:m] = lb[i], ub[i]
