@@ -162,7 +162,7 @@ from policies.batched import BatchedController, LawView
 from policies.estimators import ESTIMATOR_CLASSES, JacobianEstimator, estimator_params
 
 FORMULATIONS = ("whole_body", "paper", "structured")
-MEASUREMENTS = ("velocity", "position")
+MEASUREMENTS = ("velocity", "angles", "position")
 
 
 #: Observation keys the controllers read (only these are converted on the hot path).
@@ -473,14 +473,17 @@ class ModelFreeLaw(BatchedController):
         prm[K.PRM_EPS2], prm[K.PRM_SING_DAMPING] = c.sing_threshold**2, c.sing_damping
         prm[K.PRM_BLOCK_RELEASE], prm[K.PRM_DELAY_RATE] = c.block_release, c.delay_rate
         prm[K.PRM_PROBE_RIDGE] = 0.1 * c.probe_speed**2
-        prm[K.PRM_LAG_DECAY :] = np.exp(-dt / np.array(LAG_TAUS))
+        taus = np.array(LAG_TAUS)
+        prm[K.PRM_LAG_DECAY : K.PRM_LAG_RISE] = np.exp(-dt / taus)
+        prm[K.PRM_LAG_RISE :] = -taus * np.expm1(-dt / taus) / dt
         self.prm = prm
         ipr = np.zeros(K.IPR_LEN, dtype=np.int64)
         ipr[K.IPR_N], ipr[K.IPR_NA], ipr[K.IPR_NPROBE] = n, n - 2, self.n_probe
         ipr[K.IPR_D], ipr[K.IPR_MAXD] = c.max_delay + 1, c.max_delay
-        ipr[K.IPR_WHOLE], ipr[K.IPR_STRUCT], ipr[K.IPR_USEVEL] = whole, structured, c.measurement == "velocity"
+        ipr[K.IPR_WHOLE], ipr[K.IPR_STRUCT], ipr[K.IPR_USEVEL] = whole, structured, c.measurement != "position"
         ipr[K.IPR_LOOKAHEAD], ipr[K.IPR_PROBE_TRACK] = c.lookahead, c.probe_tracking
         ipr[K.IPR_BLOCK_EVERY], ipr[K.IPR_KIND] = c.block_every, kind
+        ipr[K.IPR_ANGLES] = c.measurement == "angles"
         self.ipr = ipr
         self.jacobian_kind = "whole_body" if whole else "paper"
         # only the keys this formulation reads are converted per call (the whole-body one never reads p_c)
@@ -570,7 +573,7 @@ def _kalman_estimator(c: Any, n: int, dt: float, n_probe: int) -> tuple[int, np.
         innov_rate=c.innov_rate,
         p0_jacobian=c.p0_jacobian,
         p0_rate=c.p0_rate,
-        midpoint=c.measurement != "velocity",
+        midpoint=c.measurement == "position",
         sym_phase=n_probe + 1,
         noise_rate=c.noise_rate,
     )
