@@ -1,7 +1,8 @@
 """The model-free law of `nnbc-plus`, `broyden` and `rls` as scalar per-row kernels, over N rows.
 
 One implementation (STYLE 14, 17): the scaffolding of `policies.nnbc_plus` (probe, measurement, position filter,
-actuator-model bank, joint-stop check, dither, posture pull, half-step lookahead, damped pseudo-inverse) and the
+actuator-model bank, joint-stop check and learnt stops, low-passed dither, posture pull, half-step lookahead,
+damped pseudo-inverse) and the
 four estimators of `policies.estimators` (Kalman filter on [J | J_dot], its structured form with the wheel map
 and the heading filter, Broyden's secant update, recursive least squares) are plain float code compiled with
 numba (`@njit(cache=True)`), looped over the rows, with no matrix product (no BLAS): every sum is written out in
@@ -43,6 +44,7 @@ SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one
 BLOCK_SPEED = 0.05  # rad/s: a command at least this fast that does not move the actuator marks it blocked
 BLOCK_CHECKS = 2  # consecutive checks
 BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
+STOP_TIME = 0.1  # s: near a learnt stop an arm joint approaches it at most at (distance / STOP_TIME)
 DELAY_SETTLE = 200  # steps during which the actuator model is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
 N_LAGS = 4  # len(LAG_TAUS)
@@ -54,7 +56,9 @@ NEED_SIGNS, NEED_NOISE = 1, 2  # bits of ist[:, I_NEED]: what the row's next ste
 (PRM_J0_NOISE, PRM_POS_FILTER, PRM_EPS2, PRM_SING_DAMPING, PRM_BLOCK_RELEASE, PRM_DELAY_RATE, PRM_PROBE_RIDGE) = range(
     8, 15
 )
-PRM_LAG_DECAY = 15  # N_LAGS entries: e^{-dt/tau}
+PRM_DITHER_ALPHA = 15  # the dither's low-pass weight dt / (dt + dither_time) (1: white)
+PRM_STOP_MARGIN = 16  # rad: the learnt stops' damper acts within this distance (0: off)
+PRM_LAG_DECAY = 17  # N_LAGS entries: e^{-dt/tau}
 PRM_LAG_RISE = PRM_LAG_DECAY + N_LAGS  # N_LAGS entries: tau (1 - e^{-dt/tau}) / dt
 PRM_LEN = PRM_LAG_RISE + N_LAGS
 (IPR_N, IPR_NA, IPR_NPROBE, IPR_D, IPR_MAXD, IPR_WHOLE, IPR_STRUCT, IPR_USEVEL) = range(8)
@@ -69,8 +73,9 @@ I_K, I_SIGN, I_MODEL, I_DELAY, I_COUNTING, I_ANYBLK, I_NEED, I_EST = range(8)
 I_LEN = I_EST + 2  # the estimator's: Kalman update count or Broyden's skipped steps; heading initialised
 # --- offsets of the float state's blocks (`layout`) ---
 (LAY_Q0, LAY_PREVQ, LAY_PREVS, LAY_SF, LAY_PREVVD, LAY_TD, LAY_LAGMS, LAY_BCOUNT, LAY_BLOCKED) = range(9)
-(LAY_BLOCKQ, LAY_W, LAY_PA, LAY_PB, LAY_JP, LAY_HIST, LAY_LAGX, LAY_EST, LAY_LEN_) = range(9, 18)
-LAY_LEN = 18
+(LAY_BLOCKQ, LAY_W, LAY_PA, LAY_PB, LAY_JP, LAY_HIST, LAY_LAGX, LAY_DZ, LAY_STOP, LAY_SDIR) = range(9, 19)
+(LAY_EST, LAY_LEN_) = range(19, 21)
+LAY_LEN = 21
 # --- the structured estimate's scalars, after the Kalman filter's three ---
 (S_YAW, S_YAWM, S_OMEGA, S_C, S_S, S_LX, S_LY, S_RX, S_RY, S_BX, S_BY) = range(3, 14)
 S_M = 14  # the wheel map's rows (m0, n0, m1, n1, m2, n2)
@@ -97,7 +102,7 @@ def est_layout(kind: int, n: int) -> tuple[int, int]:
 def layout(n: int, max_delay: int, kind: int) -> np.ndarray:
     """The offsets `lay` of the float state's blocks for n actuators; lay[LAY_LEN_] is the row's length."""
     d = max_delay + 1
-    sizes = [n - 2, n, 3, 3, 3, 3, d + N_LAGS, n, n, n, n, n * n, 3 * n, 3 * n, d * n, N_LAGS * n]
+    sizes = [n - 2, n, 3, 3, 3, 3, d + N_LAGS, n, n, n, n, n * n, 3 * n, 3 * n, d * n, N_LAGS * n, n, n, n]
     lay = np.zeros(LAY_LEN, dtype=np.int64)
     off = 0
     for i, size in enumerate(sizes):
@@ -553,7 +558,7 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
         probing = k < n_probe
         # --- the measurement (x, y), the position filter, the actuator model
         y0, y1, y2 = _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, avg)
-        _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, x, avg, pred, lagavg)
+        _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, lagavg)
         if structured:  # the platform's measurements (every step: the wheel map learns from the probe too)
             w0, w1 = (x[na], x[na + 1]) if angles else (jv[i, na], jv[i, na + 1])
             est_observe(
@@ -561,13 +566,13 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
                 ee_vel[i, 1], abv[i, 0], abv[i, 1],
             )  # fmt: skip
         if prm[PRM_BLOCK_RELEASE] > 0.0 and k > 1 and k % ipr[IPR_BLOCK_EVERY] == 0:
-            _check_blocked(prm, lay, f, it, n, avg if angles else x, pred, jp[i])
+            _check_blocked(prm, lay, f, it, n, na, avg if angles else x, pred, jp[i])
         # --- the estimate
         _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, lsc, xs, j0)
         # --- control: u = z + J_c^+ (v - J_c z)
         v0, v1, v2 = _target(prm, ipr, lay, f, e, it, i, ring, probing, abp, abv, jp, tp, tv, jc, moved, qa)
         v0, v1, v2 = _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2)
-        _solve_row(prm, lay, f, it, i, k, n, probing, jc, jw, z, v0, v1, v2, u)
+        _solve_row(prm, lay, f, it, i, k, n, probing, qa, jc, jw, z, v0, v1, v2, u)
         # --- the random numbers the row's next step draws
         k1 = k + 1
         flag = 0
@@ -591,16 +596,16 @@ def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, 
     ax, ay = (0.0, 0.0) if whole else (abp[i, 0], abp[i, 1])
     s0, s1, s2 = ee_pos[i, 0] - ax, ee_pos[i, 1] - ay, ee_pos[i, 2]
     if use_vel:
+        y0, y1, y2 = ee_vel[i, 0], ee_vel[i, 1], ee_vel[i, 2]
+        if not whole:
+            y0, y1 = y0 - abv[i, 0], y1 - abv[i, 1]
+        ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
         for j in range(n):
             if angles:
                 avg[j] = (jp[i, j] - f[oprevq + j]) / dt
                 f[oprevq + j] = jp[i, j]
             else:
                 x[j] = jv[i, j]
-        y0, y1, y2 = ee_vel[i, 0], ee_vel[i, 1], ee_vel[i, 2]
-        if not whole:
-            y0, y1 = y0 - abv[i, 0], y1 - abv[i, 1]
-        ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
     else:
         oj = lay[LAY_JP] if probing else lay[LAY_EST]  # J_probe, or the estimator's J (both 3 x n at their offset)
         ds0 = ds1 = ds2 = 0.0
@@ -623,7 +628,7 @@ def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, 
 
 
 @njit(cache=True, inline="always")
-def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, x, avg, pred, lagavg):
+def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, lagavg):
     """Advance the lag models by the command of step k - 1, choose the actuator model that best matches the
     measured speeds (`policies.nnbc_plus.LAG_TAUS`), and fill pred with its speeds. `measurement="velocity"`:
     the measured joint_vel (x) against each model's speeds at t_k; `"angles"`: the mean speeds over the step from
@@ -666,8 +671,11 @@ def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, x, avg, pred, laga
         else:
             pred[j] = f[ohist + ((ring - it[I_DELAY]) % dd) * n + j]
     if angles:
+        ost, osd = lay[LAY_STOP], lay[LAY_SDIR]
         for j in range(n):
-            if mm >= 0:
+            if f[osd + j] != 0.0 and jp[i, j] == f[ost + j]:
+                x[j] = 0.0  # held at a learnt stop: it ended the step there, at rest
+            elif mm >= 0:
                 c = last_u[i, j]
                 x[j] = c + (avg[j] - c) * (prm[PRM_LAG_DECAY + mm] / prm[PRM_LAG_RISE + mm])
             else:
@@ -750,8 +758,8 @@ def _target(prm, ipr, lay, f, e, it, i, ring, probing, abp, abv, jp, tp, tv, jc,
 
 @njit(cache=True, inline="always")
 def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
-    """The null-space motion z (the posture pull and the random-sign dither) and v with the task dither added
-    (returned)."""
+    """The null-space motion z (the posture pull and the random-sign dither, low-passed with `dither_time`) and
+    v with the task dither added (returned)."""
     n, na = ipr[IPR_N], ipr[IPR_NA]
     oq0, otd = lay[LAY_Q0], lay[LAY_TD]
     pg = prm[PRM_POSTURE]
@@ -768,10 +776,15 @@ def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
                 v0, v1, v2 = v0 + f[otd], v1 + f[otd + 1], v2 + f[otd + 2]
             else:
                 v0, v1, v2 = v0 - f[otd], v1 - f[otd + 1], v2 - f[otd + 2]
-        dz = prm[PRM_DITHER]
+        dz, al = prm[PRM_DITHER], prm[PRM_DITHER_ALPHA]
         if dz > 0.0:
+            odz = lay[LAY_DZ]
             for j in range(n):
-                z[j] = dz * signs[i, si, j] + z[j] if pg > 0.0 else dz * signs[i, si, j]
+                dj = dz * signs[i, si, j]
+                if al < 1.0:  # the low-passed signs (`dither_time`)
+                    dj = f[odz + j] + al * (dj - f[odz + j])
+                    f[odz + j] = dj
+                z[j] = dj + z[j] if pg > 0.0 else dj
     if probing and ipr[IPR_PROBE_TRACK] == 0:
         v0 = v1 = v2 = 0.0
         for j in range(n):
@@ -780,14 +793,21 @@ def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
 
 
 @njit(cache=True, inline="always")
-def _solve_row(prm, lay, f, it, i, k, n, probing, jc, jw, z, v0, v1, v2, u):
-    """u[i] = z + J_w^T (J_c J_w^T + damping)^-1 (v - J_c z), J_w = J_c W (the joint-stop weights), the probe on
-    top, never further into a stop."""
-    ow, obl = lay[LAY_W], lay[LAY_BLOCKED]
+def _solve_row(prm, lay, f, it, i, k, n, probing, q, jc, jw, z, v0, v1, v2, u):
+    """u[i] = z + J_w^T (J_c J_w^T + damping)^-1 (v - J_c z), J_w = J_c W (the joint-stop weights, and within
+    `stop_margin` of a learnt stop a weight falling with the distance), the probe on top, never further into a
+    stop, and towards a learnt stop at most at distance / STOP_TIME."""
+    ow, obl, ost, osd = lay[LAY_W], lay[LAY_BLOCKED], lay[LAY_STOP], lay[LAY_SDIR]
     anyb = it[I_ANYBLK] != 0
-    for r in range(3):
-        for j in range(n):
-            jw[r, j] = jc[r, j] * f[ow + j] if anyb else jc[r, j]
+    margin = prm[PRM_STOP_MARGIN]
+    for j in range(n):
+        wj = f[ow + j] if anyb else 1.0
+        if margin > 0.0 and f[osd + j] != 0.0:
+            dist = (f[ost + j] - q[j]) * f[osd + j]
+            if dist < margin:
+                wj = min(wj, max(BLOCK_WEIGHT, max(dist, 0.0) / margin))
+        for r in range(3):
+            jw[r, j] = jc[r, j] * wj if (anyb or wj != 1.0) else jc[r, j]
     r0 = r1 = r2 = 0.0
     a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
     for j in range(n):
@@ -815,14 +835,19 @@ def _solve_row(prm, lay, f, it, i, k, n, probing, jc, jw, z, v0, v1, v2, u):
             uj += prm[PRM_PROBE_SPEED] if k % 2 == 0 else -prm[PRM_PROBE_SPEED]
         if anyb and f[obl + j] * uj > 0.0:  # never further into a stop
             uj = 0.0
+        if margin > 0.0 and f[osd + j] != 0.0:  # the learnt stop's damper
+            cap = max((f[ost + j] - q[j]) * f[osd + j], 0.0) / STOP_TIME
+            if uj * f[osd + j] > cap:
+                uj = cap * f[osd + j]
         u[i, j] = uj
 
 
 @njit(cache=True)
-def _check_blocked(prm, lay, f, it, n, x, cm, q):
+def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
     """Mark the actuators that were commanded (cm: the speeds the actuator model predicts) but did not move (x:
     the measured speeds); release those that moved `block_release` away
-    (`policies.nnbc_plus.ModelFreeConfig.block_release`)."""
+    (`policies.nnbc_plus.ModelFreeConfig.block_release`). An arm joint's block is also learnt as a stop (its
+    angle and direction, kept for the episode: `stop_margin`)."""
     obc, obl, obq, ow = lay[LAY_BCOUNT], lay[LAY_BLOCKED], lay[LAY_BLOCKQ], lay[LAY_W]
     if it[I_COUNTING] == 0 and it[I_ANYBLK] == 0:
         quiet = True
@@ -845,6 +870,9 @@ def _check_blocked(prm, lay, f, it, n, x, cm, q):
             f[obl + j] = 1.0 if cj > 0.0 else (-1.0 if cj < 0.0 else 0.0)
             f[obq + j] = q[j]
             new_any = True
+            if j < na and prm[PRM_STOP_MARGIN] > 0.0:
+                f[lay[LAY_STOP] + j] = q[j]
+                f[lay[LAY_SDIR] + j] = f[obl + j]
     it[I_COUNTING] = 1 if counting else 0
     if it[I_ANYBLK] != 0 or new_any:
         anyb = False
