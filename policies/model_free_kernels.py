@@ -47,7 +47,7 @@ BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
 STOP_TIME = 0.1  # s: near a learnt stop an arm joint approaches it at most at (distance / STOP_TIME)
 DELAY_SETTLE = 200  # steps during which the actuator model is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
-N_LAGS = 4  # len(LAG_TAUS)
+N_LAGS = 3  # len(LAG_TAUS)
 INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the Kalman filter's innovations
 NEED_SIGNS, NEED_NOISE = 1, 2  # bits of ist[:, I_NEED]: what the row's next step draws
 
