@@ -1,7 +1,8 @@
 """The model-free law of `nnbc-plus`, `broyden` and `rls` as scalar per-row kernels, over N rows.
 
 One implementation (STYLE 14, 17): the scaffolding of `policies.nnbc_plus` (probe, measurement, position filter,
-actuator-model bank, joint-stop check, dither, posture pull, half-step lookahead, damped pseudo-inverse) and the
+actuator-model bank, joint-stop check and learnt stops, low-passed dither, posture pull, half-step lookahead,
+damped pseudo-inverse) and the
 four estimators of `policies.estimators` (Kalman filter on [J | J_dot], its structured form with the wheel map
 and the heading filter, Broyden's secant update, recursive least squares) are plain float code compiled with
 numba (`@njit(cache=True)`), looped over the rows, with no matrix product (no BLAS): every sum is written out in
@@ -44,9 +45,10 @@ SIGN_BLOCK = 256  # random dither signs are drawn this many steps at a time (one
 BLOCK_SPEED = 0.05  # rad/s: a command at least this fast that does not move the actuator marks it blocked
 BLOCK_CHECKS = 2  # consecutive checks
 BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
+STOP_TIME = 0.1  # s: near a learnt stop an arm joint approaches it at most at (distance / STOP_TIME)
 DELAY_SETTLE = 200  # steps during which the actuator model is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
-N_LAGS = 4  # len(LAG_TAUS)
+N_LAGS = 3  # len(LAG_TAUS)
 INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the Kalman filter's innovations
 NEED_SIGNS, NEED_NOISE = 1, 2  # bits of ist[:, I_NEED]: what the row's next step draws
 
@@ -55,11 +57,14 @@ NEED_SIGNS, NEED_NOISE = 1, 2  # bits of ist[:, I_NEED]: what the row's next ste
 (PRM_J0_NOISE, PRM_POS_FILTER, PRM_EPS2, PRM_SING_DAMPING, PRM_BLOCK_RELEASE, PRM_DELAY_RATE, PRM_PROBE_RIDGE) = range(
     8, 15
 )
-PRM_LAG_DECAY = 15  # N_LAGS entries
-PRM_LEN = PRM_LAG_DECAY + N_LAGS
+PRM_DITHER_ALPHA = 15  # the dither's low-pass weight dt / (dt + dither_time) (1: white)
+PRM_STOP_MARGIN = 16  # rad: the learnt stops' damper acts within this distance (0: off)
+PRM_LAG_DECAY = 17  # N_LAGS entries: e^{-dt/tau}
+PRM_LAG_RISE = PRM_LAG_DECAY + N_LAGS  # N_LAGS entries: tau (1 - e^{-dt/tau}) / dt
+PRM_LEN = PRM_LAG_RISE + N_LAGS
 (IPR_N, IPR_NA, IPR_NPROBE, IPR_D, IPR_MAXD, IPR_WHOLE, IPR_STRUCT, IPR_USEVEL) = range(8)
-(IPR_LOOKAHEAD, IPR_PROBE_TRACK, IPR_BLOCK_EVERY, IPR_KIND) = range(8, 12)
-IPR_LEN = 12
+(IPR_LOOKAHEAD, IPR_PROBE_TRACK, IPR_BLOCK_EVERY, IPR_KIND, IPR_ANGLES) = range(8, 13)
+IPR_LEN = 13
 # --- the estimator's constants ---
 (EP_DT, EP_QJ, EP_QR, EP_R0, EP_CLIP, EP_CLIP2, EP_RATE, EP_P0J, EP_P0R, EP_NOISE_RATE, EP_MIDPOINT) = range(11)
 (EP_SYM_PHASE, EP_QPLAT, EP_RPLAT, EP_HEADING, EP_STEP, EP_MIN2, EP_LAMBDA, EP_QRLS, EP_P0RLS, EP_TRMAX) = range(11, 21)
@@ -69,8 +74,9 @@ I_K, I_SIGN, I_MODEL, I_DELAY, I_COUNTING, I_ANYBLK, I_NEED, I_EST = range(8)
 I_LEN = I_EST + 2  # the estimator's: Kalman update count or Broyden's skipped steps; heading initialised
 # --- offsets of the float state's blocks (`layout`) ---
 (LAY_Q0, LAY_PREVQ, LAY_PREVS, LAY_SF, LAY_PREVVD, LAY_TD, LAY_LAGMS, LAY_BCOUNT, LAY_BLOCKED) = range(9)
-(LAY_BLOCKQ, LAY_W, LAY_PA, LAY_PB, LAY_JP, LAY_HIST, LAY_LAGX, LAY_EST, LAY_LEN_) = range(9, 18)
-LAY_LEN = 18
+(LAY_BLOCKQ, LAY_W, LAY_PA, LAY_PB, LAY_JP, LAY_HIST, LAY_LAGX, LAY_DZ, LAY_STOP, LAY_SDIR) = range(9, 19)
+(LAY_EST, LAY_LEN_) = range(19, 21)
+LAY_LEN = 21
 # --- the structured estimate's scalars, after the Kalman filter's three ---
 (S_YAW, S_YAWM, S_OMEGA, S_C, S_S, S_LX, S_LY, S_RX, S_RY, S_BX, S_BY) = range(3, 14)
 S_M = 14  # the wheel map's rows (m0, n0, m1, n1, m2, n2)
@@ -97,7 +103,7 @@ def est_layout(kind: int, n: int) -> tuple[int, int]:
 def layout(n: int, max_delay: int, kind: int) -> np.ndarray:
     """The offsets `lay` of the float state's blocks for n actuators; lay[LAY_LEN_] is the row's length."""
     d = max_delay + 1
-    sizes = [n - 2, n, 3, 3, 3, 3, d + N_LAGS, n, n, n, n, n * n, 3 * n, 3 * n, d * n, N_LAGS * n]
+    sizes = [n - 2, n, 3, 3, 3, 3, d + N_LAGS, n, n, n, n, n * n, 3 * n, 3 * n, d * n, N_LAGS * n, n, n, n]
     lay = np.zeros(LAY_LEN, dtype=np.int64)
     off = 0
     for i, size in enumerate(sizes):
@@ -519,14 +525,16 @@ def _cholesky_solve(A, B, n, ridge, L, X):
 @njit(cache=True)
 def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, tv, yaw, last_u, signs, noise, u):
     """One control step of every row: u (N, n) rad/s before the speed clip. Returns the number of rows whose next
-    step draws random numbers (flagged in ist[:, I_NEED])."""
+    step draws random numbers (flagged in ist[:, I_NEED]). The step's sections are the helpers below, in order:
+    `_measure`, `_actuator_model`, `_check_blocked`, `_estimate`, `_target`, `_excitation`, `_solve_row`."""
     nrow = fst.shape[0]
-    n, na, n_probe, dd, maxd = ipr[IPR_N], ipr[IPR_NA], ipr[IPR_NPROBE], ipr[IPR_D], ipr[IPR_MAXD]
-    whole, structured, use_vel = ipr[IPR_WHOLE] != 0, ipr[IPR_STRUCT] != 0, ipr[IPR_USEVEL] != 0
-    kind = ipr[IPR_KIND]
-    dt = prm[PRM_DT]
-    nl = dd + N_LAGS
+    n, na, n_probe, dd = ipr[IPR_N], ipr[IPR_NA], ipr[IPR_NPROBE], ipr[IPR_D]
+    structured, angles = ipr[IPR_STRUCT] != 0, ipr[IPR_ANGLES] != 0
+    oest = lay[LAY_EST]
     x = np.empty(n)
+    avg = np.empty(n)
+    pred = np.empty(n)
+    lagavg = np.empty(N_LAGS * n)
     h = np.empty(2 * n)
     ph = np.empty(2 * n)
     z = np.empty(n)
@@ -538,23 +546,6 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
     xs = np.empty(3 * n)
     j0 = np.empty((3, n))
     need = 0
-    oq0, oprevq, oprevs, osf, oprevvd, otd = (
-        lay[LAY_Q0],
-        lay[LAY_PREVQ],
-        lay[LAY_PREVS],
-        lay[LAY_SF],
-        lay[LAY_PREVVD],
-        lay[LAY_TD],
-    )
-    olagms, obc, obl, obq, ow = lay[LAY_LAGMS], lay[LAY_BCOUNT], lay[LAY_BLOCKED], lay[LAY_BLOCKQ], lay[LAY_W]
-    opa, opb, ojp, ohist, olagx, oest = (
-        lay[LAY_PA],
-        lay[LAY_PB],
-        lay[LAY_JP],
-        lay[LAY_HIST],
-        lay[LAY_LAGX],
-        lay[LAY_EST],
-    )
     for i in range(nrow):
         f = fst[i]
         it = ist[i]
@@ -564,176 +555,25 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
         it[I_K] = k + 1
         ring = k % dd
         for j in range(n):
-            f[ohist + ring * n + j] = last_u[i, j]  # the command issued at step k - 1
+            f[lay[LAY_HIST] + ring * n + j] = last_u[i, j]  # the command issued at step k - 1
         probing = k < n_probe
-        # --- the measurement (x, y) and the position filter
-        ax, ay = (0.0, 0.0) if whole else (abp[i, 0], abp[i, 1])
-        s0, s1, s2 = ee_pos[i, 0] - ax, ee_pos[i, 1] - ay, ee_pos[i, 2]
-        if use_vel:
-            for j in range(n):
-                x[j] = jv[i, j]
-            y0, y1, y2 = ee_vel[i, 0], ee_vel[i, 1], ee_vel[i, 2]
-            if not whole:
-                y0, y1 = y0 - abv[i, 0], y1 - abv[i, 1]
-            ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
-        else:
-            oj = ojp if probing else oest  # J_probe, or the estimator's J (both 3 x n at their offset)
-            ds0 = ds1 = ds2 = 0.0
-            for j in range(n):
-                dq = jp[i, j] - f[oprevq + j]
-                x[j] = dq / dt
-                ds0 += f[oj + j] * dq
-                ds1 += f[oj + n + j] * dq
-                ds2 += f[oj + 2 * n + j] * dq
-                f[oprevq + j] = jp[i, j]
-            y0 = (s0 - f[oprevs]) / dt
-            y1 = (s1 - f[oprevs + 1]) / dt
-            y2 = (s2 - f[oprevs + 2]) / dt
-            f[oprevs], f[oprevs + 1], f[oprevs + 2] = s0, s1, s2
-        a = prm[PRM_POS_FILTER]
-        g0, g1, g2 = f[osf] + ds0, f[osf + 1] + ds1, f[osf + 2] + ds2
-        f[osf], f[osf + 1], f[osf + 2] = g0 + a * (s0 - g0), g1 + a * (s1 - g1), g2 + a * (s2 - g2)
+        # --- the measurement (x, y), the position filter, the actuator model
+        y0, y1, y2 = _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, avg)
+        _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, lagavg)
         if structured:  # the platform's measurements (every step: the wheel map learns from the probe too)
+            w0, w1 = (x[na], x[na + 1]) if angles else (jv[i, na], jv[i, na + 1])
             est_observe(
-                n, ep, e, ie, yaw[i, 0], jv[i, na], jv[i, na + 1], ee_pos[i, 0], ee_pos[i, 1], abp[i, 0],
-                abp[i, 1], ee_vel[i, 0], ee_vel[i, 1], abv[i, 0], abv[i, 1],
+                n, ep, e, ie, yaw[i, 0], w0, w1, ee_pos[i, 0], ee_pos[i, 1], abp[i, 0], abp[i, 1], ee_vel[i, 0],
+                ee_vel[i, 1], abv[i, 0], abv[i, 1],
             )  # fmt: skip
-        for m in range(N_LAGS):  # each lag model's actuator speeds after the command of step k - 1
-            dec = prm[PRM_LAG_DECAY + m]
-            for j in range(n):
-                lu = last_u[i, j]
-                f[olagx + m * n + j] = lu + (f[olagx + m * n + j] - lu) * dec
-        n_seen = k + 1
-        if n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):  # the actuator model
-            rate = prm[PRM_DELAY_RATE]
-            best = 0
-            for m in range(nl):
-                o = ohist + ((ring - m) % dd) * n if m < dd else olagx + (m - dd) * n
-                ss = 0.0
-                for j in range(n):
-                    df = f[o + j] - x[j]
-                    ss += df * df
-                v = f[olagms + m] + rate * (ss - f[olagms + m])
-                f[olagms + m] = v
-                if v < f[olagms + best]:
-                    best = m
-            it[I_MODEL] = best
-            it[I_DELAY] = best if best <= maxd else 0
         if prm[PRM_BLOCK_RELEASE] > 0.0 and k > 1 and k % ipr[IPR_BLOCK_EVERY] == 0:
-            _check_blocked(prm, f, it, n, maxd, dd, ring, x, jp[i], obc, obl, obq, ow, ohist, olagx)
+            _check_blocked(prm, lay, f, it, n, na, avg if angles else x, pred, jp[i])
         # --- the estimate
-        if k <= n_probe:
-            if k > 0:
-                _probe_fit(prm, f, n, x, y0, y1, y2, k == n_probe, opa, opb, ojp, lsc, xs)
-            if k == n_probe:
-                for r in range(3):
-                    for j in range(n):
-                        j0[r, j] = f[ojp + r * n + j]
-                g = prm[PRM_J0_NOISE]
-                if g > 0.0:
-                    nj = nn = 0.0
-                    for r in range(3):
-                        for j in range(n):
-                            nj += j0[r, j] * j0[r, j]
-                            nn += noise[i, r, j] * noise[i, r, j]
-                    sc = g * math.sqrt(nj) / math.sqrt(nn)
-                    for r in range(3):
-                        for j in range(n):
-                            j0[r, j] = j0[r, j] + sc * noise[i, r, j]
-                est_init(kind, n, ep, e, ie, j0)
-        else:
-            est_update(kind, n, ep, e, ie, x, y0, y1, y2, h, ph)
+        _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, lsc, xs, j0)
         # --- control: u = z + J_c^+ (v - J_c z)
-        oj = ojp if probing else oest
-        v0, v1, v2 = tv[i, 0], tv[i, 1], tv[i, 2]
-        look = ipr[IPR_LOOKAHEAD] != 0 and not probing
-        hd = prm[PRM_HALF_DT]
-        for r in range(3):
-            for j in range(n):
-                jr = f[oj + r * n + j]
-                jc[r, j] = jr + hd * e[3 * n + r * n + j] if look else jr
-        if look:
-            p0, p1, p2 = f[oprevvd], f[oprevvd + 1], f[oprevvd + 2]
-            v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2
-        f[oprevvd], f[oprevvd + 1], f[oprevvd + 2] = tv[i, 0], tv[i, 1], tv[i, 2]
-        d0, d1, d2 = tp[i, 0], tp[i, 1], tp[i, 2]
-        if not whole:
-            d0, d1 = d0 - abp[i, 0], d1 - abp[i, 1]
-            v0, v1 = v0 - abv[i, 0], v1 - abv[i, 1]
-        f0, f1, f2 = f[osf], f[osf + 1], f[osf + 2]
-        for j in range(na):
-            qa[j] = jp[i, j]
-        dly = it[I_DELAY]
-        if dly > 0:  # the observation is dly steps old: predict it forward by the commands issued since
-            for j in range(n):
-                acc = f[ohist + ring * n + j]
-                for m in range(1, dly):
-                    acc += f[ohist + ((ring - m) % dd) * n + j]
-                moved[j] = acc * dt
-            m0 = m1 = m2 = 0.0
-            for j in range(n):
-                m0 += f[oj + j] * moved[j]
-                m1 += f[oj + n + j] * moved[j]
-                m2 += f[oj + 2 * n + j] * moved[j]
-            f0, f1, f2 = f0 + m0, f1 + m1, f2 + m2
-            for j in range(na):
-                qa[j] = qa[j] + moved[j]
-        g = prm[PRM_GAMMA]
-        v0, v1, v2 = v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
-        pg = prm[PRM_POSTURE]
-        for j in range(n):
-            z[j] = (f[oq0 + j] - qa[j]) * pg if (pg > 0.0 and j < na) else 0.0
-        if not probing:
-            si = it[I_SIGN] % SIGN_BLOCK
-            it[I_SIGN] += 1
-            td = prm[PRM_TASK_DITHER]
-            if td > 0.0:
-                if k % 2 == 0:
-                    for j in range(3):
-                        f[otd + j] = td * signs[i, si, n + j]
-                    v0, v1, v2 = v0 + f[otd], v1 + f[otd + 1], v2 + f[otd + 2]
-                else:
-                    v0, v1, v2 = v0 - f[otd], v1 - f[otd + 1], v2 - f[otd + 2]
-            dz = prm[PRM_DITHER]
-            if dz > 0.0:
-                for j in range(n):
-                    z[j] = dz * signs[i, si, j] + z[j] if pg > 0.0 else dz * signs[i, si, j]
-        if probing and ipr[IPR_PROBE_TRACK] == 0:
-            v0 = v1 = v2 = 0.0
-            for j in range(n):
-                z[j] = 0.0
-        anyb = it[I_ANYBLK] != 0
-        for r in range(3):
-            for j in range(n):
-                jw[r, j] = jc[r, j] * f[ow + j] if anyb else jc[r, j]
-        r0 = r1 = r2 = 0.0
-        a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
-        for j in range(n):
-            c0, c1, c2 = jc[0, j], jc[1, j], jc[2, j]
-            w0, w1, w2 = jw[0, j], jw[1, j], jw[2, j]
-            r0 += c0 * z[j]
-            r1 += c1 * z[j]
-            r2 += c2 * z[j]
-            a00 += w0 * c0
-            a01 += w0 * c1
-            a02 += w0 * c2
-            a10 += w1 * c0
-            a11 += w1 * c1
-            a12 += w1 * c2
-            a20 += w2 * c0
-            a21 += w2 * c1
-            a22 += w2 * c2
-        l0, l1, l2 = _solve3(
-            a00, a01, a02, a10, a11, a12, a20, a21, a22, v0 - r0, v1 - r1, v2 - r2,
-            prm[PRM_DAMPING], prm[PRM_EPS2], prm[PRM_SING_DAMPING],
-        )  # fmt: skip
-        for j in range(n):
-            uj = z[j] + (jw[0, j] * l0 + jw[1, j] * l1 + jw[2, j] * l2)
-            if probing and j == k // 2:  # actuator k // 2 at +probe_speed, then -probe_speed (back)
-                uj += prm[PRM_PROBE_SPEED] if k % 2 == 0 else -prm[PRM_PROBE_SPEED]
-            if anyb and f[obl + j] * uj > 0.0:  # never further into a stop
-                uj = 0.0
-            u[i, j] = uj
+        v0, v1, v2 = _target(prm, ipr, lay, f, e, it, i, ring, probing, abp, abv, jp, tp, tv, jc, moved, qa)
+        v0, v1, v2 = _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2)
+        _solve_row(prm, lay, f, it, i, k, n, probing, qa, jc, jw, z, v0, v1, v2, u)
         # --- the random numbers the row's next step draws
         k1 = k + 1
         flag = 0
@@ -747,16 +587,273 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
     return need
 
 
-@njit(cache=True)
-def _check_blocked(prm, f, it, n, maxd, dd, ring, x, q, obc, obl, obq, ow, ohist, olagx):
-    """Mark the actuators that were commanded (as the actuator model predicts) but did not move; release those
-    that moved `block_release` away (`policies.nnbc_plus.ModelFreeConfig.block_release`)."""
+@njit(cache=True, inline="always")
+def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, avg):
+    """This step's measurement: y (returned) and x (with `measurement="angles"`, x is set by `_actuator_model`;
+    avg: the actuators' mean speeds over the last step, from the joint angles), and the position filter."""
+    n, dt = ipr[IPR_N], prm[PRM_DT]
+    whole, use_vel, angles = ipr[IPR_WHOLE] != 0, ipr[IPR_USEVEL] != 0, ipr[IPR_ANGLES] != 0
+    oprevq, oprevs, osf = lay[LAY_PREVQ], lay[LAY_PREVS], lay[LAY_SF]
+    ax, ay = (0.0, 0.0) if whole else (abp[i, 0], abp[i, 1])
+    s0, s1, s2 = ee_pos[i, 0] - ax, ee_pos[i, 1] - ay, ee_pos[i, 2]
+    if use_vel:
+        y0, y1, y2 = ee_vel[i, 0], ee_vel[i, 1], ee_vel[i, 2]
+        if not whole:
+            y0, y1 = y0 - abv[i, 0], y1 - abv[i, 1]
+        ds0, ds1, ds2 = dt * y0, dt * y1, dt * y2
+        for j in range(n):
+            if angles:
+                avg[j] = (jp[i, j] - f[oprevq + j]) / dt
+                f[oprevq + j] = jp[i, j]
+            else:
+                x[j] = jv[i, j]
+    else:
+        oj = lay[LAY_JP] if probing else lay[LAY_EST]  # J_probe, or the estimator's J (both 3 x n at their offset)
+        ds0 = ds1 = ds2 = 0.0
+        for j in range(n):
+            dq = jp[i, j] - f[oprevq + j]
+            x[j] = dq / dt
+            avg[j] = x[j]
+            ds0 += f[oj + j] * dq
+            ds1 += f[oj + n + j] * dq
+            ds2 += f[oj + 2 * n + j] * dq
+            f[oprevq + j] = jp[i, j]
+        y0 = (s0 - f[oprevs]) / dt
+        y1 = (s1 - f[oprevs + 1]) / dt
+        y2 = (s2 - f[oprevs + 2]) / dt
+        f[oprevs], f[oprevs + 1], f[oprevs + 2] = s0, s1, s2
+    a = prm[PRM_POS_FILTER]
+    g0, g1, g2 = f[osf] + ds0, f[osf + 1] + ds1, f[osf + 2] + ds2
+    f[osf], f[osf + 1], f[osf + 2] = g0 + a * (s0 - g0), g1 + a * (s1 - g1), g2 + a * (s2 - g2)
+    return y0, y1, y2
+
+
+@njit(cache=True, inline="always")
+def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, lagavg):
+    """Advance the lag models by the command of step k - 1, choose the actuator model that best matches the
+    measured speeds (`policies.nnbc_plus.LAG_TAUS`), and fill pred with its speeds. `measurement="velocity"`:
+    the measured joint_vel (x) against each model's speeds at t_k; `"angles"`: the mean speeds over the step from
+    the joint angles (avg) against each model's mean, and x is then avg turned into the speeds at t_k under the
+    chosen model (a lag: u(t_k) = c + (mean - c) e^{-dt/tau} / (tau (1 - e^{-dt/tau}) / dt), c the command; a
+    delay: the speed is constant over the step, x = avg)."""
+    n, dd, maxd = ipr[IPR_N], ipr[IPR_D], ipr[IPR_MAXD]
+    angles = ipr[IPR_ANGLES] != 0
+    olagx, ohist, olagms = lay[LAY_LAGX], lay[LAY_HIST], lay[LAY_LAGMS]
+    for m in range(N_LAGS):  # each lag model's actuator speeds after the command of step k - 1
+        dec, rise = prm[PRM_LAG_DECAY + m], prm[PRM_LAG_RISE + m]
+        for j in range(n):
+            lu = last_u[i, j]
+            old = f[olagx + m * n + j] - lu
+            lagavg[m * n + j] = lu + old * rise
+            f[olagx + m * n + j] = lu + old * dec
+    meas = avg if angles else x
+    n_seen = k + 1
+    if n_seen >= 2 and (n_seen <= DELAY_SETTLE or n_seen % DELAY_EVERY == 0):
+        rate = prm[PRM_DELAY_RATE]
+        best = 0
+        for m in range(dd + N_LAGS):
+            ss = 0.0
+            for j in range(n):
+                if m < dd:
+                    df = f[ohist + ((ring - m) % dd) * n + j] - meas[j]
+                else:
+                    df = (lagavg[(m - dd) * n + j] if angles else f[olagx + (m - dd) * n + j]) - meas[j]
+                ss += df * df
+            v = f[olagms + m] + rate * (ss - f[olagms + m])
+            f[olagms + m] = v
+            if v < f[olagms + best]:
+                best = m
+        it[I_MODEL] = best
+        it[I_DELAY] = best if best <= maxd else 0
     mm = it[I_MODEL] - maxd - 1
-    oc = olagx + mm * n if mm >= 0 else ohist + ((ring - it[I_DELAY]) % dd) * n
+    for j in range(n):
+        if mm >= 0:
+            pred[j] = lagavg[mm * n + j] if angles else f[olagx + mm * n + j]
+        else:
+            pred[j] = f[ohist + ((ring - it[I_DELAY]) % dd) * n + j]
+    if angles:
+        ost, osd = lay[LAY_STOP], lay[LAY_SDIR]
+        for j in range(n):
+            if f[osd + j] != 0.0 and jp[i, j] == f[ost + j]:
+                x[j] = 0.0  # held at a learnt stop: it ended the step there, at rest
+            elif mm >= 0:
+                c = last_u[i, j]
+                x[j] = c + (avg[j] - c) * (prm[PRM_LAG_DECAY + mm] / prm[PRM_LAG_RISE + mm])
+            else:
+                x[j] = avg[j]
+
+
+@njit(cache=True, inline="always")
+def _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, lsc, xs, j0):
+    """The estimate's step: the probe's least-squares fit (and at its end J_hat(0), perturbed by `j0_noise`), or
+    the estimator's update."""
+    n, n_probe, kind = ipr[IPR_N], ipr[IPR_NPROBE], ipr[IPR_KIND]
+    ojp = lay[LAY_JP]
+    if k <= n_probe:
+        if k > 0:
+            _probe_fit(prm, f, n, x, y0, y1, y2, k == n_probe, lay[LAY_PA], lay[LAY_PB], ojp, lsc, xs)
+        if k == n_probe:
+            for r in range(3):
+                for j in range(n):
+                    j0[r, j] = f[ojp + r * n + j]
+            g = prm[PRM_J0_NOISE]
+            if g > 0.0:
+                nj = nn = 0.0
+                for r in range(3):
+                    for j in range(n):
+                        nj += j0[r, j] * j0[r, j]
+                        nn += noise[i, r, j] * noise[i, r, j]
+                sc = g * math.sqrt(nj) / math.sqrt(nn)
+                for r in range(3):
+                    for j in range(n):
+                        j0[r, j] = j0[r, j] + sc * noise[i, r, j]
+            est_init(kind, n, ep, e, ie, j0)
+    else:
+        est_update(kind, n, ep, e, ie, x, y0, y1, y2, h, ph)
+
+
+@njit(cache=True, inline="always")
+def _target(prm, ipr, lay, f, e, it, i, ring, probing, abp, abv, jp, tp, tv, jc, moved, qa):
+    """J_c (J_hat extrapolated half a step) into jc, the arm angles (predicted over the compensated delay) into
+    qa, and the task velocity v (returned): the target's velocity half a step ahead plus the feedback on the
+    filtered position, predicted forward by J_hat times the commands issued since the (delayed) observation."""
+    n, na, dd, dt = ipr[IPR_N], ipr[IPR_NA], ipr[IPR_D], prm[PRM_DT]
+    oj = lay[LAY_JP] if probing else lay[LAY_EST]
+    oprevvd, osf, ohist = lay[LAY_PREVVD], lay[LAY_SF], lay[LAY_HIST]
+    v0, v1, v2 = tv[i, 0], tv[i, 1], tv[i, 2]
+    look = ipr[IPR_LOOKAHEAD] != 0 and not probing
+    hd = prm[PRM_HALF_DT]
+    for r in range(3):
+        for j in range(n):
+            jr = f[oj + r * n + j]
+            jc[r, j] = jr + hd * e[3 * n + r * n + j] if look else jr
+    if look:
+        p0, p1, p2 = f[oprevvd], f[oprevvd + 1], f[oprevvd + 2]
+        v0, v1, v2 = 1.5 * v0 - 0.5 * p0, 1.5 * v1 - 0.5 * p1, 1.5 * v2 - 0.5 * p2
+    f[oprevvd], f[oprevvd + 1], f[oprevvd + 2] = tv[i, 0], tv[i, 1], tv[i, 2]
+    d0, d1, d2 = tp[i, 0], tp[i, 1], tp[i, 2]
+    if ipr[IPR_WHOLE] == 0:
+        d0, d1 = d0 - abp[i, 0], d1 - abp[i, 1]
+        v0, v1 = v0 - abv[i, 0], v1 - abv[i, 1]
+    f0, f1, f2 = f[osf], f[osf + 1], f[osf + 2]
+    for j in range(na):
+        qa[j] = jp[i, j]
+    dly = it[I_DELAY]
+    if dly > 0:  # the observation is dly steps old: predict it forward by the commands issued since
+        for j in range(n):
+            acc = f[ohist + ring * n + j]
+            for m in range(1, dly):
+                acc += f[ohist + ((ring - m) % dd) * n + j]
+            moved[j] = acc * dt
+        m0 = m1 = m2 = 0.0
+        for j in range(n):
+            m0 += f[oj + j] * moved[j]
+            m1 += f[oj + n + j] * moved[j]
+            m2 += f[oj + 2 * n + j] * moved[j]
+        f0, f1, f2 = f0 + m0, f1 + m1, f2 + m2
+        for j in range(na):
+            qa[j] = qa[j] + moved[j]
+    g = prm[PRM_GAMMA]
+    return v0 + g * (d0 - f0), v1 + g * (d1 - f1), v2 + g * (d2 - f2)
+
+
+@njit(cache=True, inline="always")
+def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
+    """The null-space motion z (the posture pull and the random-sign dither, low-passed with `dither_time`) and
+    v with the task dither added (returned)."""
+    n, na = ipr[IPR_N], ipr[IPR_NA]
+    oq0, otd = lay[LAY_Q0], lay[LAY_TD]
+    pg = prm[PRM_POSTURE]
+    for j in range(n):
+        z[j] = (f[oq0 + j] - qa[j]) * pg if (pg > 0.0 and j < na) else 0.0
+    if not probing:
+        si = it[I_SIGN] % SIGN_BLOCK
+        it[I_SIGN] += 1
+        td = prm[PRM_TASK_DITHER]
+        if td > 0.0:
+            if k % 2 == 0:
+                for j in range(3):
+                    f[otd + j] = td * signs[i, si, n + j]
+                v0, v1, v2 = v0 + f[otd], v1 + f[otd + 1], v2 + f[otd + 2]
+            else:
+                v0, v1, v2 = v0 - f[otd], v1 - f[otd + 1], v2 - f[otd + 2]
+        dz, al = prm[PRM_DITHER], prm[PRM_DITHER_ALPHA]
+        if dz > 0.0:
+            odz = lay[LAY_DZ]
+            for j in range(n):
+                dj = dz * signs[i, si, j]
+                if al < 1.0:  # the low-passed signs (`dither_time`)
+                    dj = f[odz + j] + al * (dj - f[odz + j])
+                    f[odz + j] = dj
+                z[j] = dj + z[j] if pg > 0.0 else dj
+    if probing and ipr[IPR_PROBE_TRACK] == 0:
+        v0 = v1 = v2 = 0.0
+        for j in range(n):
+            z[j] = 0.0
+    return v0, v1, v2
+
+
+@njit(cache=True, inline="always")
+def _solve_row(prm, lay, f, it, i, k, n, probing, q, jc, jw, z, v0, v1, v2, u):
+    """u[i] = z + J_w^T (J_c J_w^T + damping)^-1 (v - J_c z), J_w = J_c W (the joint-stop weights, and within
+    `stop_margin` of a learnt stop a weight falling with the distance), the probe on top, never further into a
+    stop, and towards a learnt stop at most at distance / STOP_TIME."""
+    ow, obl, ost, osd = lay[LAY_W], lay[LAY_BLOCKED], lay[LAY_STOP], lay[LAY_SDIR]
+    anyb = it[I_ANYBLK] != 0
+    margin = prm[PRM_STOP_MARGIN]
+    for j in range(n):
+        wj = f[ow + j] if anyb else 1.0
+        if margin > 0.0 and f[osd + j] != 0.0:
+            dist = (f[ost + j] - q[j]) * f[osd + j]
+            if dist < margin:
+                wj = min(wj, max(BLOCK_WEIGHT, max(dist, 0.0) / margin))
+        for r in range(3):
+            jw[r, j] = jc[r, j] * wj if (anyb or wj != 1.0) else jc[r, j]
+    r0 = r1 = r2 = 0.0
+    a00 = a01 = a02 = a10 = a11 = a12 = a20 = a21 = a22 = 0.0
+    for j in range(n):
+        c0, c1, c2 = jc[0, j], jc[1, j], jc[2, j]
+        w0, w1, w2 = jw[0, j], jw[1, j], jw[2, j]
+        r0 += c0 * z[j]
+        r1 += c1 * z[j]
+        r2 += c2 * z[j]
+        a00 += w0 * c0
+        a01 += w0 * c1
+        a02 += w0 * c2
+        a10 += w1 * c0
+        a11 += w1 * c1
+        a12 += w1 * c2
+        a20 += w2 * c0
+        a21 += w2 * c1
+        a22 += w2 * c2
+    l0, l1, l2 = _solve3(
+        a00, a01, a02, a10, a11, a12, a20, a21, a22, v0 - r0, v1 - r1, v2 - r2,
+        prm[PRM_DAMPING], prm[PRM_EPS2], prm[PRM_SING_DAMPING],
+    )  # fmt: skip
+    for j in range(n):
+        uj = z[j] + (jw[0, j] * l0 + jw[1, j] * l1 + jw[2, j] * l2)
+        if probing and j == k // 2:  # actuator k // 2 at +probe_speed, then -probe_speed (back)
+            uj += prm[PRM_PROBE_SPEED] if k % 2 == 0 else -prm[PRM_PROBE_SPEED]
+        if anyb and f[obl + j] * uj > 0.0:  # never further into a stop
+            uj = 0.0
+        if margin > 0.0 and f[osd + j] != 0.0:  # the learnt stop's damper
+            cap = max((f[ost + j] - q[j]) * f[osd + j], 0.0) / STOP_TIME
+            if uj * f[osd + j] > cap:
+                uj = cap * f[osd + j]
+        u[i, j] = uj
+
+
+@njit(cache=True)
+def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
+    """Mark the actuators that were commanded (cm: the speeds the actuator model predicts) but did not move (x:
+    the measured speeds); release those that moved `block_release` away
+    (`policies.nnbc_plus.ModelFreeConfig.block_release`). An arm joint's block is also learnt as a stop (its
+    angle and direction, kept for the episode: `stop_margin`)."""
+    obc, obl, obq, ow = lay[LAY_BCOUNT], lay[LAY_BLOCKED], lay[LAY_BLOCKQ], lay[LAY_W]
     if it[I_COUNTING] == 0 and it[I_ANYBLK] == 0:
         quiet = True
         for j in range(n):
-            cj = f[oc + j]
+            cj = cm[j]
             if not cj * (x[j] - 0.1 * cj) >= 0.0:
                 quiet = False
                 break
@@ -765,7 +862,7 @@ def _check_blocked(prm, f, it, n, maxd, dd, ring, x, q, obc, obl, obq, ow, ohist
     counting = False
     new_any = False
     for j in range(n):
-        cj = f[oc + j]
+        cj = cm[j]
         stuck = cj * (x[j] - 0.1 * cj) < 0.0 and cj * cj > BLOCK_SPEED * BLOCK_SPEED
         cnt = f[obc + j] + 1.0 if stuck else 0.0
         f[obc + j] = cnt
@@ -774,6 +871,9 @@ def _check_blocked(prm, f, it, n, maxd, dd, ring, x, q, obc, obl, obq, ow, ohist
             f[obl + j] = 1.0 if cj > 0.0 else (-1.0 if cj < 0.0 else 0.0)
             f[obq + j] = q[j]
             new_any = True
+            if j < na and prm[PRM_STOP_MARGIN] > 0.0:
+                f[lay[LAY_STOP] + j] = q[j]
+                f[lay[LAY_SDIR] + j] = f[obl + j]
     it[I_COUNTING] = 1 if counting else 0
     if it[I_ANYBLK] != 0 or new_any:
         anyb = False

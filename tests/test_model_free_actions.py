@@ -2,8 +2,10 @@
 `rls` issue, bit for bit, the actions recorded in `tests/data/model_free_actions_0.3.npz`.
 
 The file was recorded by `record()` with `PYTHONPATH=$PWD python tests/test_model_free_actions.py --write`, last
-by `nnbc-plus` v4 (issue 28), which moved the actions on purpose: the actuator-model bank (lag models beside
-the delays: all four controllers), the filtered heading and the 0.02 rad/s probe (`nnbc-plus`, `nnbc-plus-wb`).
+by `nnbc-plus` v5 (issue 38), which moved `nnbc-plus`'s and `nnbc-plus-wb`'s actions on purpose (the joint-angle
+regressor, learnt stops, the low-passed dither) and left `broyden`'s and `rls`'s bit for bit (their defaults
+keep the v4 scaffolding); before, by v4 (issue 28): the actuator-model bank (lag models beside the delays: all
+four controllers), the filtered heading and the 0.02 rad/s probe (`nnbc-plus`, `nnbc-plus-wb`).
 Before, v4's deletion of the failed and dead options had passed it unchanged (each was a no-op at its default).
 A change meant to leave the default controllers as they are must pass this test unchanged; a change that moves
 them on purpose records the file anew in the same commit and says why.

@@ -1,0 +1,81 @@
+"""The nnbc-plus v5 development panel: four robots x four tasks x development seeds, a few conditions, one or
+more controller specs, on the native vector env (kinematic). Prints one compact CSV row per (spec, condition):
+successes, clean successes, max-error median and max (mm), cmd_accel_rms median (rad/s^2), max-error IQM (mm).
+
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v5/panel.py --specs nnbc-plus,nnbc-plus-wb --seed 0 --seeds 4
+
+Development seeds only (below 10,000). Conditions: `CONDITIONS` below (the dev track's, the issue's named ones).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+from scipy.stats import trim_mean
+
+import policies
+from eval.rollout import make_vector_env, rollout_batch
+
+ROBOTS = ("WheeledPuma", "WheeledUR5", "WheeledPanda", "WheeledRandomArm")
+TASKS = ("Circle", "Lemniscate", "Line", "Random")
+#: name -> (model_error, obs_noise, env_kwargs)
+CONDITIONS = {
+    "default": (0.05, 0.0, {}),
+    "noise": (0.05, 0.001, {"obs_noise_vel": 0.01}),
+    "jv05": (0.05, 0.0, {"obs_noise_joint_vel": 0.05}),
+    "heavy15": (0.05, 0.003, {"obs_noise_vel": 0.03, "obs_noise_yaw": 0.0045}),
+    "lag50": (0.05, 0.0, {"actuator_tau": 0.05}),
+    "lag150": (0.05, 0.0, {"actuator_tau": 0.15}),
+    "wear20": (0.2, 0.0, {}),
+    "yaw": (0.05, 0.0, {"obs_noise_yaw": 0.001}),
+    "drift": (0.05, 0.0, {"wear_rate": 0.005}),
+}
+
+
+def run_cell(spec: str, cond: str, seed: int, seeds: int, robots=ROBOTS, tasks=TASKS) -> list[dict]:
+    me, on, kw = CONDITIONS[cond]
+    recs = []
+    for robot in robots:
+        for task in tasks:
+            venv = make_vector_env(f"{robot}-{task}-v0", seeds, "kinematic", me, on, kw)
+            pol = policies.make(spec, venv)
+            for rec, _ in rollout_batch(venv, pol, seed):
+                rec["robot"], rec["task"] = robot, task
+                recs.append(rec)
+            venv.close()
+    return recs
+
+
+def summary(recs: list[dict]) -> str:
+    mx = np.array([r["max_error_m"] if r["max_error_m"] is not None else np.inf for r in recs]) * 1e3
+    acc = np.array([r["cmd_accel_rms"] if r["cmd_accel_rms"] is not None else np.nan for r in recs])
+    ok = sum(bool(r["success"]) for r in recs)
+    clean = sum(bool(r["clean_success"]) for r in recs)
+    lost = ";".join(f"{r['robot'][7:]}-{r['task']}-{r['seed']}:{m:.1f}" for r, m in zip(recs, mx) if m > 6.0)
+    return (
+        f"{ok}/{len(recs)},{clean}/{len(recs)},{np.median(mx):.3f},{np.max(mx):.1f},"
+        f"{np.nanmedian(acc):.2f},{trim_mean(mx, 0.25):.3f},{lost}"
+    )
+
+
+def main(argv=None) -> None:
+    p = argparse.ArgumentParser()
+    p.add_argument("--specs", default="nnbc-plus")
+    p.add_argument("--conditions", default=",".join(CONDITIONS))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seeds", type=int, default=4)
+    p.add_argument("--robots", default=",".join(ROBOTS))
+    p.add_argument("--tasks", default=",".join(TASKS))
+    a = p.parse_args(argv)
+    assert a.seed + a.seeds <= 10_000, "development seeds only"
+    print("spec,condition,success,clean,max_med_mm,max_max_mm,accel_med,max_iqm_mm,lost", flush=True)
+    for spec in a.specs.split(";"):
+        for cond in a.conditions.split(","):
+            recs = run_cell(spec, cond, a.seed, a.seeds, a.robots.split(","), a.tasks.split(","))
+            print(f'"{spec}",{cond},{summary(recs)}', flush=True)
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
