@@ -3,7 +3,7 @@
 ```python
 import gymnasium as gym, mobman_env
 from stable_baselines3 import PPO
-from policies.sb3_vec_env import SB3VecEnv
+from train.vec_env import SB3VecEnv
 venv = SB3VecEnv(gym.make_vec("WheeledPuma-Circle-v0", num_envs=64, vectorization_mode="vector_entry_point",
                               dynamics="kinematic", autoreset_mode="SameStep"))
 PPO("MultiInputPolicy", venv).learn(10_000)
@@ -23,11 +23,13 @@ Imports Stable-Baselines3 (and so torch) at import time: `policies/__init__.py` 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvWrapper
+
+from train import interface
 
 
 class SB3VecEnv(VecEnv):
@@ -112,3 +114,29 @@ class SB3VecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class: type, indices: int | Iterable[int] | None = None) -> list[bool]:
         return [False for _ in self._indices(indices)]
+
+
+class AgentVecEnv(VecEnvWrapper):
+    """The agent's view of a mobman `VecEnv` (`train.interface`): the clock-free observation in the heading
+    frame, and `N_ACTIONS` = 9 actions of which the robot's own are passed on (padded slots dropped).
+    `terminal_observation`s are converted too, so SB3's bootstrap of truncated episodes sees the same layout."""
+
+    def __init__(self, venv: VecEnv):
+        shape = venv.action_space.shape
+        if shape is None or len(shape) != 1:
+            raise ValueError(f"AgentVecEnv needs a Box action space of one dimension, got {venv.action_space}")
+        self.n_actuators = int(shape[0])
+        interface.arm_joints(self.n_actuators)
+        super().__init__(venv, observation_space=interface.observation_space(), action_space=interface.action_space())
+
+    def reset(self) -> dict[str, np.ndarray]:
+        return interface.agent_observation(cast(dict, self.venv.reset()))
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.venv.step_async(interface.env_action(actions, self.n_actuators))
+
+    def step_wait(self) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[dict]]:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        for i in np.flatnonzero(dones):
+            infos[i]["terminal_observation"] = interface.agent_observation(infos[i]["terminal_observation"])
+        return interface.agent_observation(cast(dict, obs)), rewards, dones, infos
