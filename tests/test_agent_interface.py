@@ -1,4 +1,4 @@
-"""The agent's interface (`train.interface`): no clock, one layout for every robot, padding that round-trips."""
+"""The agent's interface (`policies.agent_interface`): no clock, one layout for every robot, padding that round-trips."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 import mobman_env
 from mobman_env import TASKS
-from train import interface as I
+from policies import agent_interface as I
 
 ROBOTS = {"puma560": 8, "ur5": 8, "panda": 9}
 IDS = {"puma560": "WheeledPuma-Circle-v0", "ur5": "WheeledUR5-Circle-v0", "panda": "WheeledPanda-Circle-v0"}
@@ -91,7 +91,7 @@ def test_agent_vec_env_passes_the_robots_own_actions_and_converts_terminal_obser
         autoreset_mode="SameStep",
         path=path,
     )
-    venv = AgentVecEnv(SB3VecEnv(vec))
+    venv = AgentVecEnv(SB3VecEnv(vec), ("agent",), I.AGENT_OBS_KEYS)
     venv.seed(0)
     obs = venv.reset()
     assert set(obs) == set(I.AGENT_OBS_KEYS) and obs["mask"].shape == (2, 9)

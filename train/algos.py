@@ -90,19 +90,20 @@ ALGOS: dict[str, AlgoSpec] = {
         class_path="stable_baselines3:PPO",
         off_policy=False,
         normalize_reward=True,
+        # the recipe for the batched env (module docstring, "PPO"): 256 robots x 64 steps = 16,384 per rollout
         defaults={
-            "learning_rate": "lin_3e-4",
-            "n_steps": 2048,
-            "batch_size": 256,
-            "n_epochs": 10,
+            "learning_rate": 3e-4,
+            "n_steps": 64,
+            "batch_size": 4096,
+            "n_epochs": 5,
             "gamma": 0.98,
             "gae_lambda": 0.95,
             "clip_range": 0.2,
             "ent_coef": 0.0,
             "max_grad_norm": 0.5,
             "policy_kwargs": {
-                "net_arch": {"pi": [256, 256], "vf": [256, 256]},
-                "log_std_init": -2.0,
+                "net_arch": {"pi": [64, 64], "vf": [64, 64]},
+                "log_std_init": -3.5,
                 "activation_fn": "tanh",
             },
         },
@@ -211,10 +212,13 @@ def _schedule(text: str, key: str):
 
 
 class LinearSchedule:
-    """value(progress_remaining) = start * progress_remaining (picklable, unlike a closure)."""
+    """value(progress_remaining) = start * progress_remaining (picklable, unlike a closure), with the progress
+    clipped to [0, 1]: SB3 computes it as 1 - steps / budget, which goes below 0 when the last rollout overshoots
+    the budget (e.g. a budget smaller than one rollout of N robots x n_steps), and a negative learning rate
+    would climb the loss (the weights turned to NaN)."""
 
     def __init__(self, start: float):
         self.start = start
 
     def __call__(self, progress_remaining: float) -> float:
-        return self.start * progress_remaining
+        return self.start * min(max(progress_remaining, 0.0), 1.0)

@@ -29,7 +29,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvWrapper
 
-from train import interface
+from policies import agent_interface as interface
+from policies.sb3 import AGENT_WRAPPER
 
 
 class SB3VecEnv(VecEnv):
@@ -117,26 +118,58 @@ class SB3VecEnv(VecEnv):
 
 
 class AgentVecEnv(VecEnvWrapper):
-    """The agent's view of a mobman `VecEnv` (`train.interface`): the clock-free observation in the heading
-    frame, and `N_ACTIONS` = 9 actions of which the robot's own are passed on (padded slots dropped).
-    `terminal_observation`s are converted too, so SB3's bootstrap of truncated episodes sees the same layout."""
+    """The agent's view of a mobman `VecEnv`: the named observation wrappers (`train.wrappers.OBS_WRAPPERS`),
+    then the `obs_keys` subset, applied to the batch and to every `terminal_observation` (so SB3's bootstrap of a
+    truncated episode sees the same layout). With the `"agent"` wrapper (`policies.agent_interface`) the agent
+    acts in the interface's `N_ACTIONS` = 9 slots and the robot's own n + 2 are passed on (padded slots
+    dropped); otherwise the env's action space is the agent's.
 
-    def __init__(self, venv: VecEnv):
+    One wrapper for every base: `SB3VecEnv` over the native vector env (kinematic) and SB3's `DummyVecEnv` /
+    `SubprocVecEnv` of single envs (physics) alike."""
+
+    def __init__(self, venv: VecEnv, wrappers: Sequence[str], obs_keys: Sequence[str]):
+        from train.wrappers import check_wrappers, transform_space
+
+        check_wrappers(wrappers)
+        self.wrappers, self.obs_keys = tuple(wrappers), tuple(obs_keys)
+        self.padded = AGENT_WRAPPER in self.wrappers
         shape = venv.action_space.shape
-        if shape is None or len(shape) != 1:
-            raise ValueError(f"AgentVecEnv needs a Box action space of one dimension, got {venv.action_space}")
-        self.n_actuators = int(shape[0])
-        interface.arm_joints(self.n_actuators)
-        super().__init__(venv, observation_space=interface.observation_space(), action_space=interface.action_space())
+        self.n_actuators = int(shape[0]) if shape else 0
+        action_space = venv.action_space
+        if self.padded:
+            interface.arm_joints(self.n_actuators)
+            action_space = interface.action_space()
+        space = transform_space(cast(Any, venv.observation_space), self.wrappers, self.obs_keys)
+        super().__init__(venv, observation_space=space, action_space=action_space)
+
+    def _view(self, obs: Any) -> dict[str, np.ndarray]:
+        from train.wrappers import transform_observation
+
+        return transform_observation(obs, self.wrappers, self.obs_keys)
 
     def reset(self) -> dict[str, np.ndarray]:
-        return interface.agent_observation(cast(dict, self.venv.reset()))
+        return self._view(self.venv.reset())
 
     def step_async(self, actions: np.ndarray) -> None:
-        self.venv.step_async(interface.env_action(actions, self.n_actuators))
+        self.venv.step_async(interface.env_action(actions, self.n_actuators) if self.padded else actions)
 
     def step_wait(self) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[dict]]:
         obs, rewards, dones, infos = self.venv.step_wait()
         for i in np.flatnonzero(dones):
-            infos[i]["terminal_observation"] = interface.agent_observation(infos[i]["terminal_observation"])
-        return interface.agent_observation(cast(dict, obs)), rewards, dones, infos
+            infos[i]["terminal_observation"] = self._view(infos[i]["terminal_observation"])
+        return self._view(obs), rewards, dones, infos
+
+
+class VecAliveBonus(VecEnvWrapper):
+    """reward + `bonus` on every step (training only; see `TrainConfig.alive_bonus`)."""
+
+    def __init__(self, venv: VecEnv, bonus: float):
+        super().__init__(venv)
+        self.bonus = np.float32(bonus)
+
+    def reset(self) -> Any:
+        return self.venv.reset()
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        return obs, rewards + self.bonus, dones, infos

@@ -29,7 +29,10 @@ the path is fixed in the world, so they too identify where on one path the robot
 wheel's angle does not change the kinematics).
 
 `agent_observation` and `env_action` are pure numpy functions of batched (N, k) arrays (or unbatched (k,)),
-the one definition used by training (`AgentVecEnv`) and by running a trained agent.
+the one definition used by training (`train.vec_env.AgentVecEnv`, which `mobman-train` puts on every training
+env) and by running a trained agent (`policies.sb3.SB3Policy`, when the run's config.json lists the `"agent"`
+observation wrapper). It lives in `policies` because inference needs it and `policies` may not import `train`.
+Imports numpy and gymnasium only.
 """
 
 from __future__ import annotations
