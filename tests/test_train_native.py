@@ -130,3 +130,12 @@ def test_a_linear_schedule_never_goes_negative_when_a_rollout_overshoots_the_bud
     lr = LinearSchedule(3e-4)
     assert lr(1.0) == 3e-4 and lr(0.5) == pytest.approx(1.5e-4)
     assert lr(1 - 32_768 / 1) == 0.0  # SB3's progress after one rollout of 32,768 steps on a budget of 1
+
+
+def test_n_envs_defaults_to_256_robots_kinematic_and_one_physics_world():
+    from train.config import KINEMATIC_N_ENVS, PHYSICS_N_ENVS
+
+    assert TrainConfig().n_envs == KINEMATIC_N_ENVS == 256
+    assert TrainConfig(dynamics="physics").n_envs == PHYSICS_N_ENVS == 1
+    assert TrainConfig(dynamics="physics", n_envs=2).n_envs == 2
+    assert TrainConfig.from_json(TrainConfig(dynamics="physics").to_json()).n_envs == 1

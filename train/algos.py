@@ -9,10 +9,21 @@ Hyperparameters are plain data (JSON/YAML-able) so the resolved set is saved in 
 * `action_noise` (TD3, SAC): `{"type": "normal" | "ornstein_uhlenbeck", "sigma": float}` (sigma in the normalised
   action units, the same for every actuator).
 
-The defaults were chosen for the tracking task (`WheeledPuma-*-v0`, 100 Hz, 2000-step episodes) on development
-seeds, starting from the zoo's PyBullet settings: a short horizon (gamma 0.98, about 0.5 s) because the reward
-is the instantaneous tracking error, and small networks because the policy is close to a linear map from the
-error to the joint speeds. They are what the shipped baseline used; the docstring of `train` gives the runs.
+SAC and TD3: chosen for the tracking task (`WheeledPuma-*-v0`, 100 Hz, 2000-step episodes) on development seeds,
+starting from the zoo's PyBullet settings: a short horizon (gamma 0.98, about 0.5 s) because the reward is the
+instantaneous tracking error, and small networks because the policy is close to a linear map from the error to
+the joint speeds (what release 0.3's shipped baselines used).
+
+PPO (the default algorithm): the recipe for the batched env, 256 robots of the native vector env x 64 steps =
+16,384 env steps per rollout, 4 minibatches of 4,096 x 5 epochs (20 gradient steps per rollout: the learner
+costs about as much as stepping the 256 robots, so the whole loop runs at ~40,000 env steps/s on one quiet core
+and the rollout is fresh), a constant learning rate 3e-4, small 64 x 64 tanh networks, `log_std_init` -3.5
+(exploration std 0.03 of the speed limits: the useful commands are ~5% of them, and release 0.3's -2.0, i.e.
+0.14, made the robots drift by centimetres from the noise alone), gamma 0.98 with GAE 0.95. Measured on
+development seeds 500-519 (PUMA Circle, kinematic, model_error 0.05; success = max error <= 6 mm over the
+episode) while tuning, with the search and its figures in `docs/rl/index.md` ("Time to competence"): this recipe
+tracks the first 4 s of the circle within 2-4 mm after ~2 M steps, but no run of the search reached a successful
+episode (0/20) within its budget: see that section for the measured reason.
 """
 
 from __future__ import annotations

@@ -32,6 +32,9 @@ LEARNING_ONLY_KEYS = ("reward_weights", "error_bound")
 DEFAULT_OBS_KEYS = AGENT_OBS_KEYS
 #: The observation wrappers of a new run (see `train.wrappers`).
 DEFAULT_WRAPPERS = ("agent",)
+#: Robots per training run when `n_envs` is not given: kinematic (one process), physics (one process each).
+KINEMATIC_N_ENVS = 256
+PHYSICS_N_ENVS = 1
 #: Development seeds (DESIGN "Seeds"): periodic evaluation must stay below this.
 DEV_SEED_END = 1000
 #: First reported seed: the final evaluation starts here by default.
@@ -49,11 +52,13 @@ class TrainConfig:
     timesteps: int = 5_000_000
     """Total env steps to train for (over all robots). With `--resume`, the new total. The default is about 5
     minutes of the default recipe on a quiet 2-core machine (~20,000 steps/s, learner included)."""
-    n_envs: int = 256
-    """Robots trained on at once. Kinematic: N robots of one native vector env (`mobman_env.vector`) in this
-    process, stepped by one kernel call (about 1 us per robot-step against ~1 ms of SB3 per step of the whole
-    batch: a large N amortises SB3's per-step cost). Physics: one PyBullet world per env, `SubprocVecEnv`
-    when > 1 (contacts are not batched; use about as many as cores), `DummyVecEnv` for 1."""
+    n_envs: int | None = None
+    """Robots trained on at once; None: `KINEMATIC_N_ENVS` (256) in kinematic mode, `PHYSICS_N_ENVS` (1) in
+    physics mode (resolved when the config is made, so config.json records the number). Kinematic: N robots of one
+    native vector env (`mobman_env.vector`) in this process, stepped by one kernel call (about 1 us per
+    robot-step against ~1 ms of SB3 per step of the whole batch: a large N amortises SB3's per-step cost).
+    Physics: one PyBullet world per env, `SubprocVecEnv` when > 1 (contacts are not batched; use about as many
+    as cores), `DummyVecEnv` for 1."""
     seed: int = 0
     """Seed of the algorithm (torch, numpy) and of the training envs (env i is reset with seed + i once)."""
     out: str | None = None
@@ -121,7 +126,9 @@ class TrainConfig:
     def __post_init__(self) -> None:
         algos.get(self.algo)
         integer("timesteps", self.timesteps, low=1, hint="e.g. --timesteps 100000")
-        integer("n_envs", self.n_envs, low=1, hint="e.g. --n-envs 1")
+        if self.n_envs is None:
+            object.__setattr__(self, "n_envs", KINEMATIC_N_ENVS if self.dynamics == "kinematic" else PHYSICS_N_ENVS)
+        integer("n_envs", self.n_envs, low=1, hint="e.g. --n-envs 256 (kinematic) or 2 (physics)")
         integer("seed", self.seed, low=0, hint="use a development seed 0-999")
         for name in ("eval_freq", "eval_episodes", "final_eval_episodes", "checkpoint_freq", "final_eval_seed"):
             integer(name, getattr(self, name), low=0, hint="use 0 to disable")
@@ -158,6 +165,12 @@ class TrainConfig:
             raise ValueError(f"unknown device {self.device!r}; accepted: cpu, cuda, cuda:N, auto")
 
     # --- derived --------------------------------------------------------------------------------------
+    @property
+    def num_envs(self) -> int:
+        """`n_envs` as resolved in `__post_init__` (never None)."""
+        assert self.n_envs is not None
+        return self.n_envs
+
     @property
     def train_env_kwargs(self) -> dict:
         """Constructor arguments of the training envs."""

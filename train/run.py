@@ -97,16 +97,16 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
         base: Any = SB3VecEnv(
             gym.make_vec(
                 f"mobman_env:{config.env_id}",
-                num_envs=config.n_envs,
+                num_envs=config.num_envs,
                 vectorization_mode="vector_entry_point",
                 autoreset_mode="SameStep",
                 **config.train_env_kwargs,
             )
         )
     else:
-        sub = config.n_envs > 1
+        sub = config.num_envs > 1
         fns: list[Callable[[], gym.Env]] = [
-            functools.partial(_make_env, config.env_id, config.train_env_kwargs, sub) for _ in range(config.n_envs)
+            functools.partial(_make_env, config.env_id, config.train_env_kwargs, sub) for _ in range(config.num_envs)
         ]
         base = SubprocVecEnv(fns) if sub else DummyVecEnv(fns)
     venv: Any = AgentVecEnv(base, config.wrappers, config.obs_keys)
