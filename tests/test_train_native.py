@@ -139,3 +139,29 @@ def test_n_envs_defaults_to_256_robots_kinematic_and_one_physics_world():
     assert TrainConfig(dynamics="physics").n_envs == PHYSICS_N_ENVS == 1
     assert TrainConfig(dynamics="physics", n_envs=2).n_envs == 2
     assert TrainConfig.from_json(TrainConfig(dynamics="physics").to_json()).n_envs == 1
+
+
+def test_the_progress_line_counts_success_only_for_episodes_run_to_their_end_within_tolerance():
+    from train.callbacks import ProgressLog
+
+    cb = ProgressLog(every_s=1e9, tolerance=0.006)
+    venv = type("Venv", (), {"num_envs": 3})()
+    cb.model = type("Model", (), {"num_timesteps": 0, "get_env": lambda self: venv})()
+    cb._on_training_start()
+
+    def step(errors, dones, truncated):
+        infos = [{"tracking_error": e} for e in errors]
+        for i, (d, t) in enumerate(zip(dones, truncated)):
+            if d:
+                infos[i].update({"episode": {"r": 10.0 * (i + 1), "l": 2}, "TimeLimit.truncated": t})
+        cb.locals = {"infos": infos, "dones": np.array(dones)}
+        cb.model.num_timesteps += 3
+        cb._on_step()
+
+    step([0.001, 0.007, 0.001], [False, False, False], [False] * 3)
+    # robot 0: ran to its end within 6 mm; robot 1: 7 mm once; robot 2: ended early (error bound)
+    step([0.002, 0.001, 0.002], [True, True, True], [True, True, False])
+    line = cb.line(cb._t0 + 1.0)
+    assert "6 steps" in line and "3 episodes ended: mean return 20.0, mean length 2, success 33%" in line
+    step([0.001, 0.001, 0.001], [True, False, False], [True, False, False])  # robot 0's new episode, fresh max
+    assert "4 episodes ended" in cb.line(cb._t0 + 1.0) and "success 50%" in cb.line(cb._t0 + 1.0)

@@ -382,14 +382,14 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
 
 
 def _callbacks(config: TrainConfig, out: Path, reference: dict, t0: float, wall_offset: float) -> Any:
-    """Checkpoints every `checkpoint_freq` steps and the periodic evaluation (learning curve, best model)."""
+    """Checkpoints every `checkpoint_freq` steps, the periodic evaluation (learning curve, best model) and a
+    progress line every `log_every_s`."""
     from stable_baselines3.common.callbacks import CallbackList
 
     off_policy = algos.get(config.algo).off_policy
     return CallbackList(
         [
             CheckpointSaver(config.checkpoint_freq, lambda m: save_checkpoint(m, out, off_policy)),
-            ProgressLog(config.log_every_s, config.tolerance),
             PeriodicEval(
                 config.eval_freq,
                 _periodic_evaluator(config),
@@ -400,6 +400,8 @@ def _callbacks(config: TrainConfig, out: Path, reference: dict, t0: float, wall_
                 wall_offset,
                 on_result=lambda m, row: save_if_best(m, row, config, out),
             ),
+            # after PeriodicEval: its clock starts once the evaluation at the start of training is done
+            ProgressLog(config.log_every_s, config.tolerance),
         ]
     )
 
