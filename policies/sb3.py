@@ -22,7 +22,10 @@ written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zi
 * `config.json` (optional) - `"algo"`, `"env_id"`, `"env_kwargs"`, `"obs_keys"` (the Dict keys the agent sees,
   in order) and `"wrappers"` (names of observation wrappers, applied in order to the raw observation before
   it is reduced to `obs_keys`, as `mobman-train` applies them per env before `VecNormalize`). Reproduced
-  here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32). Names of
+  here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32); `"agent"` is
+  the robot-independent, clock-free interface of `policies.agent_interface` (mobman-train's default): the
+  observation becomes its keys, and the agent's 9 action slots are mapped to the env's n + 2 actuators in
+  `predict` (the padded slots dropped), so one agent acts on arms of up to 7 joints. Names of
   wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
   `RecordEpisodeStatistics`, `ClipAction`, reward wrappers) are accepted and ignored; any other name is
   refused with the list, so a mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own
