@@ -19,7 +19,7 @@ recursively), `ee_pos_true` as (N, 3). Autoreset: `autoreset_mode` = `AutoresetM
 default, in `metadata["autoreset_mode"]`): the step after robot i's episode ended resets it (its action ignored,
 reward 0, not terminated nor truncated, the reset's `info` keys in that row) with no options and its generator
 continuing, as a single env's `reset()`. `AutoresetMode.SAME_STEP` resets at once and puts the last observation and
-info in `info["final_obs"]` / `info["final_info"]` (what the SB3 adapter, `policies.sb3_vec_env`, uses).
+info in `info["final_obs"]` / `info["final_info"]` (what the SB3 adapter, `train.vec_env`, uses).
 
 Reset options apply to every robot reset by that call (as `SyncVectorEnv` passes them to each env); autoresets use
 the constructor values. Every argument (seeds, options, actions) is checked for every row before any row's state

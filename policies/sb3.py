@@ -22,7 +22,10 @@ written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zi
 * `config.json` (optional) - `"algo"`, `"env_id"`, `"env_kwargs"`, `"obs_keys"` (the Dict keys the agent sees,
   in order) and `"wrappers"` (names of observation wrappers, applied in order to the raw observation before
   it is reduced to `obs_keys`, as `mobman-train` applies them per env before `VecNormalize`). Reproduced
-  here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32). Names of
+  here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32); `"agent"` is
+  the robot-independent, clock-free interface of `policies.agent_interface` (mobman-train's default): the
+  observation becomes its keys, and the agent's 9 action slots are mapped to the env's n + 2 actuators in
+  `predict` (the padded slots dropped), so one agent acts on arms of up to 7 joints. Names of
   wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
   `RecordEpisodeStatistics`, `ClipAction`, reward wrappers) are accepted and ignored; any other name is
   refused with the list, so a mismatch cannot pass silently. Without `obs_keys`, the keys of the model's own
@@ -71,6 +74,7 @@ from typing import Any
 
 import numpy as np
 
+from policies import agent_interface
 from policies.sb3_files import (
     STATS_NAMES,
     RunFiles,
@@ -90,6 +94,10 @@ MAX_CONFIG_BYTES = 16 * 2**20
 
 #: Folder of the models shipped as package data (found through this file's own location, so a user's
 #: `train.py` or `policies.py` beside their script cannot hide it).
+#: The observation wrapper name of `policies.agent_interface`: an agent trained with it outputs the interface's
+#: `N_ACTIONS` padded actions, which `predict` maps back to the env's n + 2.
+AGENT_WRAPPER = "agent"
+
 MODELS_DIR = Path(__file__).resolve().parent / "models"
 
 
@@ -118,8 +126,14 @@ def _pos_error(obs: dict) -> dict:
 
 #: Observation wrappers reproduced at inference: name -> (transform of the raw dict, raw keys it reads).
 #: Same names and semantics as `mobman-train`'s `train.wrappers` (which may not be imported from here: the
-#: dependencies point mobman_env <- policies <- eval <- train).
-OBS_WRAPPERS = {"pos_error": (_pos_error, ("target_pos", "ee_pos"))}
+#: dependencies point mobman_env <- policies <- eval <- train). `"agent"` is the robot-independent interface of
+#: `policies.agent_interface` (clock-free observation; its 9-slot action is mapped back to the robot's own).
+OBS_WRAPPERS = {
+    "pos_error": (_pos_error, ("target_pos", "ee_pos")),
+    AGENT_WRAPPER: (agent_interface.agent_observation, agent_interface.ENV_KEYS),
+}
+#: The keys a wrapper adds (default: its own name, as "pos_error").
+_WRAPPER_KEYS = {AGENT_WRAPPER: agent_interface.AGENT_OBS_KEYS}
 _NEUTRAL_WRAPPERS = (
     "TimeLimit",
     "Monitor",
@@ -433,7 +447,7 @@ class SB3Policy:
     # --- checks ----------------------------------------------------------------------------------------
     def required_keys(self) -> list[str]:
         """The raw observation keys the agent needs (before its wrappers add derived keys)."""
-        derived = {name for name in self.wrappers}
+        derived = {key for name in self.wrappers for key in _WRAPPER_KEYS.get(name, (name,))}
         needed = [k for k in (self.obs_keys or ()) if k not in derived]
         for name in self.wrappers:
             needed += [k for k in OBS_WRAPPERS[name][1] if k not in needed]
@@ -451,7 +465,14 @@ class SB3Policy:
                     f"(env keys: {list(facts.obs_keys)})"
                 )
         n = int(np.prod(self.model.action_space.shape))
-        if n != len(facts.action_scale):
+        if self.padded:
+            if n != agent_interface.N_ACTIONS:
+                raise ValueError(
+                    f"the agent {self.path} lists the {AGENT_WRAPPER!r} interface but outputs {n} actions, not "
+                    f"{agent_interface.N_ACTIONS}; its config.json does not match its model"
+                )
+            agent_interface.arm_joints(len(facts.action_scale))  # the env's arm fits the 7 arm slots
+        elif n != len(facts.action_scale):
             raise ValueError(f"the agent {self.path} outputs {n} actions; the env takes {len(facts.action_scale)}")
         if env is not None:
             self._check_spaces(env)
@@ -466,13 +487,14 @@ class SB3Policy:
         if isinstance(raw, gymnasium.spaces.Dict):
             zeros = {k: np.zeros(tuple(sp.shape or ()), dtype=sp.dtype or np.float32) for k, sp in raw.spaces.items()}
             view = self._view(zeros)
+            produced = {key for name in self.wrappers for key in _WRAPPER_KEYS.get(name, ())}
             seen: Any = (
                 gymnasium.spaces.Box(-np.inf, np.inf, np.shape(view), np.asarray(view).dtype)
                 if not isinstance(view, dict)
                 else gymnasium.spaces.Dict(
                     {
                         k: raw.spaces[k]
-                        if k in raw.spaces
+                        if k in raw.spaces and k not in produced
                         else gymnasium.spaces.Box(-np.inf, np.inf, np.shape(v), v.dtype)
                         for k, v in view.items()
                     }
@@ -497,6 +519,8 @@ class SB3Policy:
                 f"{_describe(seen)}; evaluate it on the env (and obs_keys / wrappers) it was trained with"
             )
         model_act, act = self.model.action_space, getattr(base, "action_space", None)
+        if self.padded:
+            act = None  # checked in check_compatible: the 9 slots map onto any arm of up to 7 joints
         if act is not None and not (
             getattr(act, "shape", None) == model_act.shape
             and np.array_equal(np.asarray(getattr(act, "low", np.nan)), np.asarray(model_act.low))
@@ -560,7 +584,15 @@ class SB3Policy:
         """`VecNormalize.normalize_obs`'s formula (one home): clip((x - mean) / sqrt(var + eps), +-clip_obs), float32."""
         return np.clip((x - mean) / np.sqrt(var + self._eps), -self._clip, self._clip).astype(np.float32)
 
+    @property
+    def padded(self) -> bool:
+        """Whether the agent speaks the robot-independent interface (9 action slots, mapped to the env's own)."""
+        return AGENT_WRAPPER in self.wrappers
+
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
-        return self.model.predict(
+        action, state = self.model.predict(
             self.transform(observation), state=state, episode_start=episode_start, deterministic=deterministic
         )
+        if self.padded:
+            action = agent_interface.env_action(action, np.shape(observation["joint_pos"])[-1])
+        return action, state

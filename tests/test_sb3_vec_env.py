@@ -10,7 +10,7 @@ import mobman_env
 from mobman_env import TASKS
 
 pytest.importorskip("stable_baselines3")
-from policies.sb3_vec_env import SB3VecEnv
+from train.vec_env import SB3VecEnv
 
 
 def _venv(n, duration=0.2, mode="SameStep"):

@@ -57,6 +57,7 @@ def tiny_config(algo: str, out: Path, **changes) -> TrainConfig:
     fields = dict(
         algo=algo,
         timesteps=300,
+        n_envs=2,
         seed=3,
         out=str(out),
         hyperparams=TINY[algo],
@@ -267,7 +268,7 @@ def test_hyperparams_file_per_algorithm(tmp_path):
         load_hyperparams(str(f), "td3")
 
 
-@pytest.mark.parametrize("algo, steps", [("ppo", 1_000_000), ("sac", 200_000)])
+@pytest.mark.parametrize("algo, steps", [("ppo", 5_000_000), ("sac", 200_000)])
 def test_the_shipped_zoo_files_are_mobman_trains_defaults(algo, steps):
     """`mobman-train --hyperparams train/hyperparams/ALGO.yml` (rl-zoo's format, keyed by env id) trains exactly
     what the defaults train: same hyperparameters, normalisation, observation, alive bonus, steps."""
@@ -371,7 +372,7 @@ def test_smoke_train_save_reload_evaluate(tmp_path, algo):
     cfg = json.loads((out / "config.json").read_text())
     for key in ("algo", "env_id", "env_kwargs", "obs_keys", "wrappers"):
         assert key in cfg
-    assert cfg["algo"] == algo and cfg["wrappers"] == ["pos_error"]
+    assert cfg["algo"] == algo and cfg["wrappers"] == list(TrainConfig().wrappers)
     curve = (out / "learning_curve.csv").read_text().splitlines()
     assert len(curve) >= 3  # header, step 0, at least one later evaluation
 
@@ -411,7 +412,8 @@ def test_in_process_agent_matches_sb3policy(tmp_path):
 
         with open(out / "vecnormalize.pkl", "rb") as f:
             norm = pickle.load(f)
-        live = Agent(loaded.model, norm, ("pos_error",), json.loads((out / "config.json").read_text())["obs_keys"])
+        cfg = json.loads((out / "config.json").read_text())
+        live = Agent(loaded.model, norm, cfg["wrappers"], cfg["obs_keys"])
         obs, _ = env.reset(seed=5)
         for _ in range(20):
             a1, _ = live.predict(obs)

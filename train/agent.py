@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from policies.agent_interface import env_action
+from policies.sb3 import AGENT_WRAPPER
 from train.wrappers import transform_observation
 
 
@@ -38,4 +40,6 @@ class Agent:
         action = np.asarray(action, dtype=np.float32)
         if batched and action.ndim == 1:
             action = action[None]
+        if AGENT_WRAPPER in self.wrappers:  # the interface's 9 slots -> the robot's n + 2 actuators
+            action = env_action(action, np.shape(observation["joint_pos"])[-1])
         return action, state

@@ -36,6 +36,61 @@ class CheckpointSaver(BaseCallback):
         return True
 
 
+class ProgressLog(BaseCallback):
+    """A line every `every_s` seconds of wall clock to the run's log (train.log, and stderr: it shows off a
+    terminal too, unlike a progress bar): env steps, steps/s of this session (learner included), and over the
+    training episodes that ended since the previous line their mean return (VecMonitor's, as trained: learning
+    reward weights and alive bonus, not normalised), mean length and success (the episode ran to its end with a max tracking error <=
+    `tolerance`; noise-free error, `infos[i]["tracking_error"]`)."""
+
+    def __init__(self, every_s: float, tolerance: float):
+        super().__init__()
+        self.every_s = float(every_s)
+        self.tolerance = float(tolerance)
+        self._max_err: Any = None
+        self._ended: list[tuple[float, int, bool]] = []  # (return, length, success) since the last line
+
+    def _on_training_start(self) -> None:
+        import numpy as np
+
+        self._t0 = self._last = time.time()
+        self._steps0 = self.model.num_timesteps
+        self._max_err = np.zeros(self.training_env.num_envs)
+
+    def _on_step(self) -> bool:
+        import numpy as np
+
+        infos, dones = self.locals["infos"], self.locals["dones"]
+        err = np.fromiter((i.get("tracking_error", np.nan) for i in infos), float, len(infos))
+        np.maximum(self._max_err, err, out=self._max_err)
+        for i in np.flatnonzero(dones):
+            episode = infos[i].get("episode", {"r": np.nan, "l": 0})  # VecMonitor's, before any normalisation
+            full = bool(infos[i].get("TimeLimit.truncated", False))
+            self._ended.append((float(episode["r"]), int(episode["l"]), full and self._max_err[i] <= self.tolerance))
+            self._max_err[i] = 0.0
+        now = time.time()
+        if now - self._last >= self.every_s:
+            self._last = now
+            log.info("%s", self.line(now))
+            self._ended = []
+        return True
+
+    def line(self, now: float) -> str:
+        """The progress line (also what the tests read)."""
+        steps = self.model.num_timesteps
+        rate = (steps - self._steps0) / max(now - self._t0, 1e-9)
+        text = f"{steps:,} steps, {rate:,.0f} steps/s"
+        if self._ended:
+            r, n, ok = zip(*self._ended)
+            text += (
+                f"; {len(r)} episodes ended: mean return {sum(r) / len(r):.1f}, mean length {sum(n) / len(n):.0f}, "
+                f"success {100 * sum(ok) / len(ok):.0f}%"
+            )
+        else:
+            text += "; no episode ended since the last line"
+        return text
+
+
 class PeriodicEval(BaseCallback):
     """Every `freq` env steps: `evaluate(model) -> summary dict`; append a row to `curve_csv`, redraw the PNG.
 

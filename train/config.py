@@ -15,6 +15,7 @@ from typing import Any
 
 from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer, number
+from policies.agent_interface import AGENT_OBS_KEYS
 from train import algos
 from train.wrappers import check_wrappers
 
@@ -24,9 +25,16 @@ from train.wrappers import check_wrappers
 LEARNING_ENV_KWARGS: dict = {"reward_weights": {"tracking": 20.0, "effort": 0.02}, "error_bound": 0.1}
 #: The env arguments that only shape learning; evaluation (periodic and final) uses the env's defaults instead.
 LEARNING_ONLY_KEYS = ("reward_weights", "error_bound")
-#: Observation the agent sees (after the "pos_error" wrapper): the error and the desired velocity (what the
-#: paper's controllers feed back), the joint state (the Jacobian depends on it), heading and time.
-DEFAULT_OBS_KEYS = ("pos_error", "target_vel", "ee_vel", "joint_pos", "joint_vel", "base_yaw", "time")
+#: Observation the agent sees: every key of the robot-independent, clock-free interface of
+#: `policies.agent_interface` (the "agent" wrapper): position and velocity errors and the desired velocity in
+#: the heading frame, the joint state padded to the Panda's 7 joints with a mask, the heading. No `time`: a
+#: policy that sees the clock can memorise one path (release 0.3's `sb3:ppo-circle` did).
+DEFAULT_OBS_KEYS = AGENT_OBS_KEYS
+#: The observation wrappers of a new run (see `train.wrappers`).
+DEFAULT_WRAPPERS = ("agent",)
+#: Robots per training run when `n_envs` is not given: kinematic (one process), physics (one process each).
+KINEMATIC_N_ENVS = 256
+PHYSICS_N_ENVS = 1
 #: Development seeds (DESIGN "Seeds"): periodic evaluation must stay below this.
 DEV_SEED_END = 1000
 #: First reported seed: the final evaluation starts here by default.
@@ -36,14 +44,21 @@ _ENV_ARGS_NOT_ALLOWED = {"dynamics": "use --dynamics / TrainConfig.dynamics", "r
 
 @dataclass(frozen=True)
 class TrainConfig:
-    algo: str = "sac"
-    """Algorithm name from `train.algos.ALGOS` (ppo, sac, td3)."""
+    algo: str = "ppo"
+    """Algorithm name from `train.algos.ALGOS` (ppo, sac, td3). PPO by default: its recipe is the one measured
+    to learn on the batched env (`train.algos`); SAC's updates cost far more per env step."""
     env_id: str = "WheeledPuma-Circle-v0"
     """Registered env id (`mobman_env.ENV_IDS`); worker processes make it as `mobman_env:<env_id>`."""
-    timesteps: int = 100_000
-    """Total env steps to train for (over all envs). With `--resume`, the new total."""
-    n_envs: int = 1
-    """Parallel envs: `SubprocVecEnv` when > 1, `DummyVecEnv` otherwise (a cheap env gains little on 2 cores)."""
+    timesteps: int = 5_000_000
+    """Total env steps to train for (over all robots). With `--resume`, the new total. The default is about 5
+    minutes of the default recipe on a quiet 2-core machine (~20,000 steps/s, learner included)."""
+    n_envs: int | None = None
+    """Robots trained on at once; None: `KINEMATIC_N_ENVS` (256) in kinematic mode, `PHYSICS_N_ENVS` (1) in
+    physics mode (resolved when the config is made, so config.json records the number). Kinematic: N robots of one
+    native vector env (`mobman_env.vector`) in this process, stepped by one kernel call (about 1 us per
+    robot-step against ~1 ms of SB3 per step of the whole batch: a large N amortises SB3's per-step cost).
+    Physics: one PyBullet world per env, `SubprocVecEnv` when > 1 (contacts are not batched; use about as many
+    as cores), `DummyVecEnv` for 1."""
     seed: int = 0
     """Seed of the algorithm (torch, numpy) and of the training envs (env i is reset with seed + i once)."""
     out: str | None = None
@@ -62,7 +77,7 @@ class TrainConfig:
     alive_bonus: float = 2.0
     """Reward added per step during training (a wrapper, not the env). Set to tracking weight x error_bound,
     so that every step inside the bound earns >= 0 and ending the episode early never pays."""
-    wrappers: tuple[str, ...] = ("pos_error",)
+    wrappers: tuple[str, ...] = DEFAULT_WRAPPERS
     """Observation wrappers (names from `train.wrappers.OBS_WRAPPERS`) applied before `obs_keys` is taken."""
     obs_keys: tuple[str, ...] = DEFAULT_OBS_KEYS
     """Observation keys the agent sees, in order (after the wrappers)."""
@@ -76,8 +91,10 @@ class TrainConfig:
     """Normalise observations with VecNormalize's running mean and std (saved as `vecnormalize.pkl`)."""
     normalize_reward: bool | None = None
     """Normalise rewards with VecNormalize; None: the algorithm's choice (PPO yes, SAC/TD3 no)."""
-    eval_freq: int = 10_000
-    """Evaluate every this many env steps on the held-out development seeds (0: never)."""
+    eval_freq: int = 1_000_000
+    """Evaluate every this many env steps on the held-out development seeds (0: never). An evaluation runs
+    `eval_episodes` single-env episodes through `eval` (about 1 s each): every 1 M steps (~50 s of training)
+    it costs a few percent of the run."""
     eval_seed: int = 900
     """First development seed of the periodic evaluation; episode k uses reset(seed=eval_seed + k)."""
     eval_episodes: int = 5
@@ -88,7 +105,7 @@ class TrainConfig:
     """Episodes of the final evaluation with the benchmark's env settings (0: skip)."""
     tolerance: float = DEFAULT_TOLERANCE
     """Success threshold of the evaluations, m (max tracking error); eval's default, the paper's 6 mm."""
-    checkpoint_freq: int = 25_000
+    checkpoint_freq: int = 1_000_000
     """Save a checkpoint (model, normaliser, replay buffer) every this many env steps (0: only at the end or
     on Ctrl-C)."""
     torch_threads: int = 1
@@ -97,6 +114,9 @@ class TrainConfig:
     """Torch device ("cpu", "cuda", "auto")."""
     tensorboard: bool = False
     """Write TensorBoard logs to `<out>/tensorboard`."""
+    log_every_s: float = 10.0
+    """A progress line (steps, steps/s, mean return, length and success of the episodes that ended) to the
+    run's log and stderr every this many seconds of wall clock."""
     progress_bar: bool = True
     """Show SB3's progress bar (`mobman-train` shows it only when stderr is a terminal: a CI log would get a line
     per update)."""
@@ -106,7 +126,9 @@ class TrainConfig:
     def __post_init__(self) -> None:
         algos.get(self.algo)
         integer("timesteps", self.timesteps, low=1, hint="e.g. --timesteps 100000")
-        integer("n_envs", self.n_envs, low=1, hint="e.g. --n-envs 1")
+        if self.n_envs is None:
+            object.__setattr__(self, "n_envs", KINEMATIC_N_ENVS if self.dynamics == "kinematic" else PHYSICS_N_ENVS)
+        integer("n_envs", self.n_envs, low=1, hint="e.g. --n-envs 256 (kinematic) or 2 (physics)")
         integer("seed", self.seed, low=0, hint="use a development seed 0-999")
         for name in ("eval_freq", "eval_episodes", "final_eval_episodes", "checkpoint_freq", "final_eval_seed"):
             integer(name, getattr(self, name), low=0, hint="use 0 to disable")
@@ -133,6 +155,7 @@ class TrainConfig:
         number("alive_bonus", self.alive_bonus, hint="reward per training step, e.g. 2.0")
         number("actor_out_scale", self.actor_out_scale, low=0, open_low=True, hint="1: SB3's init")
         number("tolerance", self.tolerance, low=0, open_low=True, hint="m, e.g. 0.006")
+        number("log_every_s", self.log_every_s, low=0, open_low=True, hint="s, e.g. 10")
         object.__setattr__(self, "wrappers", tuple(self.wrappers))
         object.__setattr__(self, "obs_keys", tuple(self.obs_keys))
         check_wrappers(self.wrappers)
@@ -142,6 +165,12 @@ class TrainConfig:
             raise ValueError(f"unknown device {self.device!r}; accepted: cpu, cuda, cuda:N, auto")
 
     # --- derived --------------------------------------------------------------------------------------
+    @property
+    def num_envs(self) -> int:
+        """`n_envs` as resolved in `__post_init__` (never None)."""
+        assert self.n_envs is not None
+        return self.n_envs
+
     @property
     def train_env_kwargs(self) -> dict:
         """Constructor arguments of the training envs."""

@@ -12,6 +12,7 @@ Episode k uses `reset(seed=first_seed + k)`, as everywhere in the benchmark.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -75,7 +76,14 @@ def final_evaluation(
     cfg = eval_config(
         env_id, eval_env_kwargs, list(agents.values()), run_dir / "final_eval", first_seed, episodes, tolerance
     )
-    result = eval_run(cfg)
+    import contextlib
+    import io
+    import logging
+
+    table = io.StringIO()
+    with contextlib.redirect_stdout(table):  # eval prints its results table: into the run's log, not stdout
+        result = eval_run(dataclasses.replace(cfg, progress=True))  # its progress bar: stderr, a line per 5 s off a TTY
+    logging.getLogger("train").info("final evaluation results:\n%s", table.getvalue().rstrip())
     by_policy: dict[str, list[dict]] = {}
     for rec in result.episodes:
         by_policy.setdefault(rec["policy"], []).append(rec)

@@ -33,7 +33,15 @@ from typing import Any
 import gymnasium as gym
 
 from train import algos
-from train.callbacks import CheckpointSaver, PeriodicEval, read_curve, truncate_curve, write_curve_png, write_json
+from train.callbacks import (
+    CheckpointSaver,
+    PeriodicEval,
+    ProgressLog,
+    read_curve,
+    truncate_curve,
+    write_curve_png,
+    write_json,
+)
 from train.config import TrainConfig
 from train.evaluation import ZeroPolicy
 from train.runfolder import (
@@ -49,7 +57,7 @@ from train.runfolder import (
     save_if_best,
     setup_logging,
 )
-from train.wrappers import AgentObservation, AliveBonus
+from train.wrappers import AgentObservation
 
 log = logging.getLogger("train")
 
@@ -67,30 +75,43 @@ class TrainingInterrupted(Exception):
 
 
 # --- envs -------------------------------------------------------------------------------------------------
-def _make_env(
-    env_id: str, env_kwargs: dict, wrappers: tuple, obs_keys: tuple, alive_bonus: float, in_subprocess: bool
-) -> gym.Env:
+def _make_env(env_id: str, env_kwargs: dict, in_subprocess: bool) -> gym.Env:
+    """One raw env (the agent's view is applied to the whole VecEnv by `AgentVecEnv`)."""
     if in_subprocess:  # Ctrl-C goes to the whole process group: only the parent handles it
         signal.signal(signal.SIGINT, signal.SIG_IGN)
-    env = gym.make(f"mobman_env:{env_id}", **env_kwargs)
-    env = AgentObservation(env, wrappers, obs_keys)
-    if alive_bonus:
-        env = AliveBonus(env, alive_bonus)
-    return env
+    return gym.make(f"mobman_env:{env_id}", **env_kwargs)
 
 
 def make_vec_env(config: TrainConfig, seed_offset: int = 0):
-    """The training VecEnv (VecMonitor inside; VecNormalize is added by the caller)."""
+    """The training VecEnv, the agent's view (`AgentVecEnv`) with the alive bonus (VecMonitor and VecNormalize
+    are added by the caller), seeded: robot / env i starts from seed + seed_offset + i.
+
+    Kinematic: the native vector env (`mobman_env.vector`, N = `n_envs` robots in this process, autoreset in
+    the same step) through `SB3VecEnv`. Physics: `n_envs` PyBullet worlds, one per process (`SubprocVecEnv`;
+    `DummyVecEnv` for 1), as contacts are not batched."""
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
-    sub = config.n_envs > 1
-    fns: list[Callable[[], gym.Env]] = [
-        functools.partial(
-            _make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys, config.alive_bonus, sub
+    from train.vec_env import AgentVecEnv, SB3VecEnv, VecAliveBonus
+
+    if config.dynamics == "kinematic":
+        base: Any = SB3VecEnv(
+            gym.make_vec(
+                f"mobman_env:{config.env_id}",
+                num_envs=config.num_envs,
+                vectorization_mode="vector_entry_point",
+                autoreset_mode="SameStep",
+                **config.train_env_kwargs,
+            )
         )
-        for _ in range(config.n_envs)
-    ]
-    venv = SubprocVecEnv(fns) if sub else DummyVecEnv(fns)
+    else:
+        sub = config.num_envs > 1
+        fns: list[Callable[[], gym.Env]] = [
+            functools.partial(_make_env, config.env_id, config.train_env_kwargs, sub) for _ in range(config.num_envs)
+        ]
+        base = SubprocVecEnv(fns) if sub else DummyVecEnv(fns)
+    venv: Any = AgentVecEnv(base, config.wrappers, config.obs_keys)
+    if config.alive_bonus:
+        venv = VecAliveBonus(venv, config.alive_bonus)
     venv.seed(config.seed + seed_offset)
     return venv
 
@@ -98,23 +119,20 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
 def probe_envs(config: TrainConfig, build_model: bool = True) -> None:
     """Build the training and evaluation envs once and reset them, and build the model once on the training
     env, so bad env arguments and hyperparameters fail before anything is written."""
-    from stable_baselines3.common.vec_env import DummyVecEnv
-
     for kwargs in (config.train_env_kwargs, config.eval_env_kwargs):
         try:
-            env = _make_env(config.env_id, kwargs, config.wrappers, config.obs_keys, 0.0, False)
+            env = AgentObservation(_make_env(config.env_id, kwargs, False), config.wrappers, config.obs_keys)
         except (TypeError, ValueError, KeyError) as exc:
             raise ValueError(f"bad env arguments {kwargs}: {exc}") from None
         try:
             env.reset(seed=0)
         finally:
             env.close()
-    make = functools.partial(
-        _make_env, config.env_id, config.train_env_kwargs, config.wrappers, config.obs_keys, 0.0, False
-    )
     if not build_model:
         return
-    venv = DummyVecEnv([make] * config.n_envs)  # in this process: the model only reads the spaces and n_envs
+    # the model only reads the spaces and n_envs: the kinematic vector env costs little; physics worlds are
+    # built in this process rather than in n_envs subprocesses
+    venv = make_vec_env(config if config.dynamics == "kinematic" else config.replace(n_envs=1))
     try:
         _build_model(config, _wrap_normalize(config, venv), None)
     except Exception as exc:  # SB3 checks its arguments with asserts and TypeErrors deep inside the build
@@ -364,7 +382,8 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
 
 
 def _callbacks(config: TrainConfig, out: Path, reference: dict, t0: float, wall_offset: float) -> Any:
-    """Checkpoints every `checkpoint_freq` steps and the periodic evaluation (learning curve, best model)."""
+    """Checkpoints every `checkpoint_freq` steps, the periodic evaluation (learning curve, best model) and a
+    progress line every `log_every_s`."""
     from stable_baselines3.common.callbacks import CallbackList
 
     off_policy = algos.get(config.algo).off_policy
@@ -381,6 +400,8 @@ def _callbacks(config: TrainConfig, out: Path, reference: dict, t0: float, wall_
                 wall_offset,
                 on_result=lambda m, row: save_if_best(m, row, config, out),
             ),
+            # after PeriodicEval: its clock starts once the evaluation at the start of training is done
+            ProgressLog(config.log_every_s, config.tolerance),
         ]
     )
 
@@ -422,6 +443,15 @@ def _save_after_learning(config: TrainConfig, model: Any, out: Path, interrupted
 def _final_evaluation_summary(config: TrainConfig, out: Path) -> dict:
     """Run the final evaluation; its summary entry, or "final_eval_error" (the model is saved: a failed
     evaluation is reported with the command that reruns it, never loses the run)."""
+    n_agents = 2 if (out / "best" / "model.zip").is_file() else 1
+    log.info(
+        "final evaluation: %d episodes each of the agent%s and zero on seeds %d..%d (%s); eval's progress follows",
+        config.final_eval_episodes,
+        ", best/" if n_agents == 2 else "",
+        config.final_eval_seed,
+        config.final_eval_seed + config.final_eval_episodes - 1,
+        config.dynamics,
+    )
     try:
         fe = final_evaluation(config, out)
     except Exception:

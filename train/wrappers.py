@@ -8,6 +8,10 @@ the raw env observation):
      controllers of the paper feed back. The agent could compute it from the two positions, but after
      per-key normalisation a millimetre is 1e-3 of the positions' spread; given explicitly it is learned
      from in a fraction of the steps.
+   * `"agent"` (the default of `mobman-train`): the robot-independent, clock-free interface of
+     `policies.agent_interface` (errors in the heading frame, arms padded to 7 joints with a mask; its 9-slot
+     action is mapped back to the robot's n + 2 by `train.vec_env.AgentVecEnv` in training and by
+     `policies.sb3.SB3Policy` at inference). It replaces the observation: `obs_keys` select among its keys.
 2. the dict is reduced to `config["obs_keys"]`, in that order;
 3. VecNormalize's running mean / std (`vecnormalize.pkl`) normalise each key.
 
@@ -21,12 +25,14 @@ rewards.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import SupportsFloat
+from typing import Any, SupportsFloat
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from policies import agent_interface
+from policies.sb3 import AGENT_WRAPPER
 from policies.sb3 import OBS_WRAPPERS as AGENT_OBS_TRANSFORMS
 
 
@@ -40,6 +46,7 @@ def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
 #: definition that `SB3Policy` also applies at test time.
 OBS_WRAPPERS: dict[str, tuple[Callable[[dict], dict], Callable[[spaces.Dict], spaces.Dict]]] = {
     "pos_error": (AGENT_OBS_TRANSFORMS["pos_error"][0], _pos_error_space),
+    AGENT_WRAPPER: (AGENT_OBS_TRANSFORMS[AGENT_WRAPPER][0], lambda space: agent_interface.observation_space()),
 }
 
 
@@ -69,7 +76,10 @@ def transform_space(space: spaces.Dict, wrappers: Sequence[str], obs_keys: Seque
 
 
 class AgentObservation(gym.ObservationWrapper):
-    """The agent's view of the env: named observation wrappers, then the `obs_keys` subset."""
+    """The agent's view of one env: named observation wrappers, then the `obs_keys` subset; with the `"agent"`
+    wrapper also its 9-slot action (`policies.agent_interface`), mapped to the robot's n + 2 in `step`. (Training
+    applies the same view to the whole VecEnv, `train.vec_env.AgentVecEnv`; this is the per-env form for
+    rl-baselines3-zoo's `env_wrapper` and for checks.)"""
 
     def __init__(self, env: gym.Env, wrappers: Sequence[str], obs_keys: Sequence[str]):
         super().__init__(env)
@@ -79,9 +89,18 @@ class AgentObservation(gym.ObservationWrapper):
         if not isinstance(env.observation_space, spaces.Dict):
             raise ValueError(f"AgentObservation needs a Dict observation space, got {env.observation_space}")
         self.observation_space = transform_space(env.observation_space, self.wrappers, self.obs_keys)
+        self.n_actuators = int(np.prod(env.action_space.shape or (0,)))
+        if AGENT_WRAPPER in self.wrappers:
+            agent_interface.arm_joints(self.n_actuators)
+            self.action_space = agent_interface.action_space()
 
     def observation(self, observation: dict) -> dict:
         return transform_observation(observation, self.wrappers, self.obs_keys)
+
+    def step(self, action: Any) -> Any:
+        if AGENT_WRAPPER in self.wrappers:
+            action = agent_interface.env_action(action, self.n_actuators)
+        return super().step(action)
 
 
 class AliveBonus(gym.RewardWrapper):

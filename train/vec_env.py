@@ -3,7 +3,7 @@
 ```python
 import gymnasium as gym, mobman_env
 from stable_baselines3 import PPO
-from policies.sb3_vec_env import SB3VecEnv
+from train.vec_env import SB3VecEnv
 venv = SB3VecEnv(gym.make_vec("WheeledPuma-Circle-v0", num_envs=64, vectorization_mode="vector_entry_point",
                               dynamics="kinematic", autoreset_mode="SameStep"))
 PPO("MultiInputPolicy", venv).learn(10_000)
@@ -23,11 +23,14 @@ Imports Stable-Baselines3 (and so torch) at import time: `policies/__init__.py` 
 from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium.vector import AutoresetMode
-from stable_baselines3.common.vec_env.base_vec_env import VecEnv
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvWrapper
+
+from policies import agent_interface as interface
+from policies.sb3 import AGENT_WRAPPER
 
 
 class SB3VecEnv(VecEnv):
@@ -112,3 +115,61 @@ class SB3VecEnv(VecEnv):
 
     def env_is_wrapped(self, wrapper_class: type, indices: int | Iterable[int] | None = None) -> list[bool]:
         return [False for _ in self._indices(indices)]
+
+
+class AgentVecEnv(VecEnvWrapper):
+    """The agent's view of a mobman `VecEnv`: the named observation wrappers (`train.wrappers.OBS_WRAPPERS`),
+    then the `obs_keys` subset, applied to the batch and to every `terminal_observation` (so SB3's bootstrap of a
+    truncated episode sees the same layout). With the `"agent"` wrapper (`policies.agent_interface`) the agent
+    acts in the interface's `N_ACTIONS` = 9 slots and the robot's own n + 2 are passed on (padded slots
+    dropped); otherwise the env's action space is the agent's.
+
+    One wrapper for every base: `SB3VecEnv` over the native vector env (kinematic) and SB3's `DummyVecEnv` /
+    `SubprocVecEnv` of single envs (physics) alike."""
+
+    def __init__(self, venv: VecEnv, wrappers: Sequence[str], obs_keys: Sequence[str]):
+        from train.wrappers import check_wrappers, transform_space
+
+        check_wrappers(wrappers)
+        self.wrappers, self.obs_keys = tuple(wrappers), tuple(obs_keys)
+        self.padded = AGENT_WRAPPER in self.wrappers
+        shape = venv.action_space.shape
+        self.n_actuators = int(shape[0]) if shape else 0
+        action_space = venv.action_space
+        if self.padded:
+            interface.arm_joints(self.n_actuators)
+            action_space = interface.action_space()
+        space = transform_space(cast(Any, venv.observation_space), self.wrappers, self.obs_keys)
+        super().__init__(venv, observation_space=space, action_space=action_space)
+
+    def _view(self, obs: Any) -> dict[str, np.ndarray]:
+        from train.wrappers import transform_observation
+
+        return transform_observation(obs, self.wrappers, self.obs_keys)
+
+    def reset(self) -> dict[str, np.ndarray]:
+        return self._view(self.venv.reset())
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self.venv.step_async(interface.env_action(actions, self.n_actuators) if self.padded else actions)
+
+    def step_wait(self) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray, list[dict]]:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        for i in np.flatnonzero(dones):
+            infos[i]["terminal_observation"] = self._view(infos[i]["terminal_observation"])
+        return self._view(obs), rewards, dones, infos
+
+
+class VecAliveBonus(VecEnvWrapper):
+    """reward + `bonus` on every step (training only; see `TrainConfig.alive_bonus`)."""
+
+    def __init__(self, venv: VecEnv, bonus: float):
+        super().__init__(venv)
+        self.bonus = np.float32(bonus)
+
+    def reset(self) -> Any:
+        return self.venv.reset()
+
+    def step_wait(self) -> Any:
+        obs, rewards, dones, infos = self.venv.step_wait()
+        return obs, rewards + self.bonus, dones, infos
