@@ -222,13 +222,15 @@ def test_broyden_needs_more_excitation_than_the_shared_default():
 
 def test_estimating_controllers_share_the_scaffolding():
     """broyden and rls run nnbc-plus's probe: the same 16 probe commands at the same `probe_speed` (nnbc-plus's
-    default is 0.02 rad/s since v4, theirs 0.05), then an estimate exposed as jacobian_estimate (None during the
-    probe), of the kind their formulation says."""
+    default is 0.02 rad/s since v4, theirs 0.05) and the same measurement (they read joint_vel, nnbc-plus the
+    joint angles' differences since v5: the probe's commands then differ in float32's last bit), then an estimate
+    exposed as jacobian_estimate (None during the probe), of the kind their formulation says."""
     env = gym.make("WheeledPuma-Line-v0", dynamics="kinematic")
     n_probe = 2 * EnvFacts.from_env(env).n_actuators  # one + and one - step per actuator
     try:
         actions = {}
-        for spec in ("nnbc-plus", "broyden:probe_speed=0.02", "rls:probe_speed=0.02", "rls:formulation=paper"):
+        specs = ("nnbc-plus:measurement=velocity", "broyden:probe_speed=0.02", "rls:probe_speed=0.02")
+        for spec in (*specs, "rls:formulation=paper"):
             pol = policies.make(spec, env)
             obs, _ = env.reset(seed=0)
             pol.reset(obs, seed=1)
@@ -245,7 +247,7 @@ def test_estimating_controllers_share_the_scaffolding():
     finally:
         env.close()
     for spec in ("broyden:probe_speed=0.02", "rls:probe_speed=0.02"):
-        np.testing.assert_array_equal(actions[spec], actions["nnbc-plus"])
+        np.testing.assert_array_equal(actions[spec], actions["nnbc-plus:measurement=velocity"])
 
 
 def test_configs_are_documented_and_validated():

@@ -68,15 +68,24 @@ def test_a_failing_checkpoint_write_keeps_the_previous_latest_json(tmp_path):
 def test_resume_seeds_the_training_envs_with_seed_plus_steps_done(tmp_path, monkeypatch):
     from train.run import resume, run
 
+    from mobman_env.vector import WheeledPumaVectorEnv
+
     seeds: list[int] = []
     reset = mobman_env.WheeledPumaEnv.reset
+    vector_reset = WheeledPumaVectorEnv.reset
 
     def recording_reset(self, *, seed=None, options=None):
         if seed is not None:
             seeds.append(seed)
         return reset(self, seed=seed, options=options)
 
+    def recording_vector_reset(self, *, seed=None, options=None):  # the training env: robot i gets seed + i
+        if seed is not None:
+            seeds.append(seed if isinstance(seed, int) else seed[0])
+        return vector_reset(self, seed=seed, options=options)
+
     monkeypatch.setattr(mobman_env.WheeledPumaEnv, "reset", recording_reset)
+    monkeypatch.setattr(WheeledPumaVectorEnv, "reset", recording_vector_reset)
     out = tmp_path / "sac"
     config = tiny_config("sac", out, timesteps=100, checkpoint_freq=100, final_eval_episodes=0, eval_freq=0)
     # besides the training env, seeded resets come from the env probe (seed 0) and the zero-policy reference
@@ -85,7 +94,7 @@ def test_resume_seeds_the_training_envs_with_seed_plus_steps_done(tmp_path, monk
     run(config)
     assert [s for s in seeds if s not in others] == [config.seed]
     steps = json.loads((out / "checkpoints" / "latest.json").read_text())["steps"]
-    assert steps == 100
+    assert 100 <= steps < 100 + 2 * 8  # the last checkpoint: the budget, rounded up to whole rounds of the 2 envs
     seeds.clear()
     resume(out, timesteps=150, progress_bar=False)
     assert [s for s in seeds if s not in others] == [config.seed + steps]

@@ -348,7 +348,11 @@ def test_shipped_hyperparameter_files_are_zoo_format_with_algos_defaults():
     folder = Path(train.__file__).parent / "hyperparams"
     ppo = yaml.safe_load((folder / "ppo.yml").read_text())[ENV]
     sac = yaml.safe_load((folder / "sac.yml").read_text())[ENV]
-    assert ppo["n_epochs"] == 10 and ppo["n_timesteps"] == 1e6
+    ppo_defaults = algos.ALGOS["ppo"].defaults
+    assert {k: ppo[k] for k in ("n_steps", "batch_size", "n_epochs")} == {
+        k: ppo_defaults[k] for k in ("n_steps", "batch_size", "n_epochs")
+    }
+    assert ppo["n_timesteps"] == 5e6
     defaults = algos.ALGOS["sac"].defaults
     assert {k: sac[k] for k in defaults if k != "policy_kwargs"} == {
         k: v for k, v in defaults.items() if k != "policy_kwargs"
@@ -356,6 +360,6 @@ def test_shipped_hyperparameter_files_are_zoo_format_with_algos_defaults():
     assert eval(sac["policy_kwargs"], {"dict": dict}) == defaults["policy_kwargs"]
     for hp in (ppo, sac):  # the loader accepts what these files make rl-zoo save
         assert policies.sb3._zoo_view(hp, folder) == {
-            "wrappers": ["pos_error"],
+            "wrappers": ["agent"],  # the robot-independent agent interface (policies.agent_interface)
             "obs_keys": list(ppo["env_wrapper"][0]["train.wrappers.AgentObservation"]["obs_keys"]),
         }

@@ -83,8 +83,12 @@ def test_physics_resets_with_new_robots_do_not_accumulate(make_env):
     (release 0.1: one 7.5 KiB file and about 18 KiB of RSS per reset; now under 0.1 KiB per reset, measured)."""
     env = make_env(dynamics="physics", path=SHORT_CIRCLE)
     before = _rss_after_resets(env, range(100))
-    after = _rss_after_resets(env, range(100, 300))
-    assert after - before < 1.5, f"RSS grew by {after - before:.2f} MiB over 200 resets"
+    growth = []
+    for start in (100, 300):  # two windows: a leak grows in both; a worker's unrelated allocation lands in one
+        after = _rss_after_resets(env, range(start, start + 200))
+        growth.append(after - before)
+        before = after
+    assert min(growth) < 1.5, f"RSS grew by {growth[0]:.2f} and {growth[1]:.2f} MiB over two windows of 200 resets"
 
 
 def test_reloaded_robots_are_the_true_ones(make_env):
