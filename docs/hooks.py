@@ -11,7 +11,7 @@
   missing from the API reference is a warning, so `mkdocs build --strict` fails.
 * Text that Markdown would swallow or misread is a warning too: a `<word>` outside backticks (taken for an HTML
   tag, so the text disappears) and a list written without the blank line before it (rendered as one paragraph).
-* `<!-- mobman:conditions-table -->` becomes the protocol's conditions table (`eval.bench.config`).
+* `<!-- mobman:conditions-table -->` becomes the conditions table (`eval.conditions`, the one table).
 * `<!-- mobman:policy-table -->` in a page becomes the table of every built-in policy name and spec form with
   its knowledge class, read from `policies.KNOWN_POLICIES`, `policies.SPEC_FORMS` and `policies.knowledge_of`
   when the site is built.
@@ -188,10 +188,10 @@ def policy_table(root: Path) -> str:
 
 
 def conditions_table(root: Path) -> str:
-    """The protocol's conditions table, from the repository's `eval.bench.config` (the one table)."""
+    """The conditions table, from the repository's `eval.conditions` (the one table)."""
     if str(root) not in sys.path:
         sys.path.insert(0, str(root))
-    from eval.bench.config import CONDITIONS, conditions_markdown
+    from eval.conditions import CONDITIONS, conditions_markdown
 
     return conditions_markdown({n: c.to_dict() for n, c in CONDITIONS.items()})
 

@@ -22,7 +22,8 @@ every module and fails on a cycle or an upward import):
    v3's held-out family and its draw; imports numpy only)
 2. `rollout` (make_env, make_vector_env, make_policy, the one rollout loop: `rollout` for one env, `rollout_batch`
    for a vector env and a batched policy), `schemas` (the JSON files eval reads: their reader, caps and shapes,
-   and the names a scorecard may hold)
+   and the names a scorecard may hold), `conditions` (the one conditions table and the name of any other
+   condition)
 3. `config` (EvalConfig)
 4. `execution` (`tasks` <- `local`, `ray_backend` <- `dispatch`: where episodes run; `warmup`: numba's compile,
    announced, before the first episode)

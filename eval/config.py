@@ -164,3 +164,35 @@ class EvalConfig:
         for k in ("envs", "policies", "dynamics"):
             d[k] = list(d[k])
         return d
+
+
+@dataclass(frozen=True)
+class Execution:
+    """Where and how a grid's episodes run, apart from what they are (`run`, `sweep` and `bench` share it): the
+    backend, its address, the parallel workers and the largest batch of a vector env (`EvalConfig`'s fields of
+    the same names say what each does)."""
+
+    backend: str = "local"
+    address: str | None = None
+    workers: int = 1
+    batch_size: int = 64
+
+    def episode_config(self, out: Any, command: str, **grid: Any) -> EvalConfig:
+        """The `EvalConfig` every episode of a sweep's or bench's grid runs under (each task brings its condition
+        and seed; `grid`: the envs, policies, seeds, dynamics and env arguments it describes), validated: nothing
+        is plotted or kept per step, the caller writes the tables."""
+        config = EvalConfig(
+            out=str(out),
+            overwrite=True,
+            workers=self.workers,
+            batch_size=self.batch_size,
+            backend=self.backend,
+            address=self.address,
+            plots=False,
+            save_arrays="none",
+            progress=False,
+            command=command,
+            **grid,
+        )
+        config.validate()
+        return config

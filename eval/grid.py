@@ -112,6 +112,23 @@ def run_tasks(
     return grid
 
 
+def name_conditions(done: dict[tuple, dict], env_kwargs: dict) -> dict[tuple, dict]:
+    """`done` ({episode_key: record}, a journal's) with every record written before records named their condition
+    given the name its env arguments make (the axes and the grid's `env_kwargs`, as `eval.output.results`
+    upgrades an old file), keyed again: such a record is then the same episode as the grid's task, so `same_code`
+    refuses it (code unknown) instead of the grid running it again beside it."""
+    from eval.conditions import condition_name
+
+    out: dict[tuple, dict] = {}
+    for key, rec in done.items():
+        if rec.get("condition") is None and rec.get("dynamics") is not None:
+            axes = {k: rec.get(k) for k in ("dynamics", "model_error", "obs_noise")}
+            rec = {**rec, "condition": condition_name({**env_kwargs, **axes})}
+            key = episode_key(rec)
+        out[key] = rec
+    return out
+
+
 def same_code(
     done: dict[tuple, dict], tasks: list[Task], rerun_changed: bool, where: str, key: Callable = episode_key
 ) -> dict[tuple, dict]:

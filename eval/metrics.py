@@ -76,7 +76,7 @@ BOOTSTRAP_SEED = 20211206  # the day rliable's paper was presented at NeurIPS 20
 Z95 = 1.959963984540054
 
 #: Episode fields that identify an experimental condition; `aggregate` groups by them.
-GROUP_KEYS = ("env", "policy", "dynamics", "model_error", "obs_noise")
+GROUP_KEYS = ("env", "policy", "condition", "dynamics", "model_error", "obs_noise")
 
 #: Scalar episode metrics that `aggregate` summarises with median / mean / std / min / max / p90 (over successful rollouts,
 #: i.e. status "ok"; failed episodes only count in `n_failed` and lower the success rate).

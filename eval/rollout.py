@@ -84,6 +84,7 @@ JACOBIAN_KEYS = (
 RECORD_KEYS = (
     "env",
     "policy",
+    "condition",
     "episode",
     "seed",
     "robot",
@@ -96,6 +97,8 @@ RECORD_KEYS = (
     "path",
     "start",
     "true_params_hash",
+    "feasible",
+    "feasibility_peak",
     "status",
     "error",
     "max_error_m",
@@ -206,10 +209,13 @@ def _empty_record(base: Any, seed: int, meta: dict | None) -> dict[str, Any]:
             "path": None,
             "start": None,
             "true_params_hash": None,
+            "feasible": None,
+            "feasibility_peak": None,
             "status": "ok",
             "error": None,
         }
     )
+    rec.setdefault("condition", None)
     rec.update(_metrics_none())
     rec.update(
         {
@@ -541,9 +547,13 @@ def run_episodes(
         }
         _observe(arr, 0, obs, info)
         task = info["task"]
-        for i, rec in enumerate(recs):
+        for i, (rec, (feasible, peak)) in enumerate(zip(recs, _feasibility(envs, n), strict=True)):
             rec.update(
-                path=_path(task["path"], i), start=list(task["start"][i]), true_params_hash=info["true_params_hash"][i]
+                path=_path(task["path"], i),
+                start=list(task["start"][i]),
+                true_params_hash=info["true_params_hash"][i],
+                feasible=feasible,
+                feasibility_peak=peak,
             )
         reset = getattr(policy, "reset", None)
         if reset is not None:
@@ -601,6 +611,19 @@ def run_episodes(
         rec["wall_s"] = wall
         rec["pid"] = os.getpid()
     return out
+
+
+def _feasibility(envs: Any, n: int) -> list[tuple[bool | None, float | None]]:
+    """(feasible, peak speed ratio) of each robot's episode just reset (`mobman_env.feasibility`: the path within
+    the true robot's speed limits with `FEASIBILITY_MARGIN`); (None, None) for an env without mobman's engine
+    batch (another package's env, a `SyncVectorEnv` fallback)."""
+    env = envs.env if isinstance(envs, _OneEnv) else envs.venv
+    batch = getattr(getattr(env, "unwrapped", None), "_batch", None)
+    if batch is None or getattr(batch, "num", n) != n:
+        return [(None, None)] * n
+    from mobman_env.feasibility import FEASIBILITY_MARGIN, check_rows
+
+    return [(bool(c.peak_ratio <= 1.0 - FEASIBILITY_MARGIN), c.peak_ratio) for c in check_rows(batch, np.arange(n))]
 
 
 def _describe_policies(recs: list[dict], rows: Sequence[Any]) -> None:

@@ -25,6 +25,7 @@ from eval.errors import EvalError
 from policies.untrusted import FileRefused
 from policies.untrusted_json import (
     AnyJSON,
+    Bool,
     Int,
     ListOf,
     MapOf,
@@ -107,9 +108,17 @@ SCORECARD: Schema = Obj(
     },
 )
 
-#: results.json (schemas 1 to 3; `eval.output.results`): its episodes and aggregate rows.
+#: results.json (schemas 1 to 4; `eval.output.results`): its episodes and aggregate rows.
 RESULTS: Schema = Obj(
-    {"schema": Int, "episodes": ListOf(Obj({"env": Str, "policy": Str}, {"seed": Nullable(Int), "status": Str}))},
+    {
+        "schema": Int,
+        "episodes": ListOf(
+            Obj(
+                {"env": Str, "policy": Str},
+                {"seed": Nullable(Int), "status": Str, "condition": Nullable(Str), "feasible": Nullable(Bool)},
+            )
+        ),
+    },
     {
         "config": MapOf(AnyJSON),
         "aggregate": ListOf(Obj({"env": Str, "policy": Str}, {"n": Int, "n_failed": Int})),

@@ -92,8 +92,8 @@ def test_paths_and_bad_files_fail_naming_the_fix(tmp_path):
         eval.load_results(tmp_path)
     with pytest.raises(EvalError, match="not found"):
         eval.load_results(tmp_path / "nothing.json")
-    (tmp_path / "new.json").write_text(json.dumps({"schema": 4, "episodes": []}))
-    with pytest.raises(EvalError, match="schema 4; this mobman reads schemas 1, 2, 3"):
+    (tmp_path / "new.json").write_text(json.dumps({"schema": 5, "episodes": []}))
+    with pytest.raises(EvalError, match="schema 5; this mobman reads schemas 1, 2, 3, 4"):
         eval.load_results(tmp_path / "new.json")
 
 

@@ -11,7 +11,7 @@ import pytest
 from test_eval_helpers import SHORT
 
 from eval.bench import config as BC
-from eval.bench.run import run_bench, sweep_for
+from eval.bench.run import run_bench
 from eval.bench.scorecard import (
     README_BLOCK,
     load_scorecard,
@@ -61,7 +61,7 @@ def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
     assert cfg.seed_list("default") == tuple(range(SEED, SEED + BC.DEFAULT_SEEDS))
     assert cfg.seed_list("physics") == tuple(range(SEED, SEED + BC.DEFAULT_PHYSICS_SEEDS))
     assert {BC.CONDITIONS[c].track for c in cfg.conditions} == ({"dev", "heldout"} if track == "all" else {track})
-    assert BC.CONDITIONS["noise"].obs_noise == 0.001 and BC.CONDITIONS["noise"].env_kwargs == {"obs_noise_vel": 0.01}
+    assert BC.CONDITIONS["noise"].obs_noise == 0.001 and BC.CONDITIONS["noise"].extra_kwargs == {"obs_noise_vel": 0.01}
     assert BC.CONDITIONS["wear20"].model_error == 0.2 and BC.CONDITIONS["physics"].dynamics == "physics"
 
 
@@ -107,12 +107,15 @@ def test_dev_seeds_get_a_note():
     assert any("development results, not for reporting" in n for n in notes)
 
 
-def test_a_condition_is_a_sweep_grid():
-    cfg, _ = _small(conditions=("noise",)).resolved()
-    sw = sweep_for(cfg, "noise")
-    assert sw.envs == ("WheeledPuma-Circle-v0", "WheeledPuma-Line-v0")
-    assert (sw.dynamics, sw.model_error, sw.obs_noise) == (("kinematic",), (0.05,), (0.001,))
-    assert sw.env_kwargs == {**SHORT, "obs_noise_vel": 0.01} and sw.seeds == (SEED, SEED + 1)
+def test_a_condition_is_a_named_part_of_one_grid():
+    cfg, _ = _small(conditions=("noise", "wear20")).resolved()
+    tasks = cfg.tasks_of(("zero",))
+    noise = [t for t in tasks if t.condition == "noise"]
+    assert [t.env for t in noise] == ["WheeledPuma-Circle-v0"] * 2 + ["WheeledPuma-Line-v0"] * 2
+    assert {(t.dynamics, t.model_error, t.obs_noise) for t in noise} == {("kinematic", 0.05, 0.001)}
+    assert noise[0].env_kwargs == {**SHORT, "obs_noise_vel": 0.01} and [t.seed for t in noise[:2]] == [SEED, SEED + 1]
+    assert [t.condition for t in tasks] == ["noise"] * 4 + ["wear20"] * 4 and [t.index for t in tasks] == list(range(8))
+    assert {t.model_error for t in tasks if t.condition == "wear20"} == {0.2}
 
 
 # --- a bench end to end -------------------------------------------------------------------------------------
@@ -137,8 +140,10 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
     for name in ("bench.json", "scorecard.md", "plots/success_default.png", "plots/success_wear20.png"):
         assert (out / name).is_file(), name
     assert (out / "plots" / "error_vs_wear.png").is_file()  # two wear levels: 0.05 and 0.2
-    for cond in ("default", "wear20"):
-        assert json.loads((out / "conditions" / cond / "results.json").read_text())["schema"] == 3
+    results = json.loads((out / "results.json").read_text())  # one results file, every record naming its condition
+    assert results["schema"] == 4 and not (out / "conditions").exists()
+    assert [r["condition"] for r in results["episodes"]] == ["default"] * 8 + ["wear20"] * 8
+    assert all(isinstance(r["feasible"], bool) for r in results["episodes"])
     assert sc["schema"] == 3 and sc["protocol"]["seeds"] == [SEED, SEED + 1] and sc["protocol"]["version"] == 2
     assert sc["protocol"]["heldout_commit"] == BC.HELDOUT_COMMIT and sc["protocol"]["track"] == "dev"
     assert len(sc["rows"]) == 2 * 2 * 2 and len(sc["pooled"]) == 2 * 2
@@ -307,8 +312,9 @@ def test_robots_all_and_the_per_robot_rows():
     assert [robot_of(f"{p}-Line-v0") for p in BC.ROBOTS.values()] == list(BC.ROBOTS)
 
     def ep(env, seed, err):
-        return {"env": env, "policy": "zero", "seed": seed, "dynamics": "kinematic", "model_error": 0.05,
-                "obs_noise": 0.0, "status": "ok", "success": err <= 0.006, "max_error_m": err}  # fmt: skip
+        return {"env": env, "policy": "zero", "condition": "default", "seed": seed, "dynamics": "kinematic",
+                "model_error": 0.05, "obs_noise": 0.0, "status": "ok", "success": err <= 0.006,
+                "max_error_m": err}  # fmt: skip
 
     eps = [
         ep("WheeledPuma-Circle-v0", 0, 0.001),
@@ -318,13 +324,13 @@ def test_robots_all_and_the_per_robot_rows():
     protocol = {"version": 2, "robots": ["puma", "ur5"], "tasks": ["circle", "line"], "envs": [], "seeds": [0],
                 "tolerance": 0.006, "policies": ["zero"],
                 "conditions": {"default": BC.CONDITIONS["default"].to_dict()}}  # fmt: skip
-    sc = build_scorecard(protocol, [], {"default": {"episodes": eps, "aggregate": []}}, n_expected=3)
+    sc = build_scorecard(protocol, [], {"episodes": eps}, n_expected=3)
     rows = {(r["robot"], r["policy"]): r for r in sc["by_robot"]}
     assert rows[("puma", "zero")]["n"] == 2 and rows[("puma", "zero")]["max_error_m"]["median"] == 0.002
     assert rows[("ur5", "zero")]["success_rate"] == 0.0
     table = condition_table(sc, "default")
     assert "| controller | puma | ur5 |" in table and "| zero | 100% · 2.00 | 0% · 500.00 |" in table
-    single = build_scorecard(protocol, [], {"default": {"episodes": eps[:2], "aggregate": []}}, n_expected=2)
+    single = build_scorecard(protocol, [], {"episodes": eps[:2]}, n_expected=2)
     assert single["by_robot"] == []
 
 
@@ -353,7 +359,7 @@ def test_the_ladder_reads_the_fastest_rung_tracked():
 BENCH_ARGS = ["bench", "--tasks", "circle", "--conditions", "default", "--seeds", "1", "--quiet", "--no-plots"]
 
 
-@pytest.mark.parametrize("refusal", ["unknown policy", "another bench", "changed condition folder"])
+@pytest.mark.parametrize("refusal", ["unknown policy", "another bench", "changed settings"])
 def test_a_refused_bench_leaves_bench_json_as_it_was(tmp_path, capsys, refusal):
     from eval.output.journal import FolderLock
 
@@ -367,11 +373,11 @@ def test_a_refused_bench_leaves_bench_json_as_it_was(tmp_path, capsys, refusal):
     elif refusal == "another bench":
         with FolderLock(out, "bench"):
             code, match = main([*args, "--policy", "zero,jmpi"]), f"another bench is writing to {out}"
-    else:  # the condition's sweep folder was made with other settings: refused by the sweep check, up front
-        cfg = out / "conditions" / "default" / "config.json"
+    else:  # the bench folder was made with other settings: refused up front
+        cfg = out / "bench.json"
         cfg.write_text(cfg.read_text().replace('"tolerance": 0.006', '"tolerance": 0.01'))
         before[cfg] = cfg.read_bytes()
-        code, match = main([*args, "--policy", "zero,jmpi"]), "holds a sweep with other settings"
+        code, match = main([*args, "--policy", "zero,jmpi"]), "holds a bench with other settings"
     err = capsys.readouterr().err
     assert code == 2 and match in err and "Traceback" not in err, err
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before

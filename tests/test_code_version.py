@@ -128,16 +128,15 @@ def test_a_bench_with_a_condition_of_other_code_is_refused_before_anything_runs(
     with monkeypatch.context() as m:
         m.setattr(G, "code_hash", lambda: OTHER)
         run_bench(cfg, out, max_episodes=3, progress=False, plots=False)  # default whole, wear20 half
-    journals = {c: (out / "conditions" / c / JOURNAL).read_bytes() for c in ("default", "wear20")}
+    journal = (out / JOURNAL).read_bytes()  # one journal for the whole bench
     bench_json = (out / "bench.json").read_bytes()
-    with pytest.raises(EvalError, match=f"holds 2 episode\\(s\\) run by other code than this: code {OTHER} there"):
+    with pytest.raises(EvalError, match=f"holds 3 episode\\(s\\) run by other code than this: code {OTHER} there"):
         run_bench(cfg, out, progress=False, plots=False)
-    assert {c: (out / "conditions" / c / JOURNAL).read_bytes() for c in journals} == journals
+    assert (out / JOURNAL).read_bytes() == journal
     assert (out / "bench.json").read_bytes() == bench_json
     res = run_bench(cfg, out, rerun_changed=True, progress=False, plots=False)
     assert res.n_run == 4 and res.n_left == 0
-    for c in ("default", "wear20"):
-        assert _codes(out / "conditions" / c / "results.json") == {code_hash()}
+    assert _codes(out / "results.json") == {code_hash()}
 
 
 def test_a_run_resumed_after_the_code_changed_is_refused_and_reruns_on_request(tmp_path, monkeypatch, capsys):

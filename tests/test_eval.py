@@ -94,7 +94,7 @@ def _run_args(out, *extra):
 # --- the CLI end to end -----------------------------------------------------------------------------------
 
 
-def test_main_run_writes_every_output_with_schema_3(tmp_path):
+def test_main_run_writes_every_output_with_schema_4(tmp_path):
     out = tmp_path / "run"
     rc = main(_run_args(out, "--policy", "zero", "--policy", "random", "--seeds", "2"))
     assert rc == 0
@@ -105,7 +105,12 @@ def test_main_run_writes_every_output_with_schema_3(tmp_path):
     assert not [p for p in out.rglob("*.tmp")]  # no temporary file left behind
 
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 3
+    assert res["schema"] == 4 and {r["condition"] for r in res["episodes"]} == {
+        'kinematic, model_error=0.05, obs_noise=0, path={"duration":1.0,"radius":0.1,"type":"circle"}'
+    }
+    # a 0.1 m circle in 1 s asks for speeds near the limits: the flag is each episode's own (peaks 0.86, 1.05)
+    assert [r["feasible"] for r in res["episodes"] if r["policy"] == "zero"] == [True, False]
+    assert all(r["feasible"] == (r["feasibility_peak"] <= 0.9) for r in res["episodes"])
     assert {"config", "versions", "git", "provenance", "statistics", "episodes", "aggregate"} <= set(res)
     prov = res["provenance"]
     assert prov["cpu"] and prov["numpy"] == np.__version__ and "OPENBLAS_CORETYPE" in prov["env"]

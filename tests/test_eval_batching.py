@@ -239,7 +239,7 @@ def test_an_env_without_a_native_vector_env_runs_one_episode_at_a_time(small_bat
         done = list(runner.run(unit))
     finally:
         runner.close()
-    assert runner._unbatchable == {(env_id, "kinematic", None, None)}
+    assert runner._unbatchable == {(env_id, "kinematic", None, None, "")}
     assert [(t.seed, rec["status"]) for t, rec, _ in done] == [(10_000 + i, "ok") for i in range(4)]
 
 

@@ -23,6 +23,7 @@ EVAL_LAYERS = {
     "eval.errors": 1,
     "eval.metrics": 1,
     "eval.heldout": 1,
+    "eval.conditions": 2,
     "eval.rollout": 2,
     "eval.schemas": 2,
     "eval.config": 3,

@@ -66,9 +66,8 @@ def test_a_failing_checkpoint_write_keeps_the_previous_latest_json(tmp_path):
 
 
 def test_resume_seeds_the_training_envs_with_seed_plus_steps_done(tmp_path, monkeypatch):
-    from train.run import resume, run
-
     from mobman_env.vector import WheeledPumaVectorEnv
+    from train.run import resume, run
 
     seeds: list[int] = []
     reset = mobman_env.WheeledPumaEnv.reset

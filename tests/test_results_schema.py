@@ -1,4 +1,4 @@
-"""results.json schema 3 and the reading of older files: `load_results`, the tables, a sweep made by mobman 0.1
+"""results.json schema 4 and the reading of older files: `load_results`, the tables, a sweep made by mobman 0.1
 (tests/fixtures/schema1, written at commit 3d1df75) resumed by today's code, and a schema-2 run of mobman 0.2
 (tests/fixtures/schema2: the kinematic nnbc and jmpi episodes 0-2 of docs/results/paper/results.json at e8a9c1d)."""
 
@@ -8,6 +8,7 @@ from pathlib import Path
 
 import pytest
 
+from eval.cli import main as main_run
 from eval.errors import EvalError
 from eval.output.results import SCHEMA, load_results, upgrade_results
 from eval.output.tables import summary_markdown
@@ -18,9 +19,10 @@ from eval.sweep.run import run_sweep
 FIXTURES = Path(__file__).parent / "fixtures" / "schema1"
 
 
-def test_a_schema_1_run_loads_in_schema_3_shape():
+def test_a_schema_1_run_loads_in_schema_4_shape():
     res = load_results(FIXTURES / "run" / "results.json")
-    assert res["schema"] == 1 and SCHEMA == 3  # the file's own number is kept
+    assert res["schema"] == 1 and SCHEMA == 4  # the file's own number is kept
+    assert all(r["feasible"] is None and r["feasibility_peak"] is None for r in res["episodes"])
     assert res["provenance"] is None and res["statistics"] is None
     assert all(r["steady_max_error_m"] is None for r in res["episodes"])
     for row in res["aggregate"]:
@@ -34,7 +36,26 @@ def test_a_schema_1_run_loads_in_schema_3_shape():
     assert aggregate_csv_text(res["aggregate"]).count("\n") == 3
 
 
-def test_a_schema_2_run_loads_in_schema_3_shape():
+def test_an_older_files_records_are_named_as_a_run_of_their_arguments_names_them_today(tmp_path):
+    """Converted, not re-run: a schema-1 file's episodes get the condition name that a schema-4 run of the same
+    env arguments records."""
+    old = load_results(FIXTURES / "run" / "results.json")
+    cfg = old["config"]
+    out = tmp_path / "again"
+    rec = old["episodes"][0]
+    code = main_run(
+        [
+            "run", "--env", rec["env"], "--policy", str(rec["policy"]), "--seed", str(rec["seed"]), "--seeds", "1",
+            "--dynamics", "kinematic", "--env-kwargs", json.dumps(cfg["env_kwargs"]), "--out", str(out), "--quiet",
+        ]
+    )  # fmt: skip
+    assert code == 0
+    new = load_results(out / "results.json")["episodes"][0]
+    assert new["condition"] == rec["condition"] == {r["condition"] for r in old["aggregate"]}.pop()
+    assert rec["condition"].startswith("kinematic, model_error=0.05, obs_noise=0, path=")
+
+
+def test_a_schema_2_run_loads_in_schema_4_shape():
     res = load_results(Path(__file__).parent / "fixtures" / "schema2" / "results.json")
     assert res["schema"] == 2
     assert all(
@@ -49,8 +70,8 @@ def test_a_schema_2_run_loads_in_schema_3_shape():
 
 
 def test_unknown_schemas_and_files_are_refused(tmp_path):
-    with pytest.raises(EvalError, match="schema 4.*reads schemas 1, 2, 3"):
-        upgrade_results({"schema": 4})
+    with pytest.raises(EvalError, match="schema 5.*reads schemas 1, 2, 3, 4"):
+        upgrade_results({"schema": 5})
     with pytest.raises(EvalError, match="not a mobman results file"):
         upgrade_results({"episodes": []})
     with pytest.raises(EvalError, match="not found"):
@@ -83,7 +104,7 @@ def test_a_schema_1_sweep_is_read_and_refused_on_resume_as_unknown_code_until_re
     result = run_sweep(sweep, out, rerun_changed=True, progress=False, plots=False)
     assert (result.n_skipped, result.n_run, result.n_left) == (0, 6, 0)
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 3 and len(res["episodes"]) == 6 and {r["code"] for r in res["episodes"]} == {code_hash()}
+    assert res["schema"] == 4 and len(res["episodes"]) == 6 and {r["code"] for r in res["episodes"]} == {code_hash()}
     assert all(r["steady_max_error_m"] is not None for r in res["episodes"])
     for row in res["aggregate"]:
         assert row["n"] == 3 and row["max_error_m"]["iqm"] is not None

@@ -156,7 +156,7 @@ def test_sweep_writes_one_tidy_table_in_grid_order_and_plots(uninterrupted):
         f"{ENV}_kinematic_vs_obs_noise.png",
     ]
     res = json.loads((out / "results.json").read_text())
-    assert res["schema"] == 3 and res["config"]["command"] == "sweep" and res["config"]["n_episodes"] == 16
+    assert res["schema"] == 4 and res["config"]["command"] == "sweep" and res["config"]["n_episodes"] == 16
     eps = res["episodes"]
     assert [(r["model_error"], r["obs_noise"], r["policy"], r["seed"]) for r in eps] == [
         (me, on, p, s) for me in (0.0, 0.1) for on in (0.0, 0.002) for p in ("zero", "jmpi") for s in SEEDS

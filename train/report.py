@@ -268,7 +268,7 @@ def condition_kwargs(dynamics: str, extra: dict | None = None) -> dict:
         "dynamics": (c.dynamics,),
         "model_error": c.model_error,
         "obs_noise": c.obs_noise,
-        "env_kwargs": {**c.env_kwargs, **(extra or {})},
+        "env_kwargs": {**c.extra_kwargs, **(extra or {})},
     }
 
 

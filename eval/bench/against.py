@@ -32,7 +32,7 @@ from typing import Any
 
 from eval import metrics as M
 from eval.bench import scorecard as S
-from eval.bench.config import CONDITIONS
+from eval.bench.config import CONDITIONS, Condition
 from eval.errors import EvalError
 
 #: committed episodes re-run to check that this machine reproduces them
@@ -107,14 +107,18 @@ def pick_samples(committed: dict, baselines: list[str], conditions: list[str]) -
     return [pool[int(i * step)] for i in range(SAMPLE_SIZE)]
 
 
-def rerun_sample(sample: dict, tolerance: float, settle_time: float, env_kwargs: dict) -> dict:
+def rerun_sample(
+    sample: dict, tolerance: float, settle_time: float, env_kwargs: dict, condition: dict | None = None
+) -> dict:
     """The metric fields of one committed episode run again here (its condition's env with the bench's extra
-    `env_kwargs`, the spec, the seed)."""
+    `env_kwargs`, the spec, the seed). `condition`: the condition as the committed scorecard's protocol defines
+    it (either protocol's form); None: the table's of that name."""
     import policies
     from eval.rollout import make_env, rollout
 
-    c = CONDITIONS[sample["condition"]]
-    env = make_env(sample["env"], c.dynamics, c.model_error, c.obs_noise, {**env_kwargs, **dict(c.env_kwargs)})
+    name = sample["condition"]
+    c = CONDITIONS[name] if condition is None else Condition.from_dict({**condition, "name": name})
+    env = make_env(sample["env"], c.dynamics, c.model_error, c.obs_noise, {**env_kwargs, **c.extra_kwargs})
     try:
         pol = policies.make(sample["policy"], env, seed=None)
         rec, _ = rollout(env, pol, int(sample["seed"]), tolerance=tolerance, settle_time=settle_time)
@@ -135,7 +139,9 @@ def check_samples(committed: dict, samples: list[dict]) -> tuple[bool, list[str]
     lines = []
     ok = True
     for s in samples:
-        got = rerun_sample(s, p["tolerance"], p["settle_time"], dict(p.get("env_kwargs") or {}))
+        got = rerun_sample(
+            s, p["tolerance"], p["settle_time"], dict(p.get("env_kwargs") or {}), p["conditions"].get(s["condition"])
+        )
         diff = [k for k in S.SAMPLE_FIELDS if not _same(got.get(k), s["fields"].get(k))]
         where = f"{s['policy']} on {s['env']} ({s['condition']}), seed {s['seed']}"
         if diff:

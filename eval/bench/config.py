@@ -1,43 +1,19 @@
-"""The benchmark protocol v2 as data: robots, tasks, the one conditions table (two tracks), `BenchConfig`.
+"""The benchmark protocol as data: `BenchConfig` (what one `mobman-eval bench` runs) over the one conditions table.
 
-A bench is a set of sweeps (`eval.sweep`), one per condition, each over that condition's robots x tasks x
-controllers x seeds with its dynamics mode, model error, sensor noise and further env arguments. Every
-condition belongs to one of two tracks:
+A bench is one grid (`eval.grid`): for each condition of its track(s) (`eval.conditions.CONDITIONS`, the one
+table), that condition's robots x tasks x controllers x seeds with its env arguments. Every episode record names
+its condition, and the bench's one results file holds them all. The tracks:
 
 * **dev**: the conditions a controller may be tuned on (development seeds 0-999 only; reported seeds >= 10,000
   are run, never tuned on);
-* **heldout**: conditions no controller may be tuned on, fixed here before any controller was tuned against
-  protocol v2 (`HELDOUT_COMMIT` introduced them; `HELDOUT_SHA256` is the hash of their definitions, and a test
-  fails if any of them changes: a changed held-out condition is a new protocol version). They are run on
-  reported seeds and reported as they come.
+* **heldout**: conditions no controller may be tuned on, run on reported seeds and reported as they come
+  (`eval.conditions` says which; `HELDOUT_SHA256` keeps protocol v2's unchanged).
 
-The table (`conditions_markdown`, in the docs' protocol page, `mobman-eval bench --list`, and each scorecard):
-the dev track holds `default` (kinematic, 5% wear), `wear20`, `noise` (1 mm, 0.01 m/s), `drift`
-(`wear_rate` 0.005), `lag` (`actuator_tau` 0.05 s), `yaw-noise` (`obs_noise_yaw` 1 mrad) on the dev robots,
-`physics` and `physics-lag` on the PUMA, and the difficulty ladder; the held-out track `fast-rich`, `rate50`,
-`lag100`, `noise-heavy`, `combined`, `scaled-arms`, `physics-robots` and `physics-combined`.
+"dev robots" = puma, ur5, panda, random-arm. Not in a default bench, selectable with `--conditions`: `wear0`,
+`wear10`, `wear30` (the error-vs-wear curve) and the research conditions.
 
-"dev robots" = puma, ur5, panda, random-arm. Not in a default bench, selectable with `--conditions` (the
-error-vs-wear curve uses every kinematic condition without noise, drift or lag): `wear0` (0.0), `wear10` (0.1),
-`wear30` (0.3) (dev).
-
-**The difficulty ladder.** A success rate of 100% ranks nothing, and the scorecard of release 0.2 saturated at
-the top. The ladder runs one path family (5 harmonics per axis, 0.3 m, PUMA, kinematic, 5% wear) at durations
-20, 10, 5 and 2.5 s; for every controller the scorecard reports the fastest rung it still tracks in >= 90% of
-its episodes, beside the ceiling's (`qp-oracle`), so the top of the table keeps headroom.
-
-Why `wear_rate` = 0.005 per second: over a 20 s task the true lengths move by 10% (relative), twice the default
-5% offset and half of `wear20`'s, so a controller that identifies the robot once and then trusts it ends the
-episode on a robot as far from its estimate as the catalogue is from the default robot, while the change per
-control step (5e-5 at 100 Hz) stays far below what one step of the paper's estimator sees.
-
-Why the dev track's lag (50 ms) and heading noise (1 mrad): a 50 ms time constant is a slow but real velocity
-loop (a 3 Hz bandwidth; electric drives reach 5-30 Hz, a heavy base with its wheel drives less), and 1 mrad is a
-good odometry-plus-gyro heading (see `mobman_env.env.WheeledPumaEnv`'s "Actuators" and "Observation Space"). The
-held-out track doubles both and combines them with wear and noise.
-
-This module imports the standard library, `eval.errors`, `eval.metrics` and, inside functions, gymnasium,
-`mobman_env` and `policies`.
+This module imports the standard library, `eval.errors`, `eval.metrics`, `eval.conditions` and, inside
+functions, gymnasium, `mobman_env` and `policies`.
 """
 
 from __future__ import annotations
@@ -48,8 +24,36 @@ from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from eval.conditions import (
+    CONDITIONS,
+    DEV_ROBOTS,
+    HELDOUT_COMMIT,
+    HELDOUT_SHA256,
+    LADDER_DURATIONS,
+    ROBOTS,
+    TASKS,
+    Condition,
+    conditions_markdown,
+    env_id,
+    heldout_digest,
+)
 from eval.errors import EvalError
 from eval.metrics import DEFAULT_SETTLE_TIME, DEFAULT_TOLERANCE
+
+__all__ = [  # the table's names, as this module exported them before the table had a module of its own
+    "CONDITIONS",
+    "DEV_ROBOTS",
+    "HELDOUT_COMMIT",
+    "HELDOUT_SHA256",
+    "LADDER_DURATIONS",
+    "ROBOTS",
+    "TASKS",
+    "BenchConfig",
+    "Condition",
+    "conditions_markdown",
+    "env_id",
+    "heldout_digest",
+]
 
 #: First reported seed: bench episodes use seeds REPORTED_SEED_START, +1, ... (tune on 0-999, never on these).
 REPORTED_SEED_START = 10_000
@@ -57,158 +61,21 @@ REPORTED_SEED_START = 10_000
 #: Default number of seeds per kinematic (condition, robot, task, controller) cell.
 DEFAULT_SEEDS = 5
 
-#: Robot names of `--robots` -> the prefix of their env ids (`<prefix>-<Task>-v0`). An entry whose ids are not
-#: registered (the robot is not in this version of mobman_env) is refused naming the robots that exist.
-ROBOTS: dict[str, str] = {
-    "puma": "WheeledPuma",
-    "ur5": "WheeledUR5",
-    "panda": "WheeledPanda",
-    "random-arm": "WheeledRandomArm",
-    "scaled-arm": "WheeledScaledArm",
-}
-#: The robots of the dev track (and of every condition that does not name its own).
-DEV_ROBOTS = ("puma", "ur5", "panda", "random-arm")
 #: The tracks of `--track`.
 TRACKS = ("dev", "heldout", "all")
 #: Protocol version (recorded in bench.json and the scorecard).
 PROTOCOL_VERSION = 2
-
-#: Task names of `--tasks` -> the middle part of the env id.
-TASKS: dict[str, str] = {"circle": "Circle", "line": "Line", "lemniscate": "Lemniscate", "random": "Random"}
 
 #: Policy names never in the default controller list (none today; the `sb3:` and `module:` spec forms are not
 #: registry names, so they never appear in it either).
 EXCLUDED_POLICIES: frozenset[str] = frozenset()
 
 
-@dataclass(frozen=True)
-class Condition:
-    """One experimental condition: its track, where it runs (robots, tasks) and the env arguments every episode of
-    it gets."""
-
-    name: str
-    """Short name (`--conditions`, scorecard headings, output sub-directory)."""
-    description: str
-    """One line for the scorecard."""
-    track: str = "dev"
-    """"dev" (may be tuned on) or "heldout" (never tuned on: reported as it comes)."""
-    dynamics: str = "kinematic"
-    """Dynamics mode ("kinematic": the paper's idealised model; "physics": PyBullet contact dynamics)."""
-    model_error: float = 0.05
-    """Relative std of the true robot's lengths vs the catalogue ("wear")."""
-    obs_noise: float = 0.0
-    """Std of the position sensor noise, m."""
-    env_kwargs: Mapping[str, Any] = field(default_factory=dict)
-    """Further env constructor arguments (e.g. `obs_noise_vel`, `wear_rate`, `actuator_tau`, a `path`)."""
-    robots: tuple[str, ...] = DEV_ROBOTS
-    """The robots (`ROBOTS`) the condition runs on."""
-    tasks: tuple[str, ...] | None = None
-    """The tasks (`TASKS`) it runs on; None: every task of the bench."""
-
-    def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["env_kwargs"] = dict(self.env_kwargs)
-        d["robots"] = list(self.robots)
-        d["tasks"] = None if self.tasks is None else list(self.tasks)
-        return d
-
-
-def _ladder_path(duration: float) -> dict[str, Any]:
-    return {"type": "random", "size": 0.3, "n_terms": 5, "duration": duration}
-
-
-#: The rungs of the difficulty ladder: path duration, s (the module docstring).
-LADDER_DURATIONS = (20.0, 10.0, 5.0, 2.5)
 #: The ceiling the ladder is read against.
 LADDER_CEILING = "qp-oracle"
 #: A rung counts as tracked by a controller when at least this share of its episodes succeed.
 LADDER_SUCCESS = 0.9
-_NOISE = {"obs_noise_vel": 0.01}
 
-#: Every condition the bench knows, in scorecard order (see the module docstring's table).
-CONDITIONS: dict[str, Condition] = {
-    c.name: c
-    for c in (
-        Condition("default", "catalogue task, 5% wear (the paper's setting)"),
-        Condition("wear20", "20% wear: the robot is far from its catalogue", model_error=0.2),
-        Condition(
-            "noise", "sensor noise: 1 mm on positions, 0.01 m/s on velocities", obs_noise=0.001, env_kwargs=_NOISE
-        ),
-        Condition(
-            "drift", "wear drift: lengths change by 0.5% per second (10% over 20 s)", env_kwargs={"wear_rate": 0.005}
-        ),
-        Condition(
-            "lag",
-            "actuator lag: every actuator follows its command with tau = 50 ms",
-            env_kwargs={"actuator_tau": 0.05},
-        ),
-        Condition("yaw-noise", "heading noise: 1 mrad on base_yaw", env_kwargs={"obs_noise_yaw": 0.001}),
-        Condition("physics", "PyBullet contact dynamics, 5% wear", dynamics="physics", robots=("puma",)),
-        Condition(
-            "physics-lag",
-            "PyBullet contact dynamics with a 50 ms actuator lag",
-            dynamics="physics",
-            env_kwargs={"actuator_tau": 0.05},
-            robots=("puma",),
-        ),
-        *(
-            Condition(
-                f"ladder-{d:g}s",
-                f"difficulty ladder: a 5-harmonic random path of 0.3 m in {d:g} s",
-                env_kwargs={"path": _ladder_path(d)},
-                robots=("puma",),
-                tasks=("random",),
-            )
-            for d in LADDER_DURATIONS
-        ),
-        Condition("wear0", "the catalogue robot itself (no wear)", model_error=0.0),
-        Condition("wear10", "10% wear", model_error=0.1),
-        Condition("wear30", "30% wear", model_error=0.3),
-        # --- the held-out track: fixed before any tuning against protocol v2; never tuned on ---------------------
-        Condition(
-            "fast-rich",
-            "held out: a 6-harmonic random path of 0.4 m in 8 s",
-            track="heldout",
-            env_kwargs={"path": {"type": "random", "size": 0.4, "n_terms": 6, "duration": 8.0}},
-            tasks=("random",),
-        ),
-        Condition("rate50", "held out: 50 Hz control", track="heldout", env_kwargs={"control_freq": 50.0}),
-        Condition("lag100", "held out: actuator lag tau = 100 ms", track="heldout", env_kwargs={"actuator_tau": 0.1}),
-        Condition(
-            "noise-heavy",
-            "held out: 2 mm, 0.02 m/s and 3 mrad heading noise",
-            track="heldout",
-            obs_noise=0.002,
-            env_kwargs={"obs_noise_vel": 0.02, "obs_noise_yaw": 0.003},
-        ),
-        Condition(
-            "combined",
-            "held out: 15% wear, drift 0.3%/s, lag 30 ms, 1 mm + 0.01 m/s + 2 mrad noise",
-            track="heldout",
-            model_error=0.15,
-            obs_noise=0.001,
-            env_kwargs={"obs_noise_vel": 0.01, "obs_noise_yaw": 0.002, "actuator_tau": 0.03, "wear_rate": 0.003},
-        ),
-        Condition("scaled-arms", "held out: random arms scaled 0.7-1.4x", track="heldout", robots=("scaled-arm",)),
-        Condition(
-            "physics-robots",
-            "held out: contact dynamics on the UR5, the Panda and random arms",
-            track="heldout",
-            dynamics="physics",
-            robots=("ur5", "panda", "random-arm"),
-        ),
-        Condition(
-            "physics-combined",
-            "held out: contact dynamics, 10% wear, lag 30 ms, 1 mm + 0.01 m/s + 2 mrad noise",
-            track="heldout",
-            dynamics="physics",
-            model_error=0.1,
-            obs_noise=0.001,
-            env_kwargs={"obs_noise_vel": 0.01, "obs_noise_yaw": 0.002, "actuator_tau": 0.03},
-            robots=("puma",),
-        ),
-    )
-}
 
 #: The conditions of a default bench per track, in order (`wear0`, `wear10`, `wear30` only on request).
 DEFAULT_CONDITIONS: dict[str, tuple[str, ...]] = {
@@ -216,45 +83,6 @@ DEFAULT_CONDITIONS: dict[str, tuple[str, ...]] = {
     "heldout": tuple(n for n, c in CONDITIONS.items() if c.track == "heldout"),
 }
 DEFAULT_CONDITIONS["all"] = DEFAULT_CONDITIONS["dev"] + DEFAULT_CONDITIONS["heldout"]
-
-
-#: SHA-256 of the held-out conditions as fixed before any tuning against protocol v2 (`heldout_digest()`); a test
-#: keeps the table equal to it
-HELDOUT_SHA256 = "5f62ef3b88f2dd28a2842a44e35bc6b654f5cc823d277ec586509820630bbaf3"
-#: The commit that fixed the held-out track (scorecards cite it), before any controller was tuned against
-#: protocol v2 (`git show 0a07529 -- eval/bench/config.py`)
-HELDOUT_COMMIT = "0a0752963d633337486a25e2ee13d44386d8e7ef"
-
-
-def conditions_markdown(conditions: Mapping[str, Mapping[str, Any]]) -> str:
-    """The conditions table (Markdown) of {name: `Condition.to_dict()`}: the one rendering of `CONDITIONS`
-    (the docs' protocol page, `bench --list --markdown`, each scorecard)."""
-    rows = [
-        "| condition | track | robots | tasks | dynamics | model_error | obs_noise (mm) | further env arguments | what |",
-        "|---|---|---|---|---|---|---|---|---|",
-    ]
-    for name, c in conditions.items():
-        extra = ", ".join(f"`{k}` {v}" for k, v in c["env_kwargs"].items()) or "-"
-        tasks = ", ".join(c.get("tasks") or []) or "all"
-        rows.append(
-            f"| `{name}` | {c.get('track', 'dev')} | {', '.join(c.get('robots') or [])} | {tasks} | {c['dynamics']} "
-            f"| {c['model_error']:g} | {c['obs_noise'] * 1e3:g} | {extra} | {c['description']} |"
-        )
-    return "\n".join(rows)
-
-
-def heldout_digest() -> str:
-    """SHA-256 of the held-out conditions' definitions (canonical JSON): `HELDOUT_SHA256` must equal it."""
-    import hashlib
-    import json
-
-    table = [c.to_dict() for c in CONDITIONS.values() if c.track == "heldout"]
-    return hashlib.sha256(json.dumps(table, sort_keys=True).encode()).hexdigest()
-
-
-def env_id(robot: str, task: str) -> str:
-    """`WheeledPuma-Circle-v0` from ("puma", "circle")."""
-    return f"{ROBOTS[robot]}-{TASKS[task]}-v0"
 
 
 def env_arguments(env_id_: str) -> set[str] | None:
@@ -285,8 +113,7 @@ def missing_arguments(condition: Condition, env_id_: str) -> list[str]:
     names = env_arguments(env_id_)
     if names is None:
         return []
-    needed = ["dynamics", "model_error", "obs_noise", *condition.env_kwargs]
-    return [k for k in needed if k not in names]
+    return [k for k in condition.env_kwargs if k not in names]
 
 
 def default_policies() -> tuple[str, ...]:
@@ -358,6 +185,28 @@ class BenchConfig:
         c = CONDITIONS[condition]
         return self.tasks if c.tasks is None else tuple(t for t in c.tasks if t in self.tasks)
 
+    def condition_kwargs(self, condition: str) -> dict[str, Any]:
+        """The further env arguments of `condition`'s episodes (beyond the three axes): the bench's and the
+        condition's."""
+        return {**dict(self.env_kwargs), **CONDITIONS[condition].extra_kwargs}
+
+    def tasks_of(self, policies: Sequence[str]) -> list[Any]:
+        """Every episode of the bench as one grid (`eval.execution.tasks.Task`, each naming its condition): per
+        condition in order, its env ids (robot-major), `policies`, its seeds."""
+        from eval.execution.tasks import Task
+
+        tasks: list[Task] = []
+        for name in self.conditions or ():
+            c = CONDITIONS[name]
+            kwargs = self.condition_kwargs(name)
+            for env in self.env_ids(name):
+                for pol in policies:
+                    for k, seed in enumerate(self.seed_list(name)):
+                        tasks.append(
+                            Task(len(tasks), env, c.dynamics, pol, k, seed, c.model_error, c.obs_noise, name, kwargs)
+                        )
+        return tasks
+
     def env_ids(self, condition: str) -> tuple[str, ...]:
         """The env ids of `condition`'s cells: its robots x its tasks, robot-major."""
         return tuple(env_id(r, t) for r in self.condition_robots(condition) for t in self.condition_tasks(condition))
@@ -411,11 +260,7 @@ class BenchConfig:
         if not conditions:
             raise EvalError("no condition left to run; name some with --conditions (or other --robots, --tasks)")
         clash = sorted(
-            set(self.env_kwargs)
-            & (
-                {"dynamics", "model_error", "obs_noise", "render_mode"}
-                | {k for c in conditions for k in CONDITIONS[c].env_kwargs}
-            )
+            set(self.env_kwargs) & ({"render_mode"} | {k for c in conditions for k in CONDITIONS[c].env_kwargs})
         )
         if clash:
             raise EvalError(f"env_kwargs sets {clash}, which the bench conditions set; remove them")

@@ -4,17 +4,14 @@ refused at once, naming the spec, the cells, the reason and the `--robots` / `--
 leave those cells out, instead of after the other controllers' episodes and behind a warning per env.
 
 Building is cheap (a built-in in microseconds, an `sb3:` agent in ~0.06 s once torch is loaded), so every cell
-is checked as its episodes will make it (`eval.checks.PolicyCheck`); the per-condition sweep checks then skip the
-specs checked here.
+is checked as its episodes will make it (`eval.checks.PolicyCheck`); the grid's own checks then skip the specs
+checked here.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-
 from eval.bench.config import CONDITIONS, ROBOTS, TASKS, BenchConfig
 from eval.checks import PolicyCheck, build_env
-from eval.sweep.config import SweepConfig
 
 #: a cell of the bench: (condition, robot, task)
 Cell = tuple[str, str, str]
@@ -27,16 +24,17 @@ AXES: tuple[tuple[str, int, list[str]], ...] = (
 )
 
 
-def check_cells(cfg: BenchConfig, sweeps: Mapping[str, SweepConfig]) -> list[str]:
-    """Build each of `cfg.policies` on every cell's env (`sweeps`: the condition -> its sweep, as the episodes
-    run it); EvalError for the first spec that cannot run on some cell. Returns one line per spec whose building
-    warned (e.g. an agent evaluated off the env it was trained on), for the caller to print."""
-    assert cfg.policies is not None
+def check_cells(cfg: BenchConfig) -> list[str]:
+    """Build each of `cfg.policies` (a resolved bench) on every cell's env, as the episodes build it;
+    EvalError for the first spec that cannot run on some cell. Returns one line per spec whose building warned
+    (e.g. an agent evaluated off the env it was trained on), for the caller to print."""
+    assert cfg.policies is not None and cfg.conditions is not None
     check = PolicyCheck(cfg.policies, cfg.seed_start)
-    for name, sweep in sweeps.items():
+    for name in cfg.conditions:
+        c = CONDITIONS[name]
         robots, tasks = cfg.condition_robots(name), cfg.condition_tasks(name)
-        for env_id, (robot, task) in zip(sweep.envs, [(r, t) for r in robots for t in tasks], strict=True):
-            env = build_env(env_id, sweep.dynamics[0], sweep.model_error[0], sweep.obs_noise[0], sweep.env_kwargs)
+        for env_id, (robot, task) in zip(cfg.env_ids(name), [(r, t) for r in robots for t in tasks], strict=True):
+            env = build_env(env_id, c.dynamics, c.model_error, c.obs_noise, cfg.condition_kwargs(name))
             try:
                 check.on(env, (name, robot, task))
             finally:

@@ -1,19 +1,23 @@
-"""`run_bench`: run the episodes of a bench not yet done (one sweep per condition), then write the scorecard.
+"""`run_bench`: run the episodes of a bench not yet done (one grid over every condition), then write the scorecard.
 
 Output directory (default `runs/bench`; running the same command again resumes):
 
 | file | content |
 |---|---|
 | `bench.json` | the resolved bench (protocol, notes) and how it last ran |
-| `conditions/<name>/` | a complete `mobman-eval sweep` directory per condition: journal, results.json, tables |
-| `scorecard.json` | schema 2 statistics per (condition, task, controller) and pooled over tasks |
+| `episodes.jsonl` | the journal: one record per finished episode, each naming its condition |
+| `results.json`, `results.csv`, `aggregate.csv`, `summary.md` | the whole grid (results schema 4), as a sweep writes them |
+| `scorecard.json` | the statistics per (condition, task, controller) and pooled over tasks, read from results.json's episodes |
 | `scorecard.md` | the same as Markdown, errors in mm |
 | `plots/success_<condition>.png`, `plots/error_vs_wear.png` | success vs tolerance; max error vs wear |
 
-Resuming follows the sweep's rules per condition (`eval.sweep`): episodes in a journal are skipped, more seeds,
-controllers or conditions may be added later; the tolerance, settle time and extra env arguments may not change
-(start a new --out), nor the code (a journal of other code is refused before anything is written; `--rerun-changed`
-runs its episodes again: `eval.grid.same_code`). `max_episodes` bounds the new episodes of the whole bench, conditions in order.
+A bench is one grid (`eval.sweep.run.run_grid`, as a sweep's): every episode of every condition in one journal
+and one results file, each record naming its condition, so the scorecard groups them by that name and nothing is
+re-joined. Resuming follows the sweep's rules: episodes in the journal are skipped, more seeds, controllers or
+conditions may be added later; the tolerance, settle time and extra env arguments may not change (start a new
+--out), nor the code (a journal of other code is refused before anything is written; `--rerun-changed` runs its
+episodes again: `eval.grid.same_code`). `max_episodes` bounds the new episodes of the whole bench, in grid order
+(conditions in order). A folder of mobman < 0.4's layout (one sweep per condition) is refused, not mixed.
 """
 
 from __future__ import annotations
@@ -35,12 +39,14 @@ from eval.bench.scorecard import (
     scorecard_markdown,
     track_episodes,
 )
-from eval.config import EvalConfig
+from eval.checks import check_all
+from eval.config import EvalConfig, Execution
 from eval.errors import EvalError
+from eval.grid import same_code
 from eval.output.files import atomic_save_figure, atomic_write_json, atomic_write_text, check_out, read_folder_record
-from eval.output.journal import FolderLock
-from eval.sweep.config import SweepConfig
-from eval.sweep.run import check_sweep, run_sweep
+from eval.output.journal import JOURNAL, FolderLock, Journal
+from eval.sweep.report import write_tables
+from eval.sweep.run import run_grid
 from mobman_env.validation import integer
 
 #: bench settings that must not change within one output directory
@@ -58,22 +64,6 @@ class BenchResult:
     n_run: int
     n_skipped: int
     n_left: int
-
-
-def sweep_for(cfg: BenchConfig, condition: str) -> SweepConfig:
-    """The sweep grid of one condition of a resolved bench: its robots x tasks, the controllers, its seeds."""
-    c = CONDITIONS[condition]
-    return SweepConfig(
-        envs=cfg.env_ids(condition),
-        policies=tuple(cfg.policies or ()),
-        seeds=cfg.seed_list(condition),
-        dynamics=(c.dynamics,),
-        model_error=(c.model_error,),
-        obs_noise=(c.obs_noise,),
-        env_kwargs={**dict(cfg.env_kwargs), **dict(c.env_kwargs)},
-        tolerance=cfg.tolerance,
-        settle_time=cfg.settle_time,
-    )
 
 
 def protocol_dict(cfg: BenchConfig) -> dict:
@@ -142,11 +132,10 @@ def run_bench(
     EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
     integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
     assert cfg.conditions is not None and cfg.policies is not None
-    preflown = cfg.policies  # every cell of every spec given, built before any episode (the --against samples too)
     if progress:  # an sb3: agent loads torch and is built on each of ~100 cells: seconds, not silent
         n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
         print(f"bench: building {len(cfg.policies)} controller(s) on each of {n_cells} cells ...", file=sys.stderr)
-    for line in check_cells(cfg, {name: sweep_for(cfg, name) for name in cfg.conditions}):
+    for line in check_cells(cfg):
         if progress:
             print(f"bench: {line}", file=sys.stderr)
     protocol = protocol_dict(cfg)
@@ -169,22 +158,15 @@ def run_bench(
             cfg = replace(cfg, policies=(*cfg.policies, *baselines))
             protocol = protocol_dict(cfg)
             baselines = []
-    _check_out_dir(out, protocol)
-    sweeps = {name: sweep_for(cfg, name) for name in protocol["conditions"]}
-    checked = {  # every condition's envs, policies and folder, before bench.json changes
-        name: check_sweep(
-            sweep,
-            out / "conditions" / name,
-            backend,
-            address,
-            workers,
-            batch_size,
-            None,
-            rerun_changed,
-            checked=preflown,
-        )
-        for name, sweep in sweeps.items()
-    }
+    assert cfg.policies is not None
+    resuming = _check_out_dir(out, protocol)
+    tasks = cfg.tasks_of(cfg.policies)
+    base = _episode_config(cfg, out, backend, address, workers, batch_size)
+    if resuming:  # read only (no lock yet): run_grid checks again under the lock
+        done, _ = Journal(out / JOURNAL).load(repair=False)
+        same_code(done, tasks, rerun_changed, f"--out {str(out)!r}")
+    if backend == "ray":
+        check_all(replace(base, envs=()), {}, checked=cfg.policies)  # Ray installed, the address reachable
     out.mkdir(parents=True, exist_ok=True)
     with FolderLock(out, "bench"):  # a second bench on this --out stops here, before anything is written
         atomic_write_json(
@@ -201,54 +183,62 @@ def run_bench(
                 "against": against_record,
             },
         )
-        n_expected = sum(s.n_episodes for s in sweeps.values())
         if progress:
             for n in notes:
                 print(f"bench: {n}", file=sys.stderr)
             print(
-                f"bench: track {cfg.track}, {len(sweeps)} conditions x {len(cfg.policies or ())} controllers "
-                f"({cfg.seeds} kinematic and {cfg.physics_seeds} physics seeds per cell) = {n_expected} episodes in "
+                f"bench: track {cfg.track}, {len(cfg.conditions or ())} conditions x {len(cfg.policies)} controllers "
+                f"({cfg.seeds} kinematic and {cfg.physics_seeds} physics seeds per cell) = {len(tasks)} episodes in "
                 f"{out}",
                 file=sys.stderr,
             )
-        results: dict[str, dict] = {}
-        n_run = n_skipped = n_left = 0
-        budget = max_episodes
         t0 = time.perf_counter()
-        session = _ray_session(backend, address, workers)
-        with session:
-            for name, sweep in sweeps.items():
-                if progress:
-                    print(f"bench: condition {name}: {CONDITIONS[name].description}", file=sys.stderr)
-                res = run_sweep(
-                    sweep,
-                    out / "conditions" / name,
-                    backend=backend,
-                    address=address,
-                    workers=workers,
-                    batch_size=batch_size,
-                    max_episodes=budget,
-                    retry_failed=retry_failed,
-                    rerun_changed=rerun_changed,
-                    plots=False,
-                    progress=progress,
-                    checked=checked[name],
-                )
-                results[name] = res.results
-                n_run += res.n_run
-                n_skipped += res.n_skipped
-                n_left += res.n_left
-                if budget is not None:
-                    budget = max(0, budget - res.n_run)
-        sc = build_scorecard(protocol, notes, results, n_expected=n_expected, wall_s=time.perf_counter() - t0)
+        with _ray_session(backend, address, workers):
+            res = run_grid(
+                tasks,
+                base,
+                {},
+                None,
+                out,
+                {"command": "bench", **protocol, "out": str(out), "n_episodes": len(tasks)},
+                retry_failed=retry_failed,
+                rerun_changed=rerun_changed,
+                max_episodes=max_episodes,
+                progress=progress,
+                resuming=resuming,
+                command="bench",
+            )
+        write_tables(out, res.results, cfg.tolerance, plots=False)
+        sc = build_scorecard(protocol, notes, res.results, n_expected=len(tasks), wall_s=time.perf_counter() - t0)
         if committed is not None and baselines:
-            sc = A.merge(committed, sc, baselines, track_episodes(protocol, results))
+            sc = A.merge(committed, sc, baselines, track_episodes(protocol, res.results))
             sc["notes"] = [
                 *sc["notes"],
                 f"the rows of {', '.join(baselines)} are those of {against} (samples re-run here bit for bit)",
             ]
         write_scorecard(out, sc, plots)
-        return BenchResult(out=out, scorecard=sc, n_run=n_run, n_skipped=n_skipped, n_left=n_left)
+    if res.interrupted:
+        raise KeyboardInterrupt
+    return BenchResult(out=out, scorecard=sc, n_run=res.n_run, n_skipped=res.n_skipped, n_left=res.n_left)
+
+
+def _episode_config(
+    cfg: BenchConfig, out: Path, backend: str, address: str | None, workers: int, batch_size: int
+) -> EvalConfig:
+    """The `EvalConfig` every episode of the bench runs under (each task brings its condition and seed)."""
+    assert cfg.policies is not None and cfg.conditions is not None
+    return Execution(backend, address, workers, batch_size).episode_config(
+        out,
+        "bench",
+        envs=tuple(dict.fromkeys(e for name in cfg.conditions for e in cfg.env_ids(name))),
+        policies=cfg.policies,
+        episodes=cfg.seeds,
+        seed=cfg.seed_start,
+        dynamics=tuple(dict.fromkeys(CONDITIONS[name].dynamics for name in cfg.conditions)),
+        env_kwargs=dict(cfg.env_kwargs),
+        tolerance=cfg.tolerance,
+        settle_time=cfg.settle_time,
+    )
 
 
 def write_scorecard(out: Path, sc: dict, plots: bool = True) -> list[Path]:
@@ -276,12 +266,20 @@ def _ray_session(backend: str, address: str | None, workers: int):
     return ray_session(EvalConfig(backend="ray", address=address, workers=workers))
 
 
-def _check_out_dir(out: Path, protocol: dict) -> None:
-    """`out` is new, empty, or a bench with the same fixed settings; else EvalError naming the difference."""
+def _check_out_dir(out: Path, protocol: dict) -> bool:
+    """True if `out` holds a bench to resume, False if it is new or empty; EvalError if it holds something else,
+    a bench with other fixed settings (naming the difference) or a bench of mobman < 0.4 (one folder per
+    condition)."""
     if not out.is_dir() or not any(out.iterdir()):
         check_out(out, overwrite=False)
-        return
+        return False
     old = read_folder_record(out, "bench.json", "bench")
+    if (out / "conditions").is_dir() and not (out / JOURNAL).exists():
+        raise EvalError(
+            f"--out {str(out)!r} holds a bench of mobman < 0.4 (one folder per condition under conditions/), which "
+            f"this version neither resumes nor mixes with its own (one results file for the whole bench): use "
+            f"another --out"
+        )
     changed = [k for k in FIXED_KEYS if old.get(k) != protocol[k]]
     if changed:
         diff = "; ".join(f"{k}: {old.get(k)!r} there, {protocol[k]!r} now" for k in changed)
@@ -289,3 +287,4 @@ def _check_out_dir(out: Path, protocol: dict) -> None:
             f"--out {str(out)!r} holds a bench with other settings ({diff}); its episodes would not be "
             f"comparable: use another --out, or delete that directory to start over"
         )
+    return True

@@ -27,7 +27,7 @@ scorecard.json:
 The scorecard leads with the held-out track when it has one (`scorecard.md`, the README block): its conditions
 were fixed before any tuning (`protocol.heldout_commit`), so they are the figures to trust.
 
-The episodes stay in the bench directory (`conditions/<name>/results.json`, one sweep per condition); the
+The episodes stay in the bench directory (`results.json`, one grid, each episode naming its condition); the
 scorecard holds the statistics, each reference controller's max errors (the probability of improvement of a
 new controller against them needs its episodes) and one sample episode per (condition, controller).
 
@@ -46,7 +46,7 @@ from pathlib import Path
 from typing import Any
 
 from eval import metrics as M
-from eval.bench.config import ROBOTS, conditions_markdown
+from eval.bench.config import ROBOTS, Condition, conditions_markdown
 from eval.errors import EvalError
 from eval.output.blocks import replace_blocks
 from eval.output.files import to_jsonable
@@ -77,29 +77,39 @@ def _first(values: Iterable[Any]) -> Any:
     return next((v for v in values if v is not None), None)
 
 
+def by_condition(protocol: dict, results: dict) -> dict[str, list[dict]]:
+    """The episodes of a bench's results (results.json's dict) grouped by the condition each record names, in
+    the protocol's order (a condition without an episode yet has an empty list)."""
+    out: dict[str, list[dict]] = {name: [] for name in protocol["conditions"]}
+    for r in results["episodes"]:
+        if r.get("condition") in out:
+            out[r["condition"]].append(r)
+    return out
+
+
 def build_scorecard(
     protocol: dict,
     notes: Sequence[str],
-    condition_results: dict[str, dict],
+    results: dict,
     *,
     n_expected: int,
     wall_s: float | None = None,
 ) -> dict:
-    """The scorecard dict from {condition name: that condition's results.json dict} (in scorecard order)."""
+    """The scorecard dict from the bench's one results file (its dict): every record names its condition."""
     conds = protocol["conditions"]
+    condition_eps = by_condition(protocol, results)
     rows: list[dict] = []
     pooled: list[dict] = []
     by_robot: list[dict] = []
     n_episodes = n_failed = 0
     keys = ("policy", "dynamics", "model_error", "obs_noise")
-    track_eps = track_episodes(protocol, condition_results)
+    track_eps = track_episodes(protocol, results)
     knowledge: dict[str, str] = {}
     artefacts: dict[str, dict[str, dict]] = {}
     samples: list[dict] = []
     references: dict[str, dict[str, dict[str, list]]] = {}
-    for name, res in condition_results.items():
+    for name, eps in condition_eps.items():
         track = conds[name].get("track", "dev")
-        eps = res["episodes"]
         n_episodes += len(eps)
         n_failed += sum(r.get("status") != "ok" for r in eps)
         for r in eps:
@@ -108,7 +118,7 @@ def build_scorecard(
             for art in r.get("artefacts") or []:
                 artefacts.setdefault(pol, {})[art["sha256"]] = dict(art)
         policy_kind = {p: _first(r.get("knowledge") for r in eps if r["policy"] == p) for p in protocol["policies"]}
-        for a in res["aggregate"]:
+        for a in M.aggregate(eps):
             rows.append({"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a})
         for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
             pooled.append(
@@ -171,13 +181,13 @@ def build_scorecard(
     )
 
 
-def track_episodes(protocol: dict, condition_results: dict[str, dict]) -> dict[str, list[dict]]:
+def track_episodes(protocol: dict, results: dict) -> dict[str, list[dict]]:
     """The episodes of each track, each tagged with its `cell` (condition:env), the tasks of the probability of
     improvement."""
     out: dict[str, list[dict]] = {}
-    for name, res in condition_results.items():
+    for name, eps in by_condition(protocol, results).items():
         track = protocol["conditions"][name].get("track", "dev")
-        out.setdefault(track, []).extend({**r, "cell": f"{name}:{r['env']}"} for r in res["episodes"])
+        out.setdefault(track, []).extend({**r, "cell": f"{name}:{r['env']}"} for r in eps)
     return out
 
 
@@ -517,7 +527,7 @@ def scorecard_markdown(sc: dict) -> str:
     lines += [
         "Per-robot cells: success rate · max-error IQM (mm), the robot's tasks pooled. Plots: "
         "`plots/success_<condition>.png` (success vs tolerance, with its band), `plots/ladder.png`, "
-        "`plots/error_vs_wear.png`. Episodes: `conditions/<name>/results.json`.",
+        "`plots/error_vs_wear.png`. Episodes: `results.json` (each names its condition).",
         "",
     ]
     if any(is_chaotic(q) for q in _policies(sc)):
@@ -545,13 +555,13 @@ def scorecard_figures(sc: dict) -> list[tuple[str, Any]]:
         )
     if sc.get("ladder"):
         figs.append(("ladder", plot_ladder(sc["ladder"], success=LADDER_SUCCESS, title="difficulty ladder")))
-    conds = sc["protocol"]["conditions"]
+    conds = {n: Condition.from_dict({**c, "name": n}) for n, c in sc["protocol"]["conditions"].items()}
     wear = [
         n
         for n in _conditions(sc)
-        if conds[n]["dynamics"] == "kinematic" and not conds[n]["obs_noise"] and not conds[n]["env_kwargs"]
+        if conds[n].dynamics == "kinematic" and not conds[n].obs_noise and not conds[n].extra_kwargs
     ]
-    if len({conds[n]["model_error"] for n in wear}) >= 2:
+    if len({conds[n].model_error for n in wear}) >= 2:
         rows = [r for r in sc["pooled"] if r["condition"] in wear]
         figs.append(
             ("error_vs_wear", plot_error_vs_wear(rows, title="max error vs wear (kinematic, all tasks)", tolerance=tol))

@@ -111,10 +111,10 @@ def main(args) -> int:
         return 0
     if actions.list_conditions:
         for name, c in CONDITIONS.items():
-            mark = "*" if name in DEFAULT_CONDITIONS[c.track] else " "
-            extra = ", ".join(f"{k}={v}" for k, v in c.env_kwargs.items())
+            mark = "*" if name in DEFAULT_CONDITIONS.get(c.track, ()) else " "
+            extra = ", ".join(f"{k}={v}" for k, v in c.extra_kwargs.items())
             print(
-                f"{mark} {c.track:7s} {name:16s} {c.dynamics:9s} model_error={c.model_error:g} obs_noise={c.obs_noise:g} "
+                f"{mark} {c.track:8s} {name:17s} {c.dynamics:9s} model_error={c.model_error:g} obs_noise={c.obs_noise:g} "
                 f"robots={','.join(c.robots)} {extra}  {c.description}"
             )
         print("(* = in the track's default set)")
@@ -128,7 +128,7 @@ def main(args) -> int:
         result = run_bench(config, **asdict(how), against=actions.against, **values(args, EvalConfig, EXECUTION))
     except KeyboardInterrupt:
         print(
-            f"\nbench interrupted; finished episodes are in {how.out or DEFAULT_OUT}/conditions/*/; run the same "
+            f"\nbench interrupted; finished episodes are in {how.out or DEFAULT_OUT}/episodes.jsonl; run the same "
             f"command again to go on",
             file=sys.stderr,
         )

@@ -19,8 +19,9 @@ one rollout loop of `eval.rollout`).
   not a `WheeledPumaVectorEnv` (`robot="random"`, which falls back to a `SyncVectorEnv`, or another package's
   env) or cannot be built run single; that is found out once per condition, when its first batch is built.
 
-Tasks of the same env id, dynamics, model error and sensor noise (the run's `env_kwargs` are common to all),
-whatever their built-in policy spec, form a group: the vector env's cost per step is mostly fixed (about 0.3 ms
+Tasks of the same env id and condition (`Task.env_key`: env id, dynamics, model error, sensor noise and the
+condition's name, which means one set of env arguments within a grid), whatever their built-in policy spec, form
+a group: the vector env's cost per step is mostly fixed (about 0.3 ms
 at N = 20 against 2-3 us per robot more), so `mobman-eval paper`'s seven controllers x 20 seeds share 2-3 vector
 envs instead of taking seven. A group is cut in order (the tasks are policy-major, so each controller's
 episodes are consecutive rows) into the fewest batches of `unit_size` episodes at most (`config.batch_size`,
@@ -78,7 +79,7 @@ def batch_key(config: EvalConfig, user: dict, task: Task) -> tuple | None:
 
     if task.policy.partition(":")[0] not in KNOWN_POLICIES:  # sb3:PATH, module:attr
         return None
-    return (task.env, task.dynamics, task.model_error, task.obs_noise)
+    return task.env_key()
 
 
 def unit_size(config: EvalConfig, n_batchable: int, workers: int) -> int:
@@ -147,7 +148,10 @@ class UnitRunner:
         policy = self._policy(venv, unit)
         if policy is None:
             return None
-        meta = [{"env": t.env, "policy": t.policy, "episode": t.episode} for t in unit]
+        meta = [
+            {"env": t.env, "policy": t.policy, "condition": t.condition_of(self.config), "episode": t.episode}
+            for t in unit
+        ]
         try:
             results = rollout_batch(
                 venv,
@@ -177,7 +181,9 @@ class UnitRunner:
             return self._batched[(key, n)]
         venv = None
         try:
-            venv = make_vector_env(task.env, n, task.dynamics, task.model_error, task.obs_noise, self.config.env_kwargs)
+            venv = make_vector_env(
+                task.env, n, task.dynamics, task.model_error, task.obs_noise, task.kwargs(self.config)
+            )
             if not isinstance(venv.unwrapped, WheeledPumaVectorEnv):
                 raise TypeError(f"{task.env}: not a native vector env")
         except KeyboardInterrupt:

@@ -13,6 +13,7 @@ Kinematic episodes of built-in specs are batched by `eval.execution.batches`, wh
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,6 +42,29 @@ class Task:
     """Env argument; None: the env's default."""
     obs_noise: float | None
     """Env argument; None: the env's default."""
+    condition: str = ""
+    """The name of the episode's condition (`eval.conditions`), which its record carries; "": named from the env
+    arguments (`eval.conditions.condition_name`)."""
+    env_kwargs: Mapping[str, Any] | None = None
+    """The further env arguments of this episode (a bench's condition's); None: the run's (`EvalConfig.env_kwargs`).
+    Within one grid a condition name means one set of them."""
+
+    def kwargs(self, config: EvalConfig) -> dict[str, Any]:
+        """The further env arguments this episode's env is built with."""
+        return dict(config.env_kwargs if self.env_kwargs is None else self.env_kwargs)
+
+    def condition_of(self, config: EvalConfig) -> str:
+        """The name of this episode's condition (its own, or the one its env arguments make)."""
+        if self.condition:
+            return self.condition
+        from eval.conditions import condition_name
+
+        axes = {"dynamics": self.dynamics, "model_error": self.model_error, "obs_noise": self.obs_noise}
+        return condition_name({**self.kwargs(config), **axes})
+
+    def env_key(self) -> tuple:
+        """What identifies this episode's env within a grid (a condition name means one set of env arguments)."""
+        return (self.env, self.dynamics, self.model_error, self.obs_noise, self.condition)
 
 
 class Executor:
@@ -58,7 +82,7 @@ class Executor:
         self._policies: dict[tuple, Any] = {}
 
     def env(self, task: Task):
-        key = (task.env, task.dynamics, task.model_error, task.obs_noise)
+        key = task.env_key()
         if key in self._envs:
             self._envs[key] = self._envs.pop(key)  # most recently used last
         else:
@@ -67,7 +91,7 @@ class Executor:
                 self._envs.pop(old).close()
                 self._policies = {k: v for k, v in self._policies.items() if k[0] != old}
             self._envs[key] = make_env(
-                task.env, task.dynamics, task.model_error, task.obs_noise, self.config.env_kwargs
+                task.env, task.dynamics, task.model_error, task.obs_noise, task.kwargs(self.config)
             )
         return self._envs[key]
 
@@ -75,13 +99,18 @@ class Executor:
         if task.policy in self.user:
             return self.user[task.policy]
         env = self.env(task)
-        key = ((task.env, task.dynamics, task.model_error, task.obs_noise), task.policy)
+        key = (task.env_key(), task.policy)
         if key not in self._policies:
             self._policies[key] = make_policy(task.policy, env, self.config.seed)
         return self._policies[key]
 
     def run(self, task: Task) -> tuple[dict, dict | None]:
-        meta = {"env": task.env, "policy": task.policy, "episode": task.episode}
+        meta = {
+            "env": task.env,
+            "policy": task.policy,
+            "condition": task.condition_of(self.config),
+            "episode": task.episode,
+        }
         try:
             env = self.env(task)
             pol = self.policy(task)
@@ -128,6 +157,7 @@ def failed_record(task: Task, message: str, status: str = "failed") -> dict:
     return {
         "env": task.env,
         "policy": task.policy,
+        "condition": task.condition or None,
         "episode": task.episode,
         "seed": task.seed,
         "dynamics": task.dynamics,
@@ -161,12 +191,25 @@ class ExecutionInterrupted(KeyboardInterrupt):
 
 
 def make_tasks(config: EvalConfig, names: list[str]) -> list[Task]:
+    """The episodes of a `run`: env, dynamics, policy, seed; each dynamics mode is one condition, named from the
+    run's env arguments (`eval.conditions.condition_name`)."""
     tasks: list[Task] = []
     for env_id in config.envs:
         for dyn in config.dynamics:
+            cond = Task(0, env_id, dyn, "", 0, 0, config.model_error, config.obs_noise).condition_of(config)
             for name in names:
                 for k in range(config.episodes):
                     tasks.append(
-                        Task(len(tasks), env_id, dyn, name, k, config.seed + k, config.model_error, config.obs_noise)
+                        Task(
+                            len(tasks),
+                            env_id,
+                            dyn,
+                            name,
+                            k,
+                            config.seed + k,
+                            config.model_error,
+                            config.obs_noise,
+                            cond,
+                        )
                     )
     return tasks

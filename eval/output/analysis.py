@@ -66,10 +66,10 @@ class Results(ResultsView):
 
 
 def load_results(path: str | Path) -> Results:
-    """Read `path`, a results.json or the folder of a run or sweep holding one, of schema 1, 2 or 3.
+    """Read `path`, a results.json or the folder of a run, sweep or bench holding one, of schema 1 to 4.
 
-    EvalError naming the fix for a missing file, a folder without results.json (a bench folder: the
-    condition's `conditions/<name>/results.json`), or a file that is not a readable results file.
+    EvalError naming the fix for a missing file, a folder without results.json (a bench folder of mobman < 0.4:
+    a condition's `conditions/<name>/results.json`), or a file that is not a readable results file.
     """
     path = Path(path)
     if path.is_dir():

@@ -21,13 +21,15 @@ MAX_JOURNAL_BYTES = 4 * 2**30
 
 
 def episode_key(rec: Any) -> tuple:
-    """(env, policy, seed, dynamics, model_error, obs_noise) of a record (a dict) or a task (attributes of those
-    names, `eval.execution.tasks.Task`): what identifies an episode."""
+    """(env, policy, seed, condition, dynamics, model_error, obs_noise) of a record (a dict) or a task (attributes
+    of those names, `eval.execution.tasks.Task`): what identifies an episode in a grid (a record written before
+    records named their condition has None there, so its episode runs again)."""
     get: Callable[[str], Any] = rec.get if isinstance(rec, dict) else lambda k: getattr(rec, k)
     return (
         get("env"),
         get("policy"),
         int(get("seed")),
+        get("condition") or None,
         get("dynamics"),
         float(get("model_error")),
         float(get("obs_noise")),

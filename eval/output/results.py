@@ -4,7 +4,7 @@ Files of one run directory:
 
 | file | content |
 |---|---|
-| results.json | schema 3: config, versions, git, provenance, statistics, episodes (one record each), aggregate (one row per condition); SI |
+| results.json | schema 4: config, versions, git, provenance, statistics, episodes (one record each), aggregate (one row per condition); SI |
 | results.csv | one row per episode, one column per variable (SI units; axis errors split into x/y/z columns) |
 | summary.md | a table per env and dynamics mode, errors in mm |
 | config.json | the resolved config (what the run was asked to do) |
@@ -14,7 +14,7 @@ Files of one run directory:
 Every file is written to a temporary name in the same directory and renamed (`os.replace`), so a crash never
 leaves a half-written file and never destroys the previous version of a file before the new one is complete.
 
-## results.json, schema 3 (SI units: m, s, rad/s; NaN/inf are written as null)
+## results.json, schema 4 (SI units: m, s, rad/s; NaN/inf are written as null)
 
 ```
 {"schema": 3,
@@ -31,9 +31,13 @@ leaves a half-written file and never destroys the previous version of a file bef
     "success_curve_tolerances_m": [31 tolerances, 1e-4 .. 0.1 m], "settle_time_s"},  # how aggregates are made
  "wall_s": float,            # time spent running the episodes
  "episodes": [ one record per (env, dynamics, policy, episode k), in that order:
-   {"env", "policy", "episode": k, "seed": S + k, "robot", "knowledge" (none | structure | nominal | true |
+   {"env", "policy", "condition" (its name in the conditions table, `eval.conditions`, or the name its env
+    arguments make: within one file a name means one set of env arguments; None only from `rollout` called
+    directly), "episode": k, "seed": S + k, "robot", "knowledge" (none | structure | nominal | true |
     unknown), "artefacts" (files an SB3 agent loaded: [{"path", "sha256"}] | null), "dynamics", "model_error", "obs_noise", "control_freq" (Hz),
     "path": spec dict, "start": [x, y, z] (m), "true_params_hash",
+    "feasible" (the path is within the true robot's speed limits with a 10% margin, `mobman_env.feasibility`;
+    null for an env without mobman's engine), "feasibility_peak" (the reference law's peak speed ratio),
     "status": "ok" | "failed" | "interrupted" (Ctrl-C: never finished), "error": traceback | null,
     "max_error_m", "rms_error_m", "final_error_m", "axis_max_error_m": [x, y, z],   # null if failed
     "steady_max_error_m", "steady_rms_error_m",  # over t >= settle_time_s; null if failed or shorter
@@ -45,8 +49,8 @@ leaves a half-written file and never destroys the previous version of a file bef
     "code" (SHA-256 of the four packages' source that ran it, `eval.output.provenance.code_hash`; absent for
     an episode that never ran and in files written before it existed),
     "index" (position in this list), "arrays_key" (prefix in episodes.npz, or null)}],
- "aggregate": [ one row per (env, policy, dynamics, model_error, obs_noise):
-   {"env", "policy", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
+ "aggregate": [ one row per (env, policy, condition, dynamics, model_error, obs_noise):
+   {"env", "policy", "condition", "dynamics", "model_error", "obs_noise", "n", "n_failed", "n_tipped_over", "success_rate",
     "success_rate_ci95": [low, high],           # Wilson 95%; failed episodes count as failures
     "clean_success_rate", "clean_success_rate_ci95": [low, high],   # successes without a joint-limit hit
     "success_curve": [rate at each of statistics.success_curve_tolerances_m],
@@ -63,8 +67,10 @@ percentile bootstrap with a fixed seed; Wilson intervals).
 
 **Schema 1** (mobman 0.1) lacks `provenance`, `statistics`, the steady-state errors, the IQMs and intervals;
 **schema 2** (mobman 0.2) lacks `robot`, the smoothness, limit-margin and convergence fields, `clean_success`,
-the tails (`p90`, `worst`) and the success curve's band. `load_results` reads all three and fills what an older
-schema lacks with None (`"schema"` keeps the file's number), so code that reads results handles one shape.
+the tails (`p90`, `worst`) and the success curve's band; **schema 3** (mobman 0.3) lacks `condition`,
+`feasible` and `feasibility_peak`. `load_results` reads all four and fills what an older schema lacks with None,
+except `condition`, which it names from the record's env arguments (`upgrade_results`; `"schema"` keeps the
+file's number), so code that reads results handles one shape.
 Comparisons across workers or machines skip `wall_s`, `pid` and `predict_us_*`.
 """
 
@@ -91,10 +97,13 @@ from eval.output.files import (
 from eval.output.provenance import git_rev, provenance, versions
 from eval.output.tables import print_table, summary_markdown
 
-SCHEMA = 3
+SCHEMA = 4
 
 #: The schema numbers `load_results` reads.
-READABLE_SCHEMAS = (1, 2, 3)
+READABLE_SCHEMAS = (1, 2, 3, 4)
+#: per-episode fields schema 4 added: `condition` (filled on loading an older file with the name its env
+#: arguments make, `eval.conditions.condition_name`), `feasible` and `feasibility_peak` (None in older files)
+_SCHEMA4_EPISODE = ("feasible", "feasibility_peak")
 #: per-episode fields schema 3 added (None in older files)
 _SCHEMA3_EPISODE = (
     "robot",
@@ -123,7 +132,7 @@ def statistics_block(settle_time: float | None = M.DEFAULT_SETTLE_TIME) -> dict:
 
 
 def build_results(config: dict, records: list[dict], aggregate: list[dict], wall_s: float | None = None) -> dict:
-    """The results.json dict (schema 3) of `records` and their `aggregate`; the settle time is the config's."""
+    """The results.json dict (schema 4) of `records` and their `aggregate`; the settle time is the config's."""
     return to_jsonable(
         {
             "schema": SCHEMA,
@@ -140,9 +149,12 @@ def build_results(config: dict, records: list[dict], aggregate: list[dict], wall
 
 
 def upgrade_results(data: dict, source: str = "results") -> dict:
-    """A results dict of any readable schema in schema 3's shape: what an older schema lacks is None (episodes:
-    steady-state errors, schema 3's fields; aggregate rows: intervals, success curve and its band, IQMs, tails;
-    top level: provenance, statistics). `"schema"` keeps the number the data had. EvalError for anything else."""
+    """A results dict of any readable schema in schema 4's shape: what an older schema lacks is None (episodes:
+    steady-state errors, schema 3's and 4's fields; aggregate rows: intervals, success curve and its band, IQMs,
+    tails; top level: provenance, statistics), except each episode's and aggregate row's `condition`, which is
+    the name its env arguments make (`eval.conditions.condition_name` of the record's dynamics, model error, noise
+    and the file's `env_kwargs`: the same name a schema-4 run of those arguments records). `"schema"` keeps the
+    number the data had. EvalError for anything else."""
     if not isinstance(data, dict) or "schema" not in data:
         raise EvalError(f"{source} is not a mobman results file (no 'schema' key)")
     schema = data["schema"]
@@ -156,11 +168,16 @@ def upgrade_results(data: dict, source: str = "results") -> dict:
     out = dict(data)
     out.setdefault("provenance", None)
     out.setdefault("statistics", None)
-    old = ("steady_max_error_m", "steady_rms_error_m", *_SCHEMA3_EPISODE)
-    out["episodes"] = [{**r, **{k: r.get(k) for k in old}} for r in data.get("episodes", [])]
+    old = ("steady_max_error_m", "steady_rms_error_m", *_SCHEMA3_EPISODE, *_SCHEMA4_EPISODE)
+    extra = dict((data.get("config") or {}).get("env_kwargs") or {})
+    out["episodes"] = [
+        {**r, **{k: r.get(k) for k in old}, "condition": r.get("condition") or _condition_of(r, extra)}
+        for r in data.get("episodes", [])
+    ]
     rows = []
     for a in data.get("aggregate", []):
         row = dict(a)
+        row.setdefault("condition", _condition_of(a, extra))
         for key in ("success_rate_ci95", "success_curve", "success_curve_ci95", "clean_success_rate"):
             row.setdefault(key, None)
         row.setdefault("clean_success_rate_ci95", None)
@@ -177,8 +194,18 @@ def upgrade_results(data: dict, source: str = "results") -> dict:
     return out
 
 
+def _condition_of(rec: dict, env_kwargs: dict) -> str | None:
+    """The condition name of an older file's record or aggregate row (see `upgrade_results`)."""
+    from eval.conditions import condition_name
+
+    if rec.get("dynamics") is None:
+        return None
+    axes = {k: rec.get(k) for k in ("dynamics", "model_error", "obs_noise")}
+    return condition_name({**env_kwargs, **axes})
+
+
 def load_results(path: str | Path) -> dict:
-    """Read a results.json of schema 1, 2 or 3 (`upgrade_results` gives them one shape) as a dict, through the
+    """Read a results.json of schema 1, 2, 3 or 4 (`upgrade_results` gives them one shape) as a dict, through the
     one JSON reader (`eval.schemas`: a regular file of at most `MAX_RESULTS_BYTES`, UTF-8, bounded nesting) and
     its shape checked (`eval.schemas.RESULTS`) before anything uses it; `eval.load_results` wraps it for analysis
     (pandas DataFrames). EvalError naming the file, the field and the fix otherwise."""

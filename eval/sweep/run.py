@@ -10,10 +10,11 @@ from typing import Any
 
 from eval import metrics as M
 from eval.checks import check_all, check_user_policies
-from eval.config import EvalConfig
+from eval.conditions import condition_name
+from eval.config import EvalConfig, Execution
 from eval.errors import EvalError
 from eval.execution.tasks import Task
-from eval.grid import FIXED_KEYS, run_tasks, same_code, same_settings
+from eval.grid import FIXED_KEYS, name_conditions, run_tasks, same_code, same_settings
 from eval.output.files import atomic_write_json, check_out, read_folder_record, slug
 from eval.output.journal import JOURNAL, Journal, episode_key
 from eval.output.results import ResultsView, build_results
@@ -22,19 +23,30 @@ from eval.sweep.config import SweepConfig
 from eval.sweep.report import write_tables
 from mobman_env.validation import integer
 
-__all__ = ["FIXED_KEYS", "SweepResult", "check_sweep", "grid_tasks", "run_sweep"]  # FIXED_KEYS: eval.grid's
+__all__ = [
+    "FIXED_KEYS",
+    "GridResult",
+    "SweepResult",
+    "check_sweep",
+    "grid_tasks",
+    "run_grid",
+    "run_sweep",
+]  # FIXED_KEYS: eval.grid's
 
 
 def grid_tasks(sweep: SweepConfig, policy_names: list[str]) -> list[Task]:
-    """Every episode of the grid in table order: env, dynamics, model_error, obs_noise, policy, seed."""
+    """Every episode of the grid in table order: env, dynamics, model_error, obs_noise, policy, seed. Each
+    (dynamics, model_error, obs_noise) is one condition, named from its env arguments (the table's name when they
+    are exactly a table entry's: `eval.conditions.condition_name`)."""
     tasks: list[Task] = []
     for env_id in sweep.envs:
         for dyn in sweep.dynamics:
             for me in sweep.model_error:
                 for on in sweep.obs_noise:
+                    cond = condition_name({**sweep.env_kwargs, "dynamics": dyn, "model_error": me, "obs_noise": on})
                     for name in policy_names:
                         for k, seed in enumerate(sweep.seeds):
-                            tasks.append(Task(len(tasks), env_id, dyn, name, k, seed, me, on))
+                            tasks.append(Task(len(tasks), env_id, dyn, name, k, seed, me, on, cond))
     return tasks
 
 
@@ -100,38 +112,85 @@ def run_sweep(
             "n_episodes": len(tasks),
         },
     }
+    res = run_grid(
+        tasks,
+        base,
+        user,
+        user_bytes,
+        out,
+        cfg,
+        retry_failed=retry_failed,
+        rerun_changed=rerun_changed,
+        max_episodes=max_episodes,
+        progress=progress,
+        resuming=resuming,
+        command="sweep",
+    )
+    write_tables(out, res.results, sweep.tolerance, plots)  # interrupted or not: the table shows what finished
+    if res.interrupted:
+        raise KeyboardInterrupt
+    return SweepResult(out=out, results=res.results, n_run=res.n_run, n_skipped=res.n_skipped, n_left=res.n_left)
+
+
+@dataclass
+class GridResult:
+    """What `run_grid` returns: the results.json content of the whole grid and this run's counts."""
+
+    results: dict
+    n_run: int
+    n_skipped: int
+    n_left: int
+    interrupted: bool
+
+
+def run_grid(
+    tasks: list[Task],
+    base: EvalConfig,
+    user: dict[str, Any],
+    user_bytes: bytes | None,
+    out: Path,
+    cfg: dict,
+    *,
+    retry_failed: bool,
+    rerun_changed: bool,
+    max_episodes: int | None,
+    progress: bool,
+    resuming: bool,
+    command: str,
+) -> GridResult:
+    """Run the `tasks` not yet in `out`'s journal (one journal, one results file: a sweep's or a bench's grid)
+    and return the results of every task that has a record; config.json is `cfg`. The caller writes the files
+    and raises KeyboardInterrupt when `interrupted`."""
     out.mkdir(parents=True, exist_ok=True)
-    journal = Journal(out / JOURNAL)
-    journal.open()  # locked before anything is written or read: a second sweep on this --out stops here
+    journal = Journal(out / JOURNAL, command)
+    journal.open()  # locked before anything is written or read: a second grid on this --out stops here
     try:
-        atomic_write_json(out / "config.json", cfg)  # the directory is a sweep's from now on
+        atomic_write_json(out / "config.json", cfg)  # the directory is this command's from now on
         done, dropped = journal.load()
+        done = name_conditions(done, dict(base.env_kwargs))
         done = same_code(done, tasks, rerun_changed, f"--out {str(out)!r}")  # under the lock, as it runs
         if dropped and progress:
             print(
-                f"sweep: dropped {dropped} unreadable line(s) of {journal.path} (torn by an interruption, or not "
-                f"an episode record); their episodes run again",
+                f"{command}: dropped {dropped} unreadable line(s) of {journal.path} (torn by an interruption, or "
+                f"not an episode record); their episodes run again",
                 file=sys.stderr,
             )
         todo, n_skipped = _plan(tasks, done, retry_failed, max_episodes)
         if progress:
             print(
-                f"sweep: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
+                f"{command}: {len(tasks)} episodes in the grid, {n_skipped} already in {out}"
                 f"{' (resuming)' if resuming else ''}, {len(todo)} to run now",
                 file=sys.stderr,
             )
-        grid = run_tasks(base, user, todo, user_bytes, journal, progress=progress, desc="sweep")
+        grid = run_tasks(base, user, todo, user_bytes, journal, progress=progress, desc=command)
         done.update({episode_key(r): r for r in grid.records.values()})
         lost = {episode_key(r): r for r in grid.lost.values()}
         records = _grid_records(tasks, done, lost)
         results = build_results(cfg, records, M.aggregate(records), wall_s=grid.wall_s)
-        write_tables(out, results, sweep.tolerance, plots)  # interrupted or not: the table shows what finished
     finally:
         journal.close()
-    if grid.interrupted:
-        raise KeyboardInterrupt
     n_left = sum(episode_key(t) not in done for t in tasks)
-    return SweepResult(out=out, results=results, n_run=grid.n_run, n_skipped=n_skipped, n_left=n_left)
+    return GridResult(results, grid.n_run, n_skipped, n_left, grid.interrupted)
 
 
 def check_sweep(
@@ -152,13 +211,13 @@ def check_sweep(
     `eval.checks.check_all`)."""
     user = user or {}
     base = _episode_config(sweep, out, backend, address, workers, batch_size)
-    base.validate()
     if not sweep.policies and not user:
         raise EvalError("no policy given; list policy specs under 'policies' in the sweep file")
     user_bytes = check_user_policies(user, sweep.policies, workers if backend == "local" else 1)
     resuming = _check_out_dir(out, sweep, check_out)
     if resuming:  # read only (no lock yet): run_sweep checks again under the lock
         done, _ = Journal(out / JOURNAL).load(repair=False)
+        done = name_conditions(done, dict(sweep.env_kwargs))
         same_code(done, grid_tasks(sweep, list(sweep.policies) + list(user)), rerun_changed, f"--out {str(out)!r}")
     check_all(base, user, checked)
     _check_conditions(sweep)
@@ -169,27 +228,19 @@ def _episode_config(
     sweep: SweepConfig, out: Path, backend: str, address: str | None, workers: int, batch_size: int
 ) -> EvalConfig:
     """The `EvalConfig` every episode of the sweep runs under (each task brings its own condition and seed)."""
-    return EvalConfig(
+    return Execution(backend, address, workers, batch_size).episode_config(
+        out,
+        "sweep",
         envs=sweep.envs,
         policies=sweep.policies,
         episodes=len(sweep.seeds),
         seed=sweep.seeds[0],
-        out=str(out),
-        overwrite=True,
-        workers=workers,
-        batch_size=batch_size,
-        backend=backend,
-        address=address,
         dynamics=sweep.dynamics,
         model_error=sweep.model_error[0],
         obs_noise=sweep.obs_noise[0],
         env_kwargs=sweep.env_kwargs,
         tolerance=sweep.tolerance,
         settle_time=sweep.settle_time,
-        plots=False,
-        save_arrays="none",
-        progress=False,
-        command="sweep",
     )
 
 

@@ -22,22 +22,29 @@ from pathlib import Path
 
 import numpy as np
 
+from eval.conditions import CONDITIONS as TABLE
+
 HERE = Path(__file__).resolve().parent
 JSON, MD = HERE / "dev.json", HERE / "dev.md"
 TASKS = ("Circle", "Line", "Lemniscate", "Random")
 TOLERANCE = 0.006  # m
 
-#: condition name -> (model_error, obs_noise, further env arguments)
+#: the page's condition names -> the one conditions table's (`eval.conditions`); "wear5" is the table's "default"
+TABLE_NAMES = {
+    "wear5": "default",
+    "wear20": "wear20",
+    "wear30": "wear30",
+    "noise20": "noise20",
+    "drift": "drift",
+    "yaw-noise20": "yaw-noise20",
+    "joint-vel-noise20": "joint-vel-noise20",
+    "delay20": "delay20",
+    "lag20": "lag20",
+}
+#: condition name -> (model_error, obs_noise, further env arguments), read from the table
 CONDITIONS: dict[str, tuple[float, float, dict]] = {
-    "wear5": (0.05, 0.0, {}),
-    "wear20": (0.2, 0.0, {}),
-    "wear30": (0.3, 0.0, {}),
-    "noise20": (0.2, 0.001, {"obs_noise_vel": 0.01}),
-    "drift": (0.05, 0.0, {"wear_rate": 0.005}),
-    "yaw-noise20": (0.2, 0.0, {"obs_noise_yaw": 0.005}),
-    "joint-vel-noise20": (0.2, 0.0, {"obs_noise_joint_vel": 0.05}),
-    "delay20": (0.2, 0.0, {"obs_delay": 2}),
-    "lag20": (0.2, 0.0, {"actuator_tau": 0.02}),
+    page: (TABLE[name].model_error, TABLE[name].obs_noise, TABLE[name].extra_kwargs)
+    for page, name in TABLE_NAMES.items()
 }
 BASELINES = ("calib-qp", "qp", "qp-oracle")
 #: what dev.json keeps of each episode, one list per column

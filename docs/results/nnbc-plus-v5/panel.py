@@ -16,21 +16,27 @@ import numpy as np
 from scipy.stats import trim_mean
 
 import policies
+from eval.conditions import CONDITIONS as TABLE
 from eval.rollout import make_vector_env, rollout_batch
 
 ROBOTS = ("WheeledPuma", "WheeledUR5", "WheeledPanda", "WheeledRandomArm")
 TASKS = ("Circle", "Lemniscate", "Line", "Random")
-#: name -> (model_error, obs_noise, env_kwargs)
+#: the page's condition names -> the one conditions table's (`eval.conditions`)
+TABLE_NAMES = {
+    "default": "default",
+    "noise": "noise",
+    "jv05": "jv05",
+    "heavy15": "heavy15",
+    "lag50": "lag",
+    "lag150": "lag150",
+    "wear20": "wear20",
+    "yaw": "yaw-noise",
+    "drift": "drift",
+}
+#: name -> (model_error, obs_noise, env_kwargs), read from the table
 CONDITIONS = {
-    "default": (0.05, 0.0, {}),
-    "noise": (0.05, 0.001, {"obs_noise_vel": 0.01}),
-    "jv05": (0.05, 0.0, {"obs_noise_joint_vel": 0.05}),
-    "heavy15": (0.05, 0.003, {"obs_noise_vel": 0.03, "obs_noise_yaw": 0.0045}),
-    "lag50": (0.05, 0.0, {"actuator_tau": 0.05}),
-    "lag150": (0.05, 0.0, {"actuator_tau": 0.15}),
-    "wear20": (0.2, 0.0, {}),
-    "yaw": (0.05, 0.0, {"obs_noise_yaw": 0.001}),
-    "drift": (0.05, 0.0, {"wear_rate": 0.005}),
+    page: (TABLE[name].model_error, TABLE[name].obs_noise, TABLE[name].extra_kwargs)
+    for page, name in TABLE_NAMES.items()
 }
 
 
