@@ -6,6 +6,13 @@ the task's target, error, reward and observation, for N robots; this env is N = 
 `batch.RobotBatch`), PyBullet in physics mode (`sim`) and the task (`paths`). Imports gymnasium, numpy and those
 `mobman_env` modules only. The class keeps its
 release 0.1 name (users' scripts and pickles use it); the robot is its `robot` argument.
+
+Following a value by name: the per-episode conditions (`model_error` ... `actuator_tau`) are validated into one
+frozen `batch.Conditions` (`env.conditions`; a reset option of the same name replaces one field for an episode),
+`RobotBatch.begin` writes each into the `prm` column of its own name (`engine.PRM.actuator_tau`), and the kernels
+read it there (`engine._actuate`: `prm[i, PRM.actuator_tau]`). The columns of every engine array are named in
+one place, `mobman_env.engine`'s layouts; a step's numbers come back as a `batch.StepResult` under their `info`
+names.
 """
 
 from __future__ import annotations

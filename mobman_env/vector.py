@@ -34,7 +34,9 @@ not batched) that checks every row's action before stepping any.
 
 Robots: every robot of the catalogue and the random family (`robot="random"`: each reset draws row i's arm from
 its generator, the arms differ row by row; the draw and its kinematic ceiling check cost about 0.2 s per
-candidate, `mobman_env.robots.sources`). Imports gymnasium, numpy and `mobman_env` modules only.
+candidate, `mobman_env.robots.sources`). A step's results are read from the batch's `io` by their `info` names
+(`RobotBatch.named("io")`, the columns of `mobman_env.engine.io_columns`). Imports gymnasium, numpy and
+`mobman_env` modules only.
 """
 
 from __future__ import annotations
