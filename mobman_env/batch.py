@@ -278,21 +278,17 @@ class RobotBatch:
 
     # --- results ------------------------------------------------------------------------------------------------
     def result(self, i: int) -> StepResult:
-        """Row i's results of the last kernel call (a step, or a reset's), by name."""
-        io, c = self.io[i], self.IO
+        """Row i's results of the last kernel call (a step, or a reset's), by name. The results block of `io`
+        holds them in `StepResult`'s order (`io_columns` from `reward` to `tipped_over`, `ee_pos_true` 3 wide):
+        one read of the block, as the single env's step runs this every step."""
+        c = self.IO
+        reward, tracking, effort, err, e0, e1, e2, clipped, term, trunc, n_clipped, hits, tipped = self.io[
+            i, c.reward : c.tipped_over + 1
+        ].tolist()
         return StepResult(
-            reward=float(io[c.reward]),
-            tracking=float(io[c.tracking]),
-            effort=float(io[c.effort]),
-            tracking_error=float(io[c.tracking_error]),
-            ee_pos_true=io[c.ee_pos_true : c.ee_pos_true + 3].copy(),
-            action_clipped=bool(io[c.action_clipped] != 0.0),
-            terminated=bool(io[c.terminated] != 0.0),
-            truncated=bool(io[c.truncated] != 0.0),
-            n_clipped=int(io[c.n_clipped]),
-            joint_limit_hits=int(io[c.joint_limit_hits]),
-            tipped_over=bool(io[c.tipped_over] != 0.0),
-        )
+            reward, tracking, effort, err, np.array((e0, e1, e2)), clipped != 0.0, term != 0.0, trunc != 0.0,
+            int(n_clipped), int(hits), tipped != 0.0,
+        )  # fmt: skip
 
     def named(self, array: str) -> np.ndarray:
         """`prm`, `st` or `io` as N records whose fields are its layout's names (`engine.PRM`, `state_columns`,
