@@ -146,6 +146,10 @@ def test_env_step_reads_a_named_result_with_the_documented_fields():
         "joint_limit_hits",
         "tipped_over",
     )
+    # `RobotBatch.result` reads io's results block in one go: its fields are StepResult's, in order
+    io = E.io_columns(8)
+    block = E.IoColumns._fields[E.IoColumns._fields.index("reward") : E.IoColumns._fields.index("tipped_over") + 1]
+    assert block == StepResult._fields and io.tipped_over - io.reward == len(block) + 1  # ee_pos_true: 3 wide
     env = WheeledPumaEnv(dynamics="kinematic", path=SHORT)
     try:
         env.reset(seed=1)
