@@ -11,14 +11,18 @@ the readings are noisy, in the order the noise is drawn from the row's generator
 `obs_noise_joint_vel`, base_yaw (1) for `obs_noise_yaw`; one `standard_normal` call per row and step, nothing
 drawn for a noise-free row). The kernels scale the draws by the stds.
 
+The engine's arrays are read here by the names of `mobman_env.engine`'s layouts (`PRM`, `state_columns`,
+`io_columns`): the episode's `Conditions` go into `prm` under their own names (`begin`), a step's results come
+out as a `StepResult` (`result`), and `named` gives any array as records with those names.
+
 Imports numpy and `mobman_env` modules only.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -26,17 +30,42 @@ from mobman_env import engine as E
 from mobman_env.params import RobotParams
 from mobman_env.paths import path_from_spec
 
-#: the per-episode conditions a row holds (constructor arguments and reset options of the env)
-CONDITIONS = (
-    "model_error",
-    "obs_noise",
-    "obs_noise_vel",
-    "obs_noise_joint_vel",
-    "obs_noise_yaw",
-    "obs_delay",
-    "wear_rate",
-    "actuator_tau",
-)
+
+@dataclass(frozen=True)
+class Conditions:
+    """The per-episode conditions of a row: the env's constructor arguments of these names (validated by
+    `mobman_env.env`), which a reset option of the same name overrides for one episode
+    (`dataclasses.replace`). `RobotBatch.begin` writes each into the `prm` column of its name."""
+
+    model_error: float = 0.05  # relative std of the true robot's lengths against the nominal ones
+    obs_noise: float = 0.0  # m, std on ee_pos and arm_base_pos
+    obs_noise_vel: float = 0.0  # m/s, std on ee_vel and arm_base_vel
+    obs_noise_joint_vel: float = 0.0  # rad/s, std on joint_vel
+    obs_noise_yaw: float = 0.0  # rad, std on base_yaw
+    obs_delay: int = 0  # control steps
+    wear_rate: float = 0.0  # 1/s, relative length change
+    actuator_tau: float = 0.0  # s, the actuators' lag
+
+
+#: the per-episode conditions a row holds (constructor arguments and reset options of the env), in order
+CONDITIONS = tuple(f.name for f in fields(Conditions))
+
+
+class StepResult(NamedTuple):
+    """A row's results of its last kernel call (`RobotBatch.result`): the env's reward and flags and its `info`
+    numbers, under their `info` names (and the `io_columns` names they are read from). Noise-free."""
+
+    reward: float  # tracking + effort
+    tracking: float  # the reward's tracking term, -w_tracking ||r_d - r_a||
+    effort: float  # the reward's effort term, -w_effort ||a||^2
+    tracking_error: float  # m
+    ee_pos_true: np.ndarray  # (3,) m
+    action_clipped: bool
+    terminated: bool
+    truncated: bool
+    n_clipped: int  # this episode
+    joint_limit_hits: int  # this episode
+    tipped_over: bool
 
 
 @dataclass
@@ -53,20 +82,20 @@ class RobotState:
     roll_pitch: tuple[float, float]  # rad, of the platform
 
 
-def noise_plan(m: int, cond: dict) -> np.ndarray | None:
+def noise_plan(m: int, cond: Conditions) -> np.ndarray | None:
     """The `io` columns of the row's standard normals, in draw order (see the module docstring); None when every
     std is 0."""
-    base = E.io_noise(m)
+    r = E.sensor_columns(m)
     cols: list[int] = []
-    if cond["obs_noise"] > 0.0:
-        cols += [0, 1, 2, 6, 7]
-    if cond["obs_noise_vel"] > 0.0:
-        cols += [3, 4, 5, 8, 9]
-    if cond["obs_noise_joint_vel"] > 0.0:
-        cols += list(range(11 + m, 11 + 2 * m))
-    if cond["obs_noise_yaw"] > 0.0:
-        cols += [10]
-    return np.array(cols, dtype=np.intp) + base if cols else None
+    if cond.obs_noise > 0.0:
+        cols += [*range(r.ee_pos, r.ee_pos + 3), *range(r.arm_base_pos, r.arm_base_pos + 2)]
+    if cond.obs_noise_vel > 0.0:
+        cols += [*range(r.ee_vel, r.ee_vel + 3), *range(r.arm_base_vel, r.arm_base_vel + 2)]
+    if cond.obs_noise_joint_vel > 0.0:
+        cols += list(range(r.joint_vel, r.joint_vel + m))
+    if cond.obs_noise_yaw > 0.0:
+        cols += [r.base_yaw]
+    return np.array(cols, dtype=np.intp) + E.io_columns(m).noise if cols else None
 
 
 class RobotBatch:
@@ -89,11 +118,13 @@ class RobotBatch:
         self.st = np.zeros((num, E.s_len(m)))
         self.io = np.zeros((num, E.io_len(m)))
         self.hist = np.zeros((num, 1, E.n_sensor(m)), dtype=np.float32)
-        self.prm[:, E.P_WT] = reward_weights["tracking"]
-        self.prm[:, E.P_WE] = reward_weights["effort"]
-        self.prm[:, E.P_BOUND] = math.inf if error_bound is None else error_bound
-        self.prm[:, E.P_PATH + 3] = 1.0  # a path duration before the first reset (never 0: the timing divides)
-        self.out = E.io_out(m)
+        #: the column layouts of `st` and `io` for these m actuators (`prm`'s is `engine.PRM`)
+        self.S, self.IO = E.state_columns(m), E.io_columns(m)
+        self.prm[:, E.PRM.w_tracking] = reward_weights["tracking"]
+        self.prm[:, E.PRM.w_effort] = reward_weights["effort"]
+        self.prm[:, E.PRM.error_bound] = math.inf if error_bound is None else error_bound
+        # a path duration before the first reset (never 0: the timing divides)
+        self.prm[:, E.PRM.path + 3] = 1.0
         self.rows = np.arange(num)
         self.params0: list[Any] = [None] * num  # each row's true robot at t = 0
         self.wear = np.zeros(num)
@@ -103,36 +134,36 @@ class RobotBatch:
         self._noisy = np.zeros(num, dtype=bool)  # the rows with a noise plan
 
     # --- episodes -----------------------------------------------------------------------------------------
-    def begin(self, i: int, params: RobotParams, q0: np.ndarray, pose: np.ndarray, cond: dict) -> None:
+    def begin(self, i: int, params: RobotParams, q0: np.ndarray, pose: np.ndarray, cond: Conditions) -> None:
         """Start row i's episode: true robot `params` at joint angles q0 (m) and platform pose (x, y, yaw) at rest,
-        under the conditions `cond` (`CONDITIONS`); its path comes with `set_path`."""
-        m = self.m
+        under the conditions `cond`; its path comes with `set_path`."""
+        m, P, S = self.m, E.PRM, self.S
         E.pack_robot(self.arm, self.prm, i, params)
         self.params0[i] = params
         self.hashes[i] = params.hash()
         p = self.prm[i]
-        p[E.P_WEAR] = self.wear[i] = cond["wear_rate"]
-        p[E.P_TAU] = cond["actuator_tau"]
-        p[E.P_DELAY] = cond["obs_delay"]
-        p[E.P_SPOS] = cond["obs_noise"]
-        p[E.P_SVEL] = cond["obs_noise_vel"]
-        p[E.P_SJV] = cond["obs_noise_joint_vel"]
-        p[E.P_SYAW] = cond["obs_noise_yaw"]
+        p[P.wear_rate] = self.wear[i] = cond.wear_rate
+        p[P.actuator_tau] = cond.actuator_tau
+        p[P.obs_delay] = cond.obs_delay
+        p[P.obs_noise] = cond.obs_noise
+        p[P.obs_noise_vel] = cond.obs_noise_vel
+        p[P.obs_noise_joint_vel] = cond.obs_noise_joint_vel
+        p[P.obs_noise_yaw] = cond.obs_noise_yaw
         plan = self._noise[i] = noise_plan(m, cond)
-        p[E.P_NOISY] = 0.0 if plan is None else 1.0
+        p[P.noisy] = 0.0 if plan is None else 1.0
         self._noisy[i] = plan is not None  # row i only: a reset of N rows is linear in N (see `noisy`)
         s = self.st[i]
         s[:] = 0.0
-        s[E.s_q(m) : E.s_q(m) + m] = q0
-        s[E.s_pose(m) : E.s_pose(m) + 3] = pose
-        delay = int(cond["obs_delay"])
+        s[S.q : S.q + m] = q0
+        s[S.x], s[S.y], s[S.yaw] = pose
+        delay = int(cond.obs_delay)
         if delay + 1 > self.hist.shape[1]:
             grown = np.zeros((self.num, delay + 1, self.hist.shape[2]), dtype=np.float32)
             grown[:, : self.hist.shape[1]] = self.hist
             self.hist = grown
 
     def begin_episode(
-        self, i: int, rng: np.random.Generator, source: Any, nominal: RobotParams, q0: Any, pose: Any, cond: dict
+        self, i: int, rng: np.random.Generator, source: Any, nominal: RobotParams, q0: Any, pose: Any, cond: Conditions
     ) -> tuple[RobotParams, np.ndarray]:
         """Draw row i's episode from its generator, in the env's fixed order (the arm and its start for a drawn
         robot family, then the worn true robot: the built robot worn, which for the scaled family is not its
@@ -143,7 +174,7 @@ class RobotBatch:
         if drawn is not None:
             nominal, start, built = drawn
             q0 = np.concatenate([start, [0.0, 0.0]])
-        params = built.perturbed(rng, cond["model_error"])
+        params = built.perturbed(rng, cond.model_error)
         self.begin(i, params, q0, pose, cond)
         return nominal, np.asarray(q0, dtype=float)
 
@@ -165,15 +196,15 @@ class RobotBatch:
         returns it. The episode lasts round(duration x control_freq) steps (at least 1)."""
         path = path_from_spec(spec, start, rng)
         self.paths[i] = path
-        self.prm[i, E.P_PATH :] = path.coef
-        self.prm[i, E.P_NSTEPS] = max(1, int(round(path.duration * control_freq)))
+        self.prm[i, E.PRM.path :] = path.coef
+        self.prm[i, E.PRM.n_steps] = max(1, int(round(path.duration * control_freq)))
         return path
 
     def n_steps(self, i: int) -> int:
-        return int(self.prm[i, E.P_NSTEPS])
+        return int(self.prm[i, E.PRM.n_steps])
 
     def steps(self, i: int) -> int:
-        return int(self.st[i, E.s_pose(self.m) + 3])
+        return int(self.st[i, self.S.steps])
 
     def true_params(self, i: int) -> RobotParams:
         """Row i's true robot at its current time (the episode's, drifted by its wear rate)."""
@@ -209,12 +240,12 @@ class RobotBatch:
     def ee_kinematic(self, rows: np.ndarray) -> np.ndarray:
         """r_a (k, 3) of the rows `rows` at their current state (a reset's start point, before its path is set)."""
         E.kinematic(self.arm, self.prm, self.st, self.io, self.new_obs(), self.hist, self.dt, rows, E.READ)
-        return self.io[rows, self.out + E.O_EE : self.out + E.O_EE + 3].copy()
+        return self.io[rows, self.IO.ee_pos_true : self.IO.ee_pos_true + 3].copy()
 
     def ee_physics(self, rows: np.ndarray) -> np.ndarray:
         """r_a (k, 3) of the rows `rows` from the PyBullet state in `io` (a reset's start point)."""
         E.physics(self.arm, self.prm, self.st, self.io, self.new_obs(), self.hist, self.dt, rows, E.READ)
-        return self.io[rows, self.out + E.O_EE : self.out + E.O_EE + 3].copy()
+        return self.io[rows, self.IO.ee_pos_true : self.IO.ee_pos_true + 3].copy()
 
     def observe_kinematic(self, rows: np.ndarray, obs: np.ndarray) -> None:
         """The observations of the rows `rows` at their current state into `obs` (a reset)."""
@@ -232,24 +263,39 @@ class RobotBatch:
 
     def state(self, i: int) -> RobotState:
         """Row i's noise-free readings of the last kernel call (a reset or a step) as arrays."""
-        m = self.m
-        v = self.io[i, E.io_vals(m) : E.io_vals(m) + E.n_sensor(m)].copy()
-        sp = E.s_pose(m)
+        m, S, r = self.m, self.S, E.sensor_columns(self.m)
+        v = self.io[i, self.IO.readings : self.IO.readings + E.n_sensor(m)].copy()
         return RobotState(
-            ee_pos=v[0:3],
-            ee_vel=v[3:6],
-            arm_base_pos=v[6:8],
-            arm_base_vel=v[8:10],
-            base_pose=self.st[i, sp : sp + 3].copy(),
-            joint_pos=v[11 : 11 + m],
-            joint_vel=v[11 + m : 11 + 2 * m],
-            roll_pitch=(float(self.st[i, sp + 6]), float(self.st[i, sp + 7])),
+            ee_pos=v[r.ee_pos : r.ee_pos + 3],
+            ee_vel=v[r.ee_vel : r.ee_vel + 3],
+            arm_base_pos=v[r.arm_base_pos : r.arm_base_pos + 2],
+            arm_base_vel=v[r.arm_base_vel : r.arm_base_vel + 2],
+            base_pose=self.st[i, [S.x, S.y, S.yaw]],
+            joint_pos=v[r.joint_pos : r.joint_pos + m],
+            joint_vel=v[r.joint_vel : r.joint_vel + m],
+            roll_pitch=(float(self.st[i, S.roll]), float(self.st[i, S.pitch])),
         )
 
     # --- results ------------------------------------------------------------------------------------------------
-    def outputs(self, i: int) -> list[float]:
-        """Row i's results of the last kernel call, `engine.O_*` order from `O_REWARD` to `O_TIPPED`."""
-        return self.io[i, self.out : self.out + E.O_TIPPED + 1].tolist()
+    def result(self, i: int) -> StepResult:
+        """Row i's results of the last kernel call (a step, or a reset's), by name. The results block of `io`
+        holds them in `StepResult`'s order (`io_columns` from `reward` to `tipped_over`, `ee_pos_true` 3 wide):
+        one read of the block, as the single env's step runs this every step."""
+        c = self.IO
+        reward, tracking, effort, err, e0, e1, e2, clipped, term, trunc, n_clipped, hits, tipped = self.io[
+            i, c.reward : c.tipped_over + 1
+        ].tolist()
+        return StepResult(
+            reward, tracking, effort, err, np.array((e0, e1, e2)), clipped != 0.0, term != 0.0, trunc != 0.0,
+            int(n_clipped), int(hits), tipped != 0.0,
+        )  # fmt: skip
+
+    def named(self, array: str) -> np.ndarray:
+        """`prm`, `st` or `io` as N records whose fields are its layout's names (`engine.PRM`, `state_columns`,
+        `io_columns`): a view, so `named("prm")["actuator_tau"]` is the (N,) column the kernels read as
+        `prm[i, PRM.actuator_tau]`, and writing it writes the array."""
+        layout = {"prm": E.PRM, "st": self.S, "io": self.IO}[array]
+        return E.record_view(getattr(self, array), layout)
 
     def new_obs(self) -> np.ndarray:
         """A fresh (N, obs) float32 array for a kernel to fill (observations handed out are never reused)."""

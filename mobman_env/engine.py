@@ -14,16 +14,20 @@ robot models they may know; physics mode reads PyBullet's joint states and base 
 end-effector from them with `physics_observe` (the same chain). `mobman_env.kinematics` is the small Python face
 of these kernels for one robot.
 
-## Arrays (row i: robot i; m = n + 2 actuators; the column layouts are the constants below)
+## Arrays (row i: robot i; m = n + 2 actuators)
 
-| array | shape | dtype | holds |
-|---|---|---|---|
-| `arm` | (N, 8, m) | float64 | per-joint constants: DH a, d, cos alpha, sin alpha, theta offset, joint limits (first n), action scale (m) |
-| `prm` | (N, P_LEN) | float64 | per-robot scalars (tool, r, b, mount, h, wear rate, lag, reward weights, error bound, convention, delay, episode steps, noise stds) and the path's coefficients |
-| `st` | (N, S_LEN(m)) | float64 | state: joint and wheel angles, realised speeds, base pose (x, y, yaw), step count, clip and limit counters, roll, pitch |
-| `io` | (N, IO_LEN(m)) | float64 | per call: actions in, standard-normal noise in, PyBullet readings in (physics), results out |
-| `obs` | (N, 18 + 2m) | float32 | the observation, `mobman_env.env.OBS_KEYS` order |
-| `hist` | (N, D + 1, 11 + 2m) | float32 | the delay lines of the sensor readings |
+Every column is named in one place, the layouts below (`# --- layouts`), by the names a reader already knows:
+the env's `actuator_tau` is `prm[i, PRM.actuator_tau]` in the kernels and `RobotBatch.named("prm")["actuator_tau"]`
+in Python; `info["tracking_error"]` is `io[i, IO.tracking_error]`; the step count is `st[i, S.steps]`.
+
+| array | shape | dtype | layout | holds |
+|---|---|---|---|---|
+| `arm` | (N, 8, m) | float64 | `ARM` (rows) | per-joint constants: DH a, d, cos alpha, sin alpha, theta offset, joint limits (first n), action scale (m) |
+| `prm` | (N, P_LEN) | float64 | `PRM` | per-robot scalars (geometry, the episode's conditions, reward weights, error bound, convention, episode steps) and the path's coefficients |
+| `st` | (N, s_len(m)) | float64 | `state_columns(m)` | state: joint and wheel angles, realised speeds, base pose (x, y, yaw), step count, clip and limit counters, roll, pitch |
+| `io` | (N, io_len(m)) | float64 | `io_columns(m)` | per call: actions in, standard-normal noise in, PyBullet readings in (physics), results out |
+| `obs` | (N, 18 + 2m) | float32 | `sensor_columns(m)`, then the target | the observation, `mobman_env.env.OBS_KEYS` order |
+| `hist` | (N, D + 1, 11 + 2m) | float32 | `sensor_columns(m)` | the delay lines of the sensor readings |
 
 Robot lengths that wear (`prm`'s tool, r, b, mount and `arm`'s a and d) are those of the episode's robot at
 t = 0; the robot of time t has them times 1 + wear t (`RobotParams.scaled`'s products), and the shoulder
@@ -47,35 +51,93 @@ May import: numpy, numba (through `mobman_env.numba_cache`), the standard librar
 from __future__ import annotations
 
 import math
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from mobman_env.numba_cache import njit
 
-# --- layouts ------------------------------------------------------------------------------------------------
-#: rows of `arm`
-A_A, A_D, A_CA, A_SA, A_OFF, A_LO, A_HI, A_SCALE = range(8)
-ARM_ROWS = 8
-#: columns of `prm`
-P_TOOL, P_R, P_B, P_MNT, P_H = 0, 1, 2, 3, 4
-P_WEAR, P_TAU, P_WT, P_WE, P_BOUND, P_MOD, P_DELAY, P_NSTEPS = 5, 6, 7, 8, 9, 10, 11, 12
-P_SPOS, P_SVEL, P_SJV, P_SYAW, P_NOISY = 13, 14, 15, 16, 17
-#: the path: start (3), duration T, linear term (3), number of terms K, then per term (k, S x3, C x3)
-P_PATH = 20
+
+# --- layouts: the one place where the packed arrays' columns are named ----------------------------------------
+# Each array's layout is a NamedTuple of offsets whose field names are the names a reader knows (the env's
+# arguments, `RobotParams`' fields, `info` and observation keys): the kernels index `prm[i, PRM.actuator_tau]`,
+# `st[i, S.steps]`, `io[i, IO.tracking_error]`; Python reads the same columns through record views
+# (`record_view`, `RobotBatch.named`). A field's width is the distance to the next field's offset (the last
+# field's: to the array's width), so a layout has no gap and no overlap by construction (tests/test_named_state.py
+# checks it against the documented widths).
+class ArmRows(NamedTuple):
+    """The rows of `arm` (N, 8, m), each m wide (the joint rows: the first n entries)."""
+
+    dh_a: int  # DH a, m (a length that wears)
+    dh_d: int  # DH d, m (wears)
+    cos_alpha: int  # cos of the DH twist
+    sin_alpha: int  # sin of the DH twist
+    theta_offset: int  # rad, added to the joint angle
+    joint_lower: int  # rad
+    joint_upper: int  # rad
+    action_scale: int  # rad/s per unit of action: the speed limits (all m)
+
+
+ARM = ArmRows(*range(8))
+ARM_ROWS = len(ARM)
+
+#: the path's coefficients (`prm`'s `path` block): start (3), duration T, linear term (3), number of terms K, then
+#: per term (k, S x3, C x3)
 PATH_HEAD = 8
 PATH_TERM = 7
 #: at most this many sinusoid terms per path (a random path's `n_terms` is at most 20)
 MAX_PATH_TERMS = 20
 PATH_LEN = PATH_HEAD + PATH_TERM * MAX_PATH_TERMS
-P_LEN = P_PATH + PATH_LEN
-#: `io` outputs, after the inputs (see `io_out`)
-O_REWARD, O_TRACK, O_EFFORT, O_ERR, O_EE = 0, 1, 2, 3, 4
-O_CLIPPED, O_TERM, O_TRUNC, O_NCLIP, O_HITS, O_TIPPED = 7, 8, 9, 10, 11, 12
-O_A2, O_STEP_HITS = 13, 14  # physics: |a|^2 of the clipped action and the limit hits of `command_physics`
-O_U = 15  # m speeds the motors are given (after the limit rule; with a lag the mean over the step), rad/s
-#: observation bounds by sensor block (m, m/s, rad, rad/s, s): wide enough for any physics overshoot
-BIG_POS, BIG_VEL, BIG_ANGLE, BIG_JOINT_VEL, BIG_TIME = 1000.0, 100.0, 1e5, 1e3, 1e5
-TIP_ANGLE = math.radians(30.0)  # rad, roll or pitch beyond which the platform counts as tipped over
+
+
+class PrmColumns(NamedTuple):
+    """The columns of `prm` (N, P_LEN): a robot's geometry (`RobotParams`' names), the episode's conditions (the
+    env's argument names) and task."""
+
+    tool: int  # m (wears)
+    wheel_radius: int  # m (wears)
+    half_track: int  # m (wears)
+    mount_offset: int  # m (wears)
+    base_height: int  # m, the shoulder's height (stays)
+    wear_rate: int  # 1/s
+    actuator_tau: int  # s, the lag's time constant (0: none)
+    w_tracking: int  # reward weight of the tracking term
+    w_effort: int  # reward weight of the effort term
+    error_bound: int  # m (inf: never terminate on the error)
+    modified: int  # 1.0: modified DH convention, 0.0: standard
+    obs_delay: int  # control steps
+    n_steps: int  # the episode's steps (truncation)
+    obs_noise: int  # m, std on ee_pos and arm_base_pos
+    obs_noise_vel: int  # m/s, std on ee_vel and arm_base_vel
+    obs_noise_joint_vel: int  # rad/s, std on joint_vel
+    obs_noise_yaw: int  # rad, std on base_yaw
+    noisy: int  # 1.0 when any std is > 0 (the row has a noise plan)
+    spare: int  # 2 unused columns (the path stayed at column 20)
+    path: int  # PATH_LEN: the path's coefficients (`path_eval`)
+
+
+PRM = PrmColumns._make([*range(18), 18, 20])  # 1 wide each, then spare (2) and path (PATH_LEN)
+P_LEN = PRM.path + PATH_LEN
+# short names of the geometry columns that `policies.calib_qp` writes its estimates into
+A_A, A_D = ARM.dh_a, ARM.dh_d
+P_TOOL, P_R, P_B, P_MNT, P_H = PRM.tool, PRM.wheel_radius, PRM.half_track, PRM.mount_offset, PRM.base_height
+
+
+class SensorColumns(NamedTuple):
+    """The sensor readings' entries (`mobman_env.sensors.SENSOR_KEYS` order) in the observation, the noise draws
+    (`IoColumns.noise`) and the noise-free readings (`IoColumns.readings`)."""
+
+    ee_pos: int  # 3, m
+    ee_vel: int  # 3, m/s
+    arm_base_pos: int  # 2, m
+    arm_base_vel: int  # 2, m/s
+    base_yaw: int  # 1, rad
+    joint_pos: int  # m, rad
+    joint_vel: int  # m, rad/s
+
+
+def sensor_columns(m: int) -> SensorColumns:
+    return SensorColumns(0, 3, 6, 8, 10, 11, 11 + m)
 
 
 def n_sensor(m: int) -> int:
@@ -89,57 +151,127 @@ def obs_size(m: int) -> int:
     return n_sensor(m) + 7
 
 
+class StateColumns(NamedTuple):
+    """The columns of `st` (N, s_len(m)): a robot's state."""
+
+    q: int  # m: the n joint angles and the two wheel angles, rad
+    u: int  # m: the realised speeds, rad/s
+    x: int  # m, of P_0
+    y: int  # m, of P_0
+    yaw: int  # rad, continuous
+    steps: int  # control steps since the reset
+    n_clipped: int  # steps with a clipped action, this episode
+    joint_limit_hits: int  # limit hits, this episode
+    roll: int  # rad (physics)
+    pitch: int  # rad (physics)
+
+
+def state_columns(m: int) -> StateColumns:
+    p = 2 * m
+    return StateColumns(0, m, p, p + 1, p + 2, p + 3, p + 4, p + 5, p + 6, p + 7)
+
+
 def s_len(m: int) -> int:
     """Columns of `st`: q (m), u (m), x, y, yaw, steps, n_clipped, limit hits, roll, pitch."""
     return 2 * m + 8
 
 
-def s_q(m: int) -> int:
-    return 0
+class IoColumns(NamedTuple):
+    """The columns of `io` (N, io_len(m)): a call's inputs (the actions, the noise's standard normals, PyBullet's
+    readings in physics mode) and results (a step's numbers under their `info` names, the motors' speeds, the
+    noise-free readings)."""
+
+    action: int  # m, in [-1, 1] (clipped by the kernel)
+    noise: int  # n_sensor(m) standard normals, `SensorColumns` order
+    phys_q: int  # m, PyBullet's joint and wheel angles, rad
+    phys_q_dot: int  # m, their speeds, rad/s
+    phys_pos: int  # 3, the base's position, m
+    phys_quat: int  # 4, its orientation (x, y, z, w)
+    phys_lin_vel: int  # 3, m/s
+    phys_ang_vel: int  # 3, rad/s
+    reward: int  # tracking + effort
+    tracking: int  # the reward's tracking term
+    effort: int  # the reward's effort term
+    tracking_error: int  # m
+    ee_pos_true: int  # 3, m
+    action_clipped: int  # 1.0 when the action was clipped
+    terminated: int  # 1.0 / 0.0
+    truncated: int  # 1.0 / 0.0
+    n_clipped: int  # the episode's count so far
+    joint_limit_hits: int  # the episode's count so far
+    tipped_over: int  # 1.0 / 0.0 (physics)
+    action_norm2: int  # |a|^2 of the clipped action (physics: from `command_physics` to `physics`)
+    step_limit_hits: int  # limit hits of `command_physics` (physics)
+    motor_speed: int  # m, the speeds the motors are given (after the limit rule; with a lag the step's mean), rad/s
+    readings: int  # n_sensor(m), the last noise-free readings (`SensorColumns` order)
 
 
-def s_u(m: int) -> int:
-    return m
+def io_columns(m: int) -> IoColumns:
+    ns = 11 + 2 * m
+    ph = m + ns
+    out = ph + 2 * m + 13
+    return IoColumns(
+        0, m, ph, ph + m, ph + 2 * m, ph + 2 * m + 3, ph + 2 * m + 7, ph + 2 * m + 10,
+        out, out + 1, out + 2, out + 3, out + 4, out + 7, out + 8, out + 9, out + 10, out + 11, out + 12, out + 13,
+        out + 14, out + 15, out + 15 + m,
+    )  # fmt: skip
 
 
-def s_pose(m: int) -> int:
-    return 2 * m
+def io_len(m: int) -> int:
+    return 8 * m + 50
 
 
+# the first columns of `io`'s blocks, by their old names (tests and `sim` name them so)
 def io_noise(m: int) -> int:
     """First `io` column of the standard normals of the noise (one per reading entry, `n_sensor(m)`)."""
-    return m
+    return io_columns(m).noise
 
 
 def io_phys(m: int) -> int:
     """First `io` column of the PyBullet readings (after the noise's 11 + 2m): q (m), q_dot (m), base position
     (3), quaternion (x, y, z, w), base linear (3) and angular (3) velocity."""
-    return 3 * m + 11
+    return io_columns(m).phys_q
 
 
 def io_out(m: int) -> int:
-    """First `io` column of the results, after the PyBullet readings' 2m + 13 (`O_*` offsets from it)."""
-    return 5 * m + 24
+    """First `io` column of the results, after the PyBullet readings' 2m + 13."""
+    return io_columns(m).reward
 
 
 def io_vals(m: int) -> int:
-    """First `io` column of the last noise-free readings (`n_sensor(m)`, `SENSOR_KEYS` order), after the results'
-    O_U + m."""
-    return 6 * m + 24 + O_U
+    """First `io` column of the last noise-free readings (`n_sensor(m)`, `SENSOR_KEYS` order)."""
+    return io_columns(m).readings
 
 
-def io_len(m: int) -> int:
-    return 8 * m + 35 + O_U
+#: the motors' speeds relative to the first result column (`io_vals(m) == io_out(m) + O_U + m`)
+O_U = 15
 
 
-_s_q = njit(cache=True, inline="always")(s_q)
-_s_u = njit(cache=True, inline="always")(s_u)
-_s_pose = njit(cache=True, inline="always")(s_pose)
+def record_dtype(columns: Any, width: int) -> np.dtype:
+    """A record dtype of float64 fields named and placed as `columns` (a layout NamedTuple, offsets ascending)
+    in rows of `width` floats: a field one wide is a scalar, a wider one a sub-array."""
+    offsets = [*columns, width]
+    fields = []
+    for k, name in enumerate(columns._fields):
+        n = offsets[k + 1] - offsets[k]
+        fields.append((name, np.float64) if n == 1 else (name, np.float64, (n,)))
+    return np.dtype(fields)
+
+
+def record_view(a: np.ndarray, columns: Any) -> np.ndarray:
+    """The float64 array a (N, width), C-contiguous, as N records of `record_dtype(columns, width)`: the same
+    memory, so `view["actuator_tau"]` reads and writes `a[:, PRM.actuator_tau]`."""
+    return a.view(record_dtype(columns, a.shape[1]))[:, 0]
+
+
+#: observation bounds by sensor block (m, m/s, rad, rad/s, s): wide enough for any physics overshoot
+BIG_POS, BIG_VEL, BIG_ANGLE, BIG_JOINT_VEL, BIG_TIME = 1000.0, 100.0, 1e5, 1e3, 1e5
+TIP_ANGLE = math.radians(30.0)  # rad, roll or pitch beyond which the platform counts as tipped over
+
+_sensor_columns = njit(cache=True, inline="always")(sensor_columns)
 _n_sensor = njit(cache=True, inline="always")(n_sensor)
-_io_noise = njit(cache=True, inline="always")(io_noise)
-_io_phys = njit(cache=True, inline="always")(io_phys)
-_io_out = njit(cache=True, inline="always")(io_out)
-_io_vals = njit(cache=True, inline="always")(io_vals)
+_state_columns = njit(cache=True, inline="always")(state_columns)
+_io_columns = njit(cache=True, inline="always")(io_columns)
 
 
 # --- packing robots into rows (Python) -------------------------------------------------------------------------
@@ -149,27 +281,27 @@ def pack_arm(arm: np.ndarray, prm: np.ndarray, i: int, desc) -> None:
     n = desc.n_joints
     a, d, ca, sa = desc.dh_constants
     row = arm[i]
-    row[A_A, :n] = a
-    row[A_D, :n] = d
-    row[A_CA, :n] = ca
-    row[A_SA, :n] = sa
-    row[A_OFF, :n] = desc.theta_offset
-    row[A_LO, :n] = desc.joint_lower
-    row[A_HI, :n] = desc.joint_upper
-    row[A_SCALE, :n] = desc.speed_limit
-    prm[i, P_TOOL] = desc.tool
-    prm[i, P_MNT] = desc.mount_offset
-    prm[i, P_H] = desc.base_height
-    prm[i, P_MOD] = 1.0 if desc.modified else 0.0
+    row[ARM.dh_a, :n] = a
+    row[ARM.dh_d, :n] = d
+    row[ARM.cos_alpha, :n] = ca
+    row[ARM.sin_alpha, :n] = sa
+    row[ARM.theta_offset, :n] = desc.theta_offset
+    row[ARM.joint_lower, :n] = desc.joint_lower
+    row[ARM.joint_upper, :n] = desc.joint_upper
+    row[ARM.action_scale, :n] = desc.speed_limit
+    prm[i, PRM.tool] = desc.tool
+    prm[i, PRM.mount_offset] = desc.mount_offset
+    prm[i, PRM.base_height] = desc.base_height
+    prm[i, PRM.modified] = 1.0 if desc.modified else 0.0
 
 
 def pack_robot(arm: np.ndarray, prm: np.ndarray, i: int, params) -> None:
     """Write a robot (a `mobman_env.params.RobotParams`: the arm on the platform) into row i of `arm` and `prm`
     (its geometry and limits; an episode's conditions and path are set apart)."""
     pack_arm(arm, prm, i, params.arm)
-    arm[i, A_SCALE] = params.action_scale
-    prm[i, P_R] = params.wheel_radius
-    prm[i, P_B] = params.half_track
+    arm[i, ARM.action_scale] = params.action_scale
+    prm[i, PRM.wheel_radius] = params.wheel_radius
+    prm[i, PRM.half_track] = params.half_track
 
 
 def packed(robots) -> tuple[np.ndarray, np.ndarray]:
@@ -201,10 +333,10 @@ def _chain(arm, i, n, modified, fac, tool, q, p, jac, axes):
     zx, zy, zz = 0.0, 0.0, 1.0
     px, py, pz = 0.0, 0.0, 0.0
     for k in range(n):
-        th = q[k] + arm[i, A_OFF, k]
+        th = q[k] + arm[i, ARM.theta_offset, k]
         c, s = math.cos(th), math.sin(th)
-        ca, sa = arm[i, A_CA, k], arm[i, A_SA, k]
-        a, d = arm[i, A_A, k] * fac, arm[i, A_D, k] * fac
+        ca, sa = arm[i, ARM.cos_alpha, k], arm[i, ARM.sin_alpha, k]
+        a, d = arm[i, ARM.dh_a, k] * fac, arm[i, ARM.dh_d, k] * fac
         if modified:
             # Rx(alpha) Tx(a): the origin moves along x, then y and z turn about x
             px, py, pz = px + a * xx, py + a * xy, pz + a * xz
@@ -272,9 +404,9 @@ def _whole_body(arm, prm, i, n, fac, q, x, y, yaw, ee, pc, jac, jpc, axes, f, fu
     into ee (3), p_c into pc (2), the whole-body Jacobian (d r_a / d u, platform translation included; with
     full=False the paper's J, whose wheel columns act only through the yaw) into jac (3, m) and d p_c / d u's
     wheel columns into jpc (2, 2). f (3) is scratch."""
-    _chain(arm, i, n, prm[i, P_MOD] != 0.0, fac, prm[i, P_TOOL], q, f, jac, axes)
+    _chain(arm, i, n, prm[i, PRM.modified] != 0.0, fac, prm[i, PRM.tool], q, f, jac, axes)
     c, s = math.cos(yaw), math.sin(yaw)
-    r, b, mnt = prm[i, P_R] * fac, prm[i, P_B] * fac, prm[i, P_MNT] * fac
+    r, b, mnt = prm[i, PRM.wheel_radius] * fac, prm[i, PRM.half_track] * fac, prm[i, PRM.mount_offset] * fac
     # g = R(yaw) f and the arm columns R(yaw) df/dq
     g0, g1, g2 = c * f[0] - s * f[1], s * f[0] + c * f[1], f[2]
     for k in range(n):
@@ -282,7 +414,7 @@ def _whole_body(arm, prm, i, n, fac, q, x, y, yaw, ee, pc, jac, jpc, axes, f, fu
         jac[0, k] = c * j0 - s * j1
         jac[1, k] = s * j0 + c * j1
     pc[0], pc[1] = x + mnt * c, y + mnt * s
-    ee[0], ee[1], ee[2] = pc[0] + g0, pc[1] + g1, prm[i, P_H] + g2
+    ee[0], ee[1], ee[2] = pc[0] + g0, pc[1] + g1, prm[i, PRM.base_height] + g2
     # r_a turns about p_c with phi_dot and moves with p_c
     _wheel_map(r, b, mnt, c, s, jpc)
     for w in range(2):
@@ -350,7 +482,10 @@ def arm_base_jacobians(arm, prm, yaw, out):
     nrow, m = out.shape[0], out.shape[2]
     jpc = np.empty((2, 2))
     for i in range(nrow):
-        _wheel_map(prm[i, P_R], prm[i, P_B], prm[i, P_MNT], math.cos(yaw[i]), math.sin(yaw[i]), jpc)
+        _wheel_map(
+            prm[i, PRM.wheel_radius], prm[i, PRM.half_track], prm[i, PRM.mount_offset], math.cos(yaw[i]),
+            math.sin(yaw[i]), jpc,
+        )  # fmt: skip
         for a in range(2):
             out[i, a, m - 2] = jpc[a, 0]
             out[i, a, m - 1] = jpc[a, 1]
@@ -362,7 +497,7 @@ def arm_points(arm, prm, q, points, jac):
     nrow, n = jac.shape[0], jac.shape[2]
     axes = np.empty((n, 6))
     for i in range(nrow):
-        _chain(arm, i, n, prm[i, P_MOD] != 0.0, 1.0, prm[i, P_TOOL], q[i], points[i], jac[i], axes)
+        _chain(arm, i, n, prm[i, PRM.modified] != 0.0, 1.0, prm[i, PRM.tool], q[i], points[i], jac[i], axes)
 
 
 @njit(cache=True, inline="always")
@@ -434,56 +569,66 @@ def _clip32(v, lim):
 
 @njit(cache=True, inline="always")
 def _finish(prm, st, io, obs, hist, i, m, t, vals, ee, a2, step, pv):
-    """The rest of a step (or a reset) of robot i from its noise-free readings `vals` (`n_sensor(m)`, float64; the
-    noise is added to them in place), its true end-effector ee and the squared norm a2 of its clipped action: the
-    target, the error, the reward terms, the observation (noise, float32, clipped into the bounds, the delay)
-    and the outputs. pv (3, 3) is scratch."""
+    """The rest of a step (or a reset) of robot i from its noise-free readings `vals` (`n_sensor(m)`, float64,
+    `SensorColumns` order; the noise is added to them in place), its true end-effector ee and the squared norm a2
+    of its clipped action: the target, the error, the reward terms, the observation (noise, float32, clipped into
+    the bounds, the delay) and the outputs. pv (3, 3) is scratch."""
     ns = _n_sensor(m)
-    out = _io_out(m)
-    iv = _io_vals(m)
+    IO = _io_columns(m)
+    R = _sensor_columns(m)
     for j in range(ns):
-        io[i, iv + j] = vals[j]
-    path_eval(prm[i, P_PATH:], t, pv)
+        io[i, IO.readings + j] = vals[j]
+    path_eval(prm[i, PRM.path :], t, pv)
     rd0, rd1, rd2, vd0, vd1, vd2 = pv[0, 0], pv[0, 1], pv[0, 2], pv[1, 0], pv[1, 1], pv[1, 2]
     e0, e1, e2 = rd0 - ee[0], rd1 - ee[1], rd2 - ee[2]
     err = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-    track = -prm[i, P_WT] * err
-    effort = -prm[i, P_WE] * a2
-    io[i, out + O_REWARD] = track + effort
-    io[i, out + O_TRACK] = track
-    io[i, out + O_EFFORT] = effort
-    io[i, out + O_ERR] = err
-    io[i, out + O_EE], io[i, out + O_EE + 1], io[i, out + O_EE + 2] = ee[0], ee[1], ee[2]
-    io[i, out + O_TERM] = 1.0 if err > prm[i, P_BOUND] else 0.0
-    io[i, out + O_TRUNC] = 1.0 if st[i, 2 * m + 3] >= prm[i, P_NSTEPS] else 0.0
+    track = -prm[i, PRM.w_tracking] * err
+    effort = -prm[i, PRM.w_effort] * a2
+    io[i, IO.reward] = track + effort
+    io[i, IO.tracking] = track
+    io[i, IO.effort] = effort
+    io[i, IO.tracking_error] = err
+    io[i, IO.ee_pos_true], io[i, IO.ee_pos_true + 1], io[i, IO.ee_pos_true + 2] = ee[0], ee[1], ee[2]
+    io[i, IO.terminated] = 1.0 if err > prm[i, PRM.error_bound] else 0.0
+    io[i, IO.truncated] = 1.0 if st[i, _state_columns(m).steps] >= prm[i, PRM.n_steps] else 0.0
     # the readings with their noise (standard normals drawn by the caller, scaled here), float32, clipped into the
     # bounds block by block: ee_pos, ee_vel, arm_base_pos, arm_base_vel, base_yaw, joint_pos, joint_vel
-    if prm[i, P_NOISY] != 0.0:  # the scaled standard normals, added to a copy of the readings
-        nz = _io_noise(m)
-        spos, svel, syaw, sjv = prm[i, P_SPOS], prm[i, P_SVEL], prm[i, P_SYAW], prm[i, P_SJV]
+    if prm[i, PRM.noisy] != 0.0:  # the scaled standard normals, added to a copy of the readings
+        spos, svel = prm[i, PRM.obs_noise], prm[i, PRM.obs_noise_vel]
+        syaw, sjv = prm[i, PRM.obs_noise_yaw], prm[i, PRM.obs_noise_joint_vel]
         for j in range(ns):
-            if j < 3 or 6 <= j < 8:
+            if j < R.ee_vel or R.arm_base_pos <= j < R.arm_base_vel:
                 std = spos
-            elif j < 10:
+            elif j < R.base_yaw:
                 std = svel
-            elif j == 10:
+            elif j == R.base_yaw:
                 std = syaw
-            elif j < 11 + m:
+            elif j < R.joint_vel:
                 std = 0.0
             else:
                 std = sjv
             if std > 0.0:
-                vals[j] = vals[j] + std * io[i, nz + j]
+                vals[j] = vals[j] + std * io[i, IO.noise + j]
+    _observe(prm, st, obs, hist, i, m, t, vals, rd0, rd1, rd2, vd0, vd1, vd2, step)
+
+
+@njit(cache=True, inline="always")
+def _observe(prm, st, obs, hist, i, m, t, vals, rd0, rd1, rd2, vd0, vd1, vd2, step):
+    """Robot i's observation from its (noisy) readings vals and the target: float32, clipped into the bounds,
+    through the delay line."""
+    ns = _n_sensor(m)
+    R = _sensor_columns(m)
     for j in range(3):
-        obs[i, j] = _clip32(vals[j], BIG_POS)
-        obs[i, 3 + j] = _clip32(vals[3 + j], BIG_VEL)
-    for j in range(6, 8):
-        obs[i, j] = _clip32(vals[j], BIG_POS)
-        obs[i, j + 2] = _clip32(vals[j + 2], BIG_VEL)
-    for j in range(10, 11 + m):
+        obs[i, R.ee_pos + j] = _clip32(vals[R.ee_pos + j], BIG_POS)
+        obs[i, R.ee_vel + j] = _clip32(vals[R.ee_vel + j], BIG_VEL)
+    for j in range(2):
+        obs[i, R.arm_base_pos + j] = _clip32(vals[R.arm_base_pos + j], BIG_POS)
+        obs[i, R.arm_base_vel + j] = _clip32(vals[R.arm_base_vel + j], BIG_VEL)
+    for j in range(R.base_yaw, R.joint_vel):  # base_yaw and joint_pos
         obs[i, j] = _clip32(vals[j], BIG_ANGLE)
-    for j in range(11 + m, ns):
+    for j in range(R.joint_vel, ns):
         obs[i, j] = _clip32(vals[j], BIG_JOINT_VEL)
+    # the task's reference after the readings: target_pos, target_vel, time
     obs[i, ns] = _clip32(rd0, BIG_POS)
     obs[i, ns + 1] = _clip32(rd1, BIG_POS)
     obs[i, ns + 2] = _clip32(rd2, BIG_POS)
@@ -493,14 +638,14 @@ def _finish(prm, st, io, obs, hist, i, m, t, vals, ee, a2, step, pv):
     x = np.float32(t)
     obs[i, ns + 6] = min(max(x, np.float32(0.0)), np.float32(BIG_TIME))
     # the delay: at a reset fill the line with this reading; after step k hand out the one of k - D and keep this
-    delay = int(prm[i, P_DELAY])
+    delay = int(prm[i, PRM.obs_delay])
     if delay > 0:
         if not step:
             for s in range(delay + 1):
                 for j in range(ns):
                     hist[i, s, j] = obs[i, j]
         else:
-            k = int(st[i, 2 * m + 3])
+            k = int(st[i, _state_columns(m).steps])
             put, get = (k - 1) % (delay + 1), k % (delay + 1)
             for j in range(ns):
                 now = obs[i, j]
@@ -521,14 +666,15 @@ def _check_actions(io, rows, m):
 
 
 @njit(cache=True, inline="always")
-def _clip_action(io, i, j, out):
-    """Action entry j of robot i clipped to [-1, 1]; flags the row's `O_CLIPPED` when it was outside."""
+def _clip_action(io, i, j, clipped):
+    """Action entry j of robot i clipped to [-1, 1]; flags the row's `action_clipped` (column `clipped`) when it
+    was outside."""
     x = io[i, j]
     if x > 1.0:
-        io[i, out + O_CLIPPED] = 1.0
+        io[i, clipped] = 1.0
         return 1.0
     if x < -1.0:
-        io[i, out + O_CLIPPED] = 1.0
+        io[i, clipped] = 1.0
         return -1.0
     return x
 
@@ -537,13 +683,13 @@ def _clip_action(io, i, j, out):
 def _actuate(arm, prm, st, io, i, m, dt, dq):
     """Clip robot i's action, scale it, apply the joint-limit rule and the lag (see the module docstring): the
     realised speeds at the end of the step go to st's u, each actuator's angle change over the step into dq (m),
-    the speeds to give the motors (physics: the mean over the step) into io's `O_U`; returns (|a|^2 of the
-    clipped action, limit hits so far this step)."""
+    the speeds to give the motors (physics: the mean over the step) into io's `motor_speed`; returns (|a|^2 of
+    the clipped action, limit hits so far this step)."""
     n = m - 2
-    out = _io_out(m)
-    su = _s_u(m)
-    io[i, out + O_CLIPPED] = 0.0
-    tau = prm[i, P_TAU]
+    IO = _io_columns(m)
+    su = _state_columns(m).u
+    io[i, IO.action_clipped] = 0.0
+    tau = prm[i, PRM.actuator_tau]
     decay, rise = 1.0, 0.0
     if tau > 0.0:
         decay = math.exp(-dt / tau)
@@ -551,35 +697,35 @@ def _actuate(arm, prm, st, io, i, m, dt, dq):
     a2 = 0.0
     hits = 0
     for j in range(m):
-        x = _clip_action(io, i, j, out)
+        x = _clip_action(io, i, IO.action + j, IO.action_clipped)
         a2 += x * x
-        uc = x * arm[i, A_SCALE, j]
+        uc = x * arm[i, ARM.action_scale, j]
         if j < n:
             q = st[i, j]
-            if (uc > 0.0 and q >= arm[i, A_HI, j]) or (uc < 0.0 and q <= arm[i, A_LO, j]):
+            if (uc > 0.0 and q >= arm[i, ARM.joint_upper, j]) or (uc < 0.0 and q <= arm[i, ARM.joint_lower, j]):
                 uc = 0.0
                 hits += 1
         if tau > 0.0:
             u0 = st[i, su + j]
             st[i, su + j] = uc + (u0 - uc) * decay
             dq[j] = uc * dt + (u0 - uc) * rise
-            io[i, out + O_U + j] = uc + (u0 - uc) * (rise / dt)
+            io[i, IO.motor_speed + j] = uc + (u0 - uc) * (rise / dt)
         else:
             st[i, su + j] = uc
             dq[j] = uc * dt
-            io[i, out + O_U + j] = uc
+            io[i, IO.motor_speed + j] = uc
     return a2, hits
 
 
 @njit(cache=True, inline="always")
 def _count(st, io, i, m, hits):
     """Add this step's clip and limit-hit counts to robot i's counters and report them in its outputs."""
-    out = _io_out(m)
-    s0 = 2 * m + 3
-    st[i, s0 + 1] += io[i, out + O_CLIPPED]
-    st[i, s0 + 2] += hits
-    io[i, out + O_NCLIP] = st[i, s0 + 1]
-    io[i, out + O_HITS] = st[i, s0 + 2]
+    IO = _io_columns(m)
+    S = _state_columns(m)
+    st[i, S.n_clipped] += io[i, IO.action_clipped]
+    st[i, S.joint_limit_hits] += hits
+    io[i, IO.n_clipped] = st[i, S.n_clipped]
+    io[i, IO.joint_limit_hits] = st[i, S.joint_limit_hits]
 
 
 @njit(cache=True, inline="always")
@@ -587,25 +733,26 @@ def _read_kinematic(arm, prm, st, io, obs, hist, i, m, dt, a2, step, scratch):
     """Robot i's readings from its state (the robot of its current time), then `_finish`."""
     axes, f, ee, pc, jac, jpc, vals, pv = scratch
     n = m - 2
-    su, sp = _s_u(m), _s_pose(m)
-    t = st[i, sp + 3] * dt
-    fac = 1.0 + prm[i, P_WEAR] * t
-    x, y, yaw = st[i, sp], st[i, sp + 1], st[i, sp + 2]
-    _whole_body(arm, prm, i, n, fac, st[i], x, y, yaw, ee, pc, jac, jpc, axes, f)
+    S = _state_columns(m)
+    R = _sensor_columns(m)
+    t = st[i, S.steps] * dt
+    fac = 1.0 + prm[i, PRM.wear_rate] * t
+    x, y, yaw = st[i, S.x], st[i, S.y], st[i, S.yaw]
+    _whole_body(arm, prm, i, n, fac, st[i, S.q :], x, y, yaw, ee, pc, jac, jpc, axes, f)
     for a in range(3):
         v = 0.0
         for j in range(m):
-            v += jac[a, j] * st[i, su + j]
-        vals[3 + a] = v
-    vals[0], vals[1], vals[2] = ee[0], ee[1], ee[2]
-    vals[6], vals[7] = pc[0], pc[1]
-    ul, ur = st[i, su + n], st[i, su + n + 1]
-    vals[8] = jpc[0, 0] * ul + jpc[0, 1] * ur
-    vals[9] = jpc[1, 0] * ul + jpc[1, 1] * ur
-    vals[10] = yaw
+            v += jac[a, j] * st[i, S.u + j]
+        vals[R.ee_vel + a] = v
+    vals[R.ee_pos], vals[R.ee_pos + 1], vals[R.ee_pos + 2] = ee[0], ee[1], ee[2]
+    vals[R.arm_base_pos], vals[R.arm_base_pos + 1] = pc[0], pc[1]
+    ul, ur = st[i, S.u + n], st[i, S.u + n + 1]
+    vals[R.arm_base_vel] = jpc[0, 0] * ul + jpc[0, 1] * ur
+    vals[R.arm_base_vel + 1] = jpc[1, 0] * ul + jpc[1, 1] * ur
+    vals[R.base_yaw] = yaw
     for j in range(m):
-        vals[11 + j] = st[i, j]
-        vals[11 + m + j] = st[i, su + j]
+        vals[R.joint_pos + j] = st[i, S.q + j]
+        vals[R.joint_vel + j] = st[i, S.u + j]
     _finish(prm, st, io, obs, hist, i, m, t, vals, ee, a2, step, pv)
 
 
@@ -629,12 +776,40 @@ def _scratch(m):
 READ, OBSERVE, STEP = 0, 1, 2
 
 
+@njit(cache=True, inline="always")
+def _move(arm, prm, st, io, i, m, dt, dq):
+    """Steps 1-5 of the module docstring for robot i: the actuators, the joint limits inside the step and the
+    platform's arc (the robot of t_k); the step count advances. Returns (|a|^2 of the clipped action, limit
+    hits)."""
+    n = m - 2
+    S = _state_columns(m)
+    a2, hits = _actuate(arm, prm, st, io, i, m, dt, dq)
+    for j in range(m):
+        q = st[i, S.q + j] + dq[j]
+        if j < n:
+            lo, hi = arm[i, ARM.joint_lower, j], arm[i, ARM.joint_upper, j]
+            if q > hi or q < lo:  # the joint reached its limit inside the step: it stops there
+                q = min(max(q, lo), hi)
+                st[i, S.u + j] = 0.0
+                hits += 1
+        st[i, S.q + j] = q
+    # the platform: the exact arc of the unicycle for the wheels' angle changes, the robot of t_k
+    fac = 1.0 + prm[i, PRM.wear_rate] * (st[i, S.steps] * dt)
+    r_w, b_w = prm[i, PRM.wheel_radius] * fac, prm[i, PRM.half_track] * fac
+    dl, dr = dq[n], dq[n + 1]
+    ds = 0.5 * r_w * (dl + dr)
+    dphi = 0.5 * r_w / b_w * (dr - dl)
+    st[i, S.x], st[i, S.y], st[i, S.yaw] = arc(st[i, S.x], st[i, S.y], st[i, S.yaw], ds, dphi)
+    st[i, S.steps] += 1.0
+    return a2, hits
+
+
 @njit(cache=True)
 def kinematic(arm, prm, st, io, obs, hist, dt, rows, mode):
     """Kinematic mode for the robots `rows`, by `mode`:
 
-    * `READ`: the end-effector r_a at the current state into io's `O_EE` (a reset's start point, before the path
-      is set; nothing else is written);
+    * `READ`: the end-effector r_a at the current state into io's `ee_pos_true` (a reset's start point, before
+      the path is set; nothing else is written);
     * `OBSERVE`: the observation at the current state without stepping (a reset: the delay line is filled with
       it, the outputs hold its error and target);
     * `STEP`: one control step (see the module docstring), then the observation.
@@ -642,47 +817,30 @@ def kinematic(arm, prm, st, io, obs, hist, dt, rows, mode):
     Returns -1, or (`STEP`) the first row whose action is not finite: then no robot has moved."""
     m = arm.shape[2]
     n = m - 2
-    out = _io_out(m)
+    IO = _io_columns(m)
+    S = _state_columns(m)
     if mode == STEP:
         bad = _check_actions(io, rows, m)
         if bad >= 0:
             return bad
     scratch = _scratch(m)
     dq = np.empty(m)
-    sp = _s_pose(m)
-    su = _s_u(m)
     for r in range(rows.shape[0]):
         i = rows[r]
         if mode == READ:
             axes, f, ee, pc, jac, jpc, vals, pv = scratch
-            fac = 1.0 + prm[i, P_WEAR] * (st[i, sp + 3] * dt)
-            _whole_body(arm, prm, i, n, fac, st[i], st[i, sp], st[i, sp + 1], st[i, sp + 2], ee, pc, jac, jpc, axes, f)
-            io[i, out + O_EE], io[i, out + O_EE + 1], io[i, out + O_EE + 2] = ee[0], ee[1], ee[2]
+            fac = 1.0 + prm[i, PRM.wear_rate] * (st[i, S.steps] * dt)
+            x, y, yaw = st[i, S.x], st[i, S.y], st[i, S.yaw]
+            _whole_body(arm, prm, i, n, fac, st[i, S.q :], x, y, yaw, ee, pc, jac, jpc, axes, f)
+            io[i, IO.ee_pos_true], io[i, IO.ee_pos_true + 1], io[i, IO.ee_pos_true + 2] = ee[0], ee[1], ee[2]
             continue
         a2, hits = 0.0, 0
         if mode == STEP:
-            a2, hits = _actuate(arm, prm, st, io, i, m, dt, dq)
-            for j in range(m):
-                q = st[i, j] + dq[j]
-                if j < n:
-                    lo, hi = arm[i, A_LO, j], arm[i, A_HI, j]
-                    if q > hi or q < lo:  # the joint reached its limit inside the step: it stops there
-                        q = min(max(q, lo), hi)
-                        st[i, su + j] = 0.0
-                        hits += 1
-                st[i, j] = q
-            # the platform: the exact arc of the unicycle for the wheels' angle changes, the robot of t_k
-            fac = 1.0 + prm[i, P_WEAR] * (st[i, sp + 3] * dt)
-            r_w, b_w = prm[i, P_R] * fac, prm[i, P_B] * fac
-            dl, dr = dq[n], dq[n + 1]
-            ds = 0.5 * r_w * (dl + dr)
-            dphi = 0.5 * r_w / b_w * (dr - dl)
-            st[i, sp], st[i, sp + 1], st[i, sp + 2] = arc(st[i, sp], st[i, sp + 1], st[i, sp + 2], ds, dphi)
-            st[i, sp + 3] += 1.0
+            a2, hits = _move(arm, prm, st, io, i, m, dt, dq)
         else:
-            io[i, out + O_CLIPPED] = 0.0
+            io[i, IO.action_clipped] = 0.0
         _read_kinematic(arm, prm, st, io, obs, hist, i, m, dt, a2, mode == STEP, scratch)
-        io[i, out + O_TIPPED] = 0.0
+        io[i, IO.tipped_over] = 0.0
         _count(st, io, i, m, hits)
     return -1
 
@@ -690,35 +848,36 @@ def kinematic(arm, prm, st, io, obs, hist, dt, rows, mode):
 # --- physics mode: the motors' commands and the readings from PyBullet's state -------------------------------------
 @njit(cache=True)
 def command_physics(arm, prm, st, io, dt, rows):
-    """The motor speeds of the robots `rows` (physics mode) into io's `O_U`: the action clipped, scaled, the
-    joint-limit rule on the arm angles of the last reading, the lag (the motors get the realised speed's mean
+    """The motor speeds of the robots `rows` (physics mode) into io's `motor_speed`: the action clipped, scaled,
+    the joint-limit rule on the arm angles of the last reading, the lag (the motors get the realised speed's mean
     over the step). Returns -1, or the first row whose action is not finite: then nothing is commanded."""
     m = arm.shape[2]
     bad = _check_actions(io, rows, m)
     if bad >= 0:
         return bad
     dq = np.empty(m)
-    out = _io_out(m)
+    IO = _io_columns(m)
     for r in range(rows.shape[0]):
         i = rows[r]
         a2, hits = _actuate(arm, prm, st, io, i, m, dt, dq)
-        io[i, out + O_A2] = a2
-        io[i, out + O_STEP_HITS] = hits
+        io[i, IO.action_norm2] = a2
+        io[i, IO.step_limit_hits] = hits
     return -1
 
 
 @njit(cache=True, inline="always")
 def _read_physics(arm, prm, st, io, i, m, scratch):
     """Robot i's noise-free readings (into the scratch's `vals`) and end-effector (its `ee`) from the PyBullet
-    state in io's `io_phys` columns (joint angles and speeds, base position, quaternion (x, y, z, w), linear and
+    state in io's `phys_*` columns (joint angles and speeds, base position, quaternion (x, y, z, w), linear and
     angular velocity, world frame): the end-effector and its velocity from the same chain as kinematic mode (the
     base's full rotation included), p_c and its velocity in the plane, the continuous heading (kept in st);
     returns (roll, pitch). The joint angles go to st too (the limit rule's)."""
     axes, f, ee, pc, jac, jpc, vals, pv = scratch
     n = m - 2
-    ph = _io_phys(m)
-    sp = _s_pose(m)
-    qx, qy, qz, qw = io[i, ph + 2 * m + 3], io[i, ph + 2 * m + 4], io[i, ph + 2 * m + 5], io[i, ph + 2 * m + 6]
+    IO = _io_columns(m)
+    S = _state_columns(m)
+    R = _sensor_columns(m)
+    qx, qy, qz, qw = io[i, IO.phys_quat], io[i, IO.phys_quat + 1], io[i, IO.phys_quat + 2], io[i, IO.phys_quat + 3]
     # the base's rotation matrix and its roll, pitch, yaw (Z-Y-X Euler angles, as getEulerFromQuaternion)
     r00 = 1.0 - 2.0 * (qy * qy + qz * qz)
     r01 = 2.0 * (qx * qy - qz * qw)
@@ -732,18 +891,19 @@ def _read_physics(arm, prm, st, io, i, m, scratch):
     roll = math.atan2(r21, r22)
     pitch = math.asin(min(max(-r20, -1.0), 1.0))
     yaw_w = math.atan2(r10, r00)
-    st[i, sp + 6], st[i, sp + 7] = roll, pitch
+    st[i, S.roll], st[i, S.pitch] = roll, pitch
     # the continuous heading: the wrapped angle's representative nearest the last one
-    yaw = st[i, sp + 2]
+    yaw = st[i, S.yaw]
     yaw = yaw + ((yaw_w - yaw + math.pi) % (2.0 * math.pi) - math.pi)
-    st[i, sp + 2] = yaw
-    bx, by, bz = io[i, ph + 2 * m], io[i, ph + 2 * m + 1], io[i, ph + 2 * m + 2]
-    st[i, sp], st[i, sp + 1] = bx, by
+    st[i, S.yaw] = yaw
+    bx, by, bz = io[i, IO.phys_pos], io[i, IO.phys_pos + 1], io[i, IO.phys_pos + 2]
+    st[i, S.x], st[i, S.y] = bx, by
     for j in range(m):
-        st[i, j] = io[i, ph + j]
-    _chain(arm, i, n, prm[i, P_MOD] != 0.0, 1.0, prm[i, P_TOOL], st[i], f, jac, axes)
+        st[i, S.q + j] = io[i, IO.phys_q + j]
+    _chain(arm, i, n, prm[i, PRM.modified] != 0.0, 1.0, prm[i, PRM.tool], st[i, S.q :], f, jac, axes)
     # the arm's frame 0 sits at (mount, 0, h - r) in the base link (the URDF's layout)
-    vx, vy, vz = prm[i, P_MNT] + f[0], f[1], prm[i, P_H] - prm[i, P_R] + f[2]
+    mnt = prm[i, PRM.mount_offset]
+    vx, vy, vz = mnt + f[0], f[1], prm[i, PRM.base_height] - prm[i, PRM.wheel_radius] + f[2]
     ox = r00 * vx + r01 * vy + r02 * vz
     oy = r10 * vx + r11 * vy + r12 * vz
     oz = r20 * vx + r21 * vy + r22 * vz
@@ -751,56 +911,55 @@ def _read_physics(arm, prm, st, io, i, m, scratch):
     # velocity: the base's, its rotation about the offset, and the arm's joints (turned into the world)
     jx, jy, jz = 0.0, 0.0, 0.0
     for k in range(n):
-        qd = io[i, ph + m + k]
+        qd = io[i, IO.phys_q_dot + k]
         jx += jac[0, k] * qd
         jy += jac[1, k] * qd
         jz += jac[2, k] * qd
-    lx, ly, lz = io[i, ph + 2 * m + 7], io[i, ph + 2 * m + 8], io[i, ph + 2 * m + 9]
-    wx, wy, wz = io[i, ph + 2 * m + 10], io[i, ph + 2 * m + 11], io[i, ph + 2 * m + 12]
-    vals[0], vals[1], vals[2] = ee[0], ee[1], ee[2]
-    vals[3] = lx + (wy * oz - wz * oy) + (r00 * jx + r01 * jy + r02 * jz)
-    vals[4] = ly + (wz * ox - wx * oz) + (r10 * jx + r11 * jy + r12 * jz)
-    vals[5] = lz + (wx * oy - wy * ox) + (r20 * jx + r21 * jy + r22 * jz)
-    mnt = prm[i, P_MNT]
+    lx, ly, lz = io[i, IO.phys_lin_vel], io[i, IO.phys_lin_vel + 1], io[i, IO.phys_lin_vel + 2]
+    wx, wy, wz = io[i, IO.phys_ang_vel], io[i, IO.phys_ang_vel + 1], io[i, IO.phys_ang_vel + 2]
+    vals[R.ee_pos], vals[R.ee_pos + 1], vals[R.ee_pos + 2] = ee[0], ee[1], ee[2]
+    vals[R.ee_vel] = lx + (wy * oz - wz * oy) + (r00 * jx + r01 * jy + r02 * jz)
+    vals[R.ee_vel + 1] = ly + (wz * ox - wx * oz) + (r10 * jx + r11 * jy + r12 * jz)
+    vals[R.ee_vel + 2] = lz + (wx * oy - wy * ox) + (r20 * jx + r21 * jy + r22 * jz)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    vals[6], vals[7] = bx + mnt * cy, by + mnt * sy
-    vals[8], vals[9] = lx - mnt * wz * sy, ly + mnt * wz * cy
-    vals[10] = yaw
+    vals[R.arm_base_pos], vals[R.arm_base_pos + 1] = bx + mnt * cy, by + mnt * sy
+    vals[R.arm_base_vel], vals[R.arm_base_vel + 1] = lx - mnt * wz * sy, ly + mnt * wz * cy
+    vals[R.base_yaw] = yaw
     for j in range(m):
-        vals[11 + j] = io[i, ph + j]
-        vals[11 + m + j] = io[i, ph + m + j]
+        vals[R.joint_pos + j] = io[i, IO.phys_q + j]
+        vals[R.joint_vel + j] = io[i, IO.phys_q_dot + j]
     return roll, pitch
 
 
 @njit(cache=True)
 def physics(arm, prm, st, io, obs, hist, dt, rows, mode):
     """Physics mode's readings of the robots `rows` from their PyBullet state (`_read_physics`), by `mode`:
-    `READ`: the end-effector into io's `O_EE` only (a reset's start point, before the path is set); `OBSERVE`:
-    the observation of a reset; `STEP`: after a control step (the step count advances, the counters of
+    `READ`: the end-effector into io's `ee_pos_true` only (a reset's start point, before the path is set);
+    `OBSERVE`: the observation of a reset; `STEP`: after a control step (the step count advances, the counters of
     `command_physics` are added). Then `_finish` and the tip-over check (roll or pitch beyond `TIP_ANGLE`
     terminates)."""
     m = arm.shape[2]
     scratch = _scratch(m)
-    out = _io_out(m)
-    sp = _s_pose(m)
+    IO = _io_columns(m)
+    S = _state_columns(m)
     for r in range(rows.shape[0]):
         i = rows[r]
         roll, pitch = _read_physics(arm, prm, st, io, i, m, scratch)
         ee = scratch[2]
         if mode == READ:
-            io[i, out + O_EE], io[i, out + O_EE + 1], io[i, out + O_EE + 2] = ee[0], ee[1], ee[2]
+            io[i, IO.ee_pos_true], io[i, IO.ee_pos_true + 1], io[i, IO.ee_pos_true + 2] = ee[0], ee[1], ee[2]
             continue
         a2, hits = 0.0, 0
         if mode == STEP:
-            st[i, sp + 3] += 1.0
-            a2, hits = io[i, out + O_A2], int(io[i, out + O_STEP_HITS])
+            st[i, S.steps] += 1.0
+            a2, hits = io[i, IO.action_norm2], int(io[i, IO.step_limit_hits])
         else:
-            io[i, out + O_CLIPPED] = 0.0
-        _finish(prm, st, io, obs, hist, i, m, st[i, sp + 3] * dt, scratch[6], ee, a2, mode == STEP, scratch[7])
+            io[i, IO.action_clipped] = 0.0
+        _finish(prm, st, io, obs, hist, i, m, st[i, S.steps] * dt, scratch[6], ee, a2, mode == STEP, scratch[7])
         tipped = max(abs(roll), abs(pitch)) > TIP_ANGLE
-        io[i, out + O_TIPPED] = 1.0 if tipped else 0.0
+        io[i, IO.tipped_over] = 1.0 if tipped else 0.0
         if tipped:
-            io[i, out + O_TERM] = 1.0
+            io[i, IO.terminated] = 1.0
         _count(st, io, i, m, hits)
 
 
@@ -815,18 +974,18 @@ def warm() -> float:
     t0 = time.perf_counter()
     m = 8
     arm = np.zeros((1, ARM_ROWS, m))
-    arm[0, A_CA] = 1.0
-    arm[0, A_HI] = 1.0
-    arm[0, A_LO] = -1.0
-    arm[0, A_SCALE] = 1.0
+    arm[0, ARM.cos_alpha] = 1.0
+    arm[0, ARM.joint_upper] = 1.0
+    arm[0, ARM.joint_lower] = -1.0
+    arm[0, ARM.action_scale] = 1.0
     prm = np.zeros((1, P_LEN))
-    prm[0, P_R] = prm[0, P_B] = 0.2
-    prm[0, P_PATH + 3] = 1.0
-    prm[0, P_BOUND] = math.inf
-    prm[0, P_NSTEPS] = 10.0
+    prm[0, PRM.wheel_radius] = prm[0, PRM.half_track] = 0.2
+    prm[0, PRM.path + 3] = 1.0  # the path's duration
+    prm[0, PRM.error_bound] = math.inf
+    prm[0, PRM.n_steps] = 10.0
     st = np.zeros((1, s_len(m)))
     io = np.zeros((1, io_len(m)))
-    io[0, io_phys(m) + 2 * m + 6] = 1.0  # a unit quaternion
+    io[0, io_columns(m).phys_quat + 3] = 1.0  # a unit quaternion
     obs = np.empty((1, obs_size(m)), dtype=np.float32)
     hist = np.zeros((1, 1, n_sensor(m)), dtype=np.float32)
     rows = np.arange(1)
@@ -847,6 +1006,6 @@ def warm() -> float:
     )
     arm_base_jacobians(arm, prm, np.zeros(1), np.zeros((1, 2, m)))
     arm_points(arm, prm, np.zeros((1, m)), np.empty((1, 3)), np.empty((1, 3, m - 2)))
-    path_eval(prm[0, P_PATH:].copy(), 0.5, np.empty((3, 3)))
+    path_eval(prm[0, PRM.path :].copy(), 0.5, np.empty((3, 3)))
     arc(0.0, 0.0, 0.0, 0.1, 0.1)
     return time.perf_counter() - t0

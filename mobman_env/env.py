@@ -6,6 +6,13 @@ the task's target, error, reward and observation, for N robots; this env is N = 
 `batch.RobotBatch`), PyBullet in physics mode (`sim`) and the task (`paths`). Imports gymnasium, numpy and those
 `mobman_env` modules only. The class keeps its
 release 0.1 name (users' scripts and pickles use it); the robot is its `robot` argument.
+
+Following a value by name: the per-episode conditions (`model_error` ... `actuator_tau`) are validated into one
+frozen `batch.Conditions` (`env.conditions`; a reset option of the same name replaces one field for an episode),
+`RobotBatch.begin` writes each into the `prm` column of its own name (`engine.PRM.actuator_tau`), and the kernels
+read it there (`engine._actuate`: `prm[i, PRM.actuator_tau]`). The columns of every engine array are named in
+one place, `mobman_env.engine`'s layouts; a step's numbers come back as a `batch.StepResult` under their `info`
+names.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ from __future__ import annotations
 import math
 import warnings
 from collections.abc import Mapping
+from dataclasses import replace
 from typing import Any, cast
 
 import gymnasium as gym
@@ -20,7 +28,7 @@ import numpy as np
 from gymnasium import spaces
 
 from mobman_env import engine as E
-from mobman_env.batch import CONDITIONS, RobotBatch, RobotState
+from mobman_env.batch import CONDITIONS, Conditions, RobotBatch, RobotState
 from mobman_env.params import MAX_REL_STD, RobotParams
 from mobman_env.paths import TASK_SPECS, Path, validate_spec
 from mobman_env.robots.sources import ROBOT_NAMES, RobotSource, robot_source
@@ -70,6 +78,17 @@ def _condition(name: str, value: Any) -> float | int:
         return number(name, value, low=0.0, high=MAX_ACTUATOR_TAU, hint="time constant of the actuators' lag, s")
     unit = {"obs_noise": "m", "obs_noise_vel": "m/s", "obs_noise_joint_vel": "rad/s", "obs_noise_yaw": "rad"}[name]
     return number(name, value, low=0.0, hint=f"standard deviation, {unit}")
+
+
+def _checked(given: Conditions) -> Conditions:
+    """The conditions as given to the constructor, each validated (`_condition`, in `CONDITIONS` order)."""
+    checked: dict[str, Any] = {k: _condition(k, getattr(given, k)) for k in CONDITIONS}
+    return Conditions(**checked)
+
+
+def _condition_attribute(name: str) -> property:
+    """The read-only attribute `name` of the env: its constructor's condition, `env.conditions.<name>`."""
+    return property(lambda env: getattr(env.conditions, name), doc=f"The constructor's `{name}` (read-only).")
 
 
 def _duration(spec: dict) -> float:
@@ -258,6 +277,15 @@ class WheeledPumaEnv(gym.Env):
     # render_fps: the default control frequency; each instance assigns its own dict (its control frequency), the
     # class dict is never mutated. Not a ClassVar: gymnasium.Env declares `metadata` as an instance attribute.
     metadata: dict[str, Any] = {"render_modes": ["human", "rgb_array"], "render_fps": 100.0}  # noqa: RUF012
+    # the constructor's conditions, read from `conditions` (one frozen `batch.Conditions`)
+    model_error = _condition_attribute("model_error")
+    obs_noise = _condition_attribute("obs_noise")
+    obs_noise_vel = _condition_attribute("obs_noise_vel")
+    obs_noise_joint_vel = _condition_attribute("obs_noise_joint_vel")
+    obs_noise_yaw = _condition_attribute("obs_noise_yaw")
+    obs_delay = _condition_attribute("obs_delay")
+    wear_rate = _condition_attribute("wear_rate")
+    actuator_tau = _condition_attribute("actuator_tau")
 
     def __init__(
         self,
@@ -288,31 +316,19 @@ class WheeledPumaEnv(gym.Env):
             raise ValueError(f"unknown render_mode {render_mode!r}; accepted: None, 'rgb_array', 'human'")
         control_freq = number("control_freq", control_freq, low=0.0, high=MAX_CONTROL_FREQ, open_low=True, hint="Hz")
         n_substeps = integer("n_substeps", n_substeps, low=1, high=MAX_SUBSTEPS)
-        given = {
-            "model_error": model_error,
-            "obs_noise": obs_noise,
-            "obs_noise_vel": obs_noise_vel,
-            "obs_noise_joint_vel": obs_noise_joint_vel,
-            "obs_noise_yaw": obs_noise_yaw,
-            "obs_delay": obs_delay,
-            "wear_rate": wear_rate,
-            "actuator_tau": actuator_tau,
-        }
-        self._conditions = {k: _condition(k, given[k]) for k in CONDITIONS}
-        self.model_error = self._conditions["model_error"]
-        self.obs_noise = self._conditions["obs_noise"]
-        self.obs_noise_vel = self._conditions["obs_noise_vel"]
-        self.obs_noise_joint_vel = self._conditions["obs_noise_joint_vel"]
-        self.obs_noise_yaw = self._conditions["obs_noise_yaw"]
-        self.obs_delay = self._conditions["obs_delay"]
-        self.wear_rate = self._conditions["wear_rate"]
-        self.actuator_tau = self._conditions["actuator_tau"]
+        #: the episode's conditions (each reset's, unless a reset option of the same name overrides it)
+        self.conditions = _checked(
+            Conditions(
+                model_error, obs_noise, obs_noise_vel, obs_noise_joint_vel, obs_noise_yaw, obs_delay, wear_rate,
+                actuator_tau,
+            )
+        )  # fmt: skip
         if error_bound is not None:
             error_bound = number("error_bound", error_bound, low=0.0, hint="m; None: never terminate on the error")
         self.reward_weights = _reward_weights(reward_weights)
         self.error_bound = error_bound
         self.path_spec = validate_spec(PAPER_CIRCLE if path is None else path)
-        self._check_wear(dynamics, self.wear_rate, _duration(self.path_spec))
+        self._check_wear(dynamics, self.conditions.wear_rate, _duration(self.path_spec))
         self._nominal_params = self._source.nominal
         if arm_joint_pos is None:
             start = self._source.default_start
@@ -420,7 +436,7 @@ class WheeledPumaEnv(gym.Env):
 
     def _episode_settings(
         self, options: Any, nominal: RobotParams, dynamics: str
-    ) -> tuple[dict, np.ndarray | None, np.ndarray, dict]:
+    ) -> tuple[dict, np.ndarray | None, np.ndarray, Conditions]:
         """The checked reset options over this env's own settings: (path spec, arm start or None when the
         robot draws its start, base pose, conditions). The vector env resolves its rows' resets through this
         too, with `dynamics` "kinematic"."""
@@ -440,8 +456,9 @@ class WheeledPumaEnv(gym.Env):
         else:
             q0 = self.arm_joint_pos
         pose = _base_pose(options["base_pose"]) if "base_pose" in options else self.base_pose
-        cond = {k: _condition(k, options[k]) if k in options else v for k, v in self._conditions.items()}
-        self._check_wear(dynamics, cond["wear_rate"], _duration(spec))
+        overrides: dict[str, Any] = {k: _condition(k, options[k]) for k in CONDITIONS if k in options}
+        cond = replace(self.conditions, **overrides)
+        self._check_wear(dynamics, cond.wear_rate, _duration(spec))
         return spec, q0, pose, cond
 
     # --- gym API ---------------------------------------------------------------------------------------
@@ -460,7 +477,7 @@ class WheeledPumaEnv(gym.Env):
         if self._physics:
             assert self._sim is not None
             self._sim.reset(b.params0[0], q0, pose)
-            b.io[0, E.io_phys(b.m) : E.io_out(b.m)] = self._sim.read()
+            b.io[0, b.IO.phys_q : b.IO.reward] = self._sim.read()  # the PyBullet readings (`io_columns`' phys_*)
             ee = b.ee_physics(rows)
         else:
             ee = b.ee_kinematic(rows)
@@ -493,51 +510,61 @@ class WheeledPumaEnv(gym.Env):
         self._check_open()
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        b, rows, m = self._batch, self._rows, self.n_actuators
-        io = b.io
-        if type(action) is not np.ndarray or action.shape != (m,) or action.dtype.kind != "f":
-            a = np.asarray(action)
-            if a.dtype.kind not in "fiu":
-                raise ValueError(
-                    f"action must be real numbers (a float array of shape ({m},)), got dtype {a.dtype} "
-                    f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
-                )
-            if a.shape != (m,):
-                raise ValueError(
-                    f"action must have shape ({m},) ({m - 2} arm joints, left wheel, right wheel), got shape {a.shape}"
-                )
-            action = a
-        io[0, :m] = action
-        b.draw_noise(rows, self._rngs)
+        b = self._batch
+        b.io[0, b.IO.action : b.IO.action + self.n_actuators] = self._checked_action(action)
+        b.draw_noise(self._rows, self._rngs)
         flat = b.new_obs()
-        if self._physics:
-            bad = E.command_physics(b.arm, b.prm, b.st, io, b.dt, rows)
-            if bad < 0:
-                sim = self._sim
-                assert sim is not None
-                out = b.out + E.O_U
-                sim.command(io[0, out : out + m].tolist())
-                io[0, E.io_phys(m) : b.out] = sim.read()
-                b.observe_physics(rows, flat, True)
-        else:
-            bad = b.step_kinematic(rows, flat)
-        if bad >= 0:
+        if self._advance(flat) >= 0:
             al = np.asarray(action, dtype=float)
             raise ValueError(
                 f"action must be finite, got {al.tolist()} (NaN or inf at {np.flatnonzero(~np.isfinite(al)).tolist()})"
             )
-        reward, track, effort, err, e0, e1, e2, clipped, term, trunc, n_clipped, hits, tipped = b.outputs(0)
+        r = b.result(0)
         info = {
-            "ee_pos_true": np.array((e0, e1, e2)),
-            "tracking_error": err,
-            "reward_terms": {"tracking": track, "effort": effort},
-            "action_clipped": clipped != 0.0,
-            "n_clipped": int(n_clipped),
-            "joint_limit_hits": int(hits),
-            "tipped_over": tipped != 0.0,
+            "ee_pos_true": r.ee_pos_true,
+            "tracking_error": r.tracking_error,
+            "reward_terms": {"tracking": r.tracking, "effort": r.effort},
+            "action_clipped": r.action_clipped,
+            "n_clipped": r.n_clipped,
+            "joint_limit_hits": r.joint_limit_hits,
+            "tipped_over": r.tipped_over,
             "true_params_hash": self._params_hash,
         }
-        return self._obs_dict(flat[0]), reward, term != 0.0, trunc != 0.0, info
+        return self._obs_dict(flat[0]), r.reward, r.terminated, r.truncated, info
+
+    def _checked_action(self, action: Any) -> np.ndarray:
+        """The action as an array of shape (m,) of real numbers (finiteness is the kernel's check)."""
+        m = self.n_actuators
+        if type(action) is np.ndarray and action.shape == (m,) and action.dtype.kind == "f":
+            return action
+        a = np.asarray(action)
+        if a.dtype.kind not in "fiu":
+            raise ValueError(
+                f"action must be real numbers (a float array of shape ({m},)), got dtype {a.dtype} "
+                f"({'complex: the imaginary part would be lost' if a.dtype.kind == 'c' else 'not a number type'})"
+            )
+        if a.shape != (m,):
+            raise ValueError(
+                f"action must have shape ({m},) ({m - 2} arm joints, left wheel, right wheel), got shape {a.shape}"
+            )
+        return a
+
+    def _advance(self, flat: np.ndarray) -> int:
+        """One step of the robot (its action in the batch's `io`), the observation into `flat`: the kinematic
+        kernel, or the motors' commands, PyBullet's step and the readings of its state. -1, or 0 when the action
+        is not finite (then nothing moved)."""
+        b, rows = self._batch, self._rows
+        if not self._physics:
+            return b.step_kinematic(rows, flat)
+        bad = E.command_physics(b.arm, b.prm, b.st, b.io, b.dt, rows)
+        if bad < 0:
+            sim = self._sim
+            assert sim is not None
+            c = b.IO
+            sim.command(b.io[0, c.motor_speed : c.motor_speed + self.n_actuators].tolist())
+            b.io[0, c.phys_q : c.reward] = sim.read()  # the PyBullet readings (`io_columns`' phys_*)
+            b.observe_physics(rows, flat, True)
+        return bad
 
     def _obs_dict(self, flat: np.ndarray) -> dict:
         """The observation dict: views of one flat float32 vector, in OBS_KEYS order."""
@@ -563,10 +590,11 @@ class WheeledPumaEnv(gym.Env):
         assert sim is not None
         b = self._batch
         st = b.st[0]
+        S = b.S
         if not self._physics:  # the body where the engine's state is (the robot of the current time)
-            sim.show(b.true_params(0), st[: self.n_actuators], st[E.s_pose(b.m) : E.s_pose(b.m) + 3])
+            sim.show(b.true_params(0), st[S.q : S.q + self.n_actuators], st[[S.x, S.y, S.yaw]])
         # look at the middle of the box holding the path and the platform
-        base = st[E.s_pose(b.m) : E.s_pose(b.m) + 2]
+        base = st[[S.x, S.y]]
         pts = np.vstack([self._path_points, [base[0], base[1], 0.3], [base[0], base[1], 1.0]])
         target = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
         distance = 1.2 + 1.2 * float(np.ptp(pts[:, :2], axis=0).max())
@@ -603,8 +631,8 @@ class WheeledPumaEnv(gym.Env):
         under (a reset option included; the constructor's before the first reset). Part of the true model: for
         oracles (`mpc-oracle`) and tests only; it never appears in `info`."""
         if not self._started:
-            return float(self.actuator_tau)
-        return float(self._batch.prm[0, E.P_TAU])
+            return float(self.conditions.actuator_tau)
+        return float(self._batch.prm[0, E.PRM.actuator_tau])
 
     # --- read-only conveniences ------------------------------------------------------------------------
     @property

@@ -108,14 +108,14 @@ def _peaks(arm, prm, rows, q0, pose0, dt, steps, gain, damping, out):
     for r in range(rows.shape[0]):
         i = rows[r]
         for j in range(m):
-            scale[j] = arm[i, E.A_SCALE, j]
+            scale[j] = arm[i, E.ARM.action_scale, j]
             q[j] = q0[r, j]
         x, y, yaw = pose0[r, 0], pose0[r, 1], pose0[r, 2]
         peak, when, which, worst = 0.0, 0.0, 0, 0.0
-        c = prm[i, E.P_PATH :]
+        c = prm[i, E.PRM.path :]
         for k in range(int(steps[r])):
             t = k * dt
-            fac = 1.0 + prm[i, E.P_WEAR] * t
+            fac = 1.0 + prm[i, E.PRM.wear_rate] * t
             E._whole_body(arm, prm, i, n, fac, q, x, y, yaw, ee, pc, jac, jpc, axes, f)
             E.path_eval(c, t, target)
             e2 = 0.0
@@ -129,7 +129,7 @@ def _peaks(arm, prm, rows, q0, pose0, dt, steps, gain, damping, out):
                 peak, when, which = ratio, t, j_max
             for j in range(n):
                 q[j] += scale[j] * w[j] * dt
-            r_w, b_w = prm[i, E.P_R] * fac, prm[i, E.P_B] * fac
+            r_w, b_w = prm[i, E.PRM.wheel_radius] * fac, prm[i, E.PRM.half_track] * fac
             dl, dr = scale[n] * w[n] * dt, scale[n + 1] * w[n + 1] * dt
             x, y, yaw = E.arc(x, y, yaw, 0.5 * r_w * (dl + dr), 0.5 * r_w / b_w * (dr - dl))
         out[r, 0], out[r, 1], out[r, 2], out[r, 3] = peak, when, which, worst
@@ -140,9 +140,10 @@ def check_rows(batch, rows, margin: float = FEASIBILITY_MARGIN) -> list[Feasibil
     after its reset: it holds each row's true robot, path and start)."""
     rows = np.asarray(rows, dtype=np.intp)
     m = batch.m
-    q0 = batch.st[rows, E.s_q(m) : E.s_q(m) + m].copy()
-    pose0 = batch.st[rows, E.s_pose(m) : E.s_pose(m) + 3].copy()
-    steps = batch.prm[rows, E.P_NSTEPS].copy()
+    S = batch.S
+    q0 = batch.st[rows, S.q : S.q + m].copy()
+    pose0 = batch.st[rows][:, [S.x, S.y, S.yaw]]
+    steps = batch.prm[rows, E.PRM.n_steps].copy()
     out = np.zeros((len(rows), 4))
     _peaks(batch.arm, batch.prm, rows, q0, pose0, batch.dt, steps, REFERENCE_GAIN, REFERENCE_DAMPING, out)
     return [Feasibility(float(p), float(t), int(j), float(margin), float(e)) for p, t, j, e in out]
@@ -163,11 +164,11 @@ def warm() -> float:
     t0 = time.perf_counter()
     m = 8
     arm = np.zeros((1, E.ARM_ROWS, m))
-    arm[0, E.A_CA] = 1.0
-    arm[0, E.A_SCALE] = 1.0
+    arm[0, E.ARM.cos_alpha] = 1.0
+    arm[0, E.ARM.action_scale] = 1.0
     prm = np.zeros((1, E.P_LEN))
-    prm[0, E.P_R] = prm[0, E.P_B] = 0.2
-    prm[0, E.P_PATH + 3] = 1.0
+    prm[0, E.PRM.wheel_radius] = prm[0, E.PRM.half_track] = 0.2
+    prm[0, E.PRM.path + 3] = 1.0  # the path's duration
     rows = np.arange(1)
     out = np.zeros((1, 4))
     _peaks(arm, prm, rows, np.zeros((1, m)), np.zeros((1, 3)), 0.01, np.full(1, 2.0), 20.0, 1e-3, out)

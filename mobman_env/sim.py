@@ -274,8 +274,9 @@ class Sim:
             step(cid)
 
     def read(self) -> tuple[float, ...]:
-        """The raw state, in the engine's `io_phys` order: the n + 2 joint angles, their speeds, the base's
-        position (P_0 at wheel-axle height), orientation quaternion (x, y, z, w), linear and angular velocity."""
+        """The raw state, in the order of the engine's `io_columns` fields `phys_q` to `phys_ang_vel`: the n + 2
+        joint angles, their speeds, the base's position (P_0 at wheel-axle height), orientation quaternion (x, y,
+        z, w), linear and angular velocity."""
         body, cid, pb = self.body, self.client_id, pybullet
         q, qd, _, _ = zip(*pb.getJointStates(body, self.act_ids, cid))
         pos, orn = pb.getBasePositionAndOrientation(body, cid)

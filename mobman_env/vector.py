@@ -34,7 +34,9 @@ not batched) that checks every row's action before stepping any.
 
 Robots: every robot of the catalogue and the random family (`robot="random"`: each reset draws row i's arm from
 its generator, the arms differ row by row; the draw and its kinematic ceiling check cost about 0.2 s per
-candidate, `mobman_env.robots.sources`). Imports gymnasium, numpy and `mobman_env` modules only.
+candidate, `mobman_env.robots.sources`). A step's results are read from the batch's `io` by their `info` names
+(`RobotBatch.named("io")`, the columns of `mobman_env.engine.io_columns`). Imports gymnasium, numpy and
+`mobman_env` modules only.
 """
 
 from __future__ import annotations
@@ -177,7 +179,7 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         `true_actuator_tau`)."""
         if not self._started:
             return self._template.true_actuator_tau
-        return float(self._batch.prm[i, E.P_TAU])
+        return float(self._batch.prm[i, E.PRM.actuator_tau])
 
     @property
     def dt(self) -> float:
@@ -226,14 +228,14 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
             raise ValueError(
                 f"actions must be finite; NaN or inf in robot {bad}: {a[bad].tolist()} (no robot was stepped)"
             )
-        b.io[:, :m] = a
+        b.io[:, b.IO.action : b.IO.action + m] = a
         b.draw_noise(rows, self._rngs)
         flat = b.new_obs()
         b.step_kinematic(rows, flat)
-        out = b.io[:, b.out : b.out + E.O_TIPPED + 1]
-        rewards = out[:, E.O_REWARD].copy()
-        terminated = out[:, E.O_TERM] != 0.0
-        truncated = out[:, E.O_TRUNC] != 0.0
+        out = b.named("io")  # the results by their `info` names (`engine.io_columns`)
+        rewards = out["reward"].copy()
+        terminated = out["terminated"] != 0.0
+        truncated = out["truncated"] != 0.0
         moving = ~resetting
         infos = self._step_info(out, moving)
         if resetting.any():
@@ -270,14 +272,14 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         return {k: flat[:, sl] for k, sl in self._template._obs_slices}
 
     def _step_info(self, out: np.ndarray, moving: np.ndarray) -> dict[str, Any]:
-        """The batched info of a step (rows `moving`; the others get masks False)."""
+        """The batched info of a step from the batch's named `io` (rows `moving`; the others get masks False)."""
         info = {
-            "ee_pos_true": out[:, E.O_EE : E.O_EE + 3].copy(),
-            "tracking_error": out[:, E.O_ERR].copy(),
-            "reward_terms": {"tracking": out[:, E.O_TRACK].copy(), "effort": out[:, E.O_EFFORT].copy()},
-            "action_clipped": out[:, E.O_CLIPPED] != 0.0,
-            "n_clipped": out[:, E.O_NCLIP].astype(int),
-            "joint_limit_hits": out[:, E.O_HITS].astype(int),
+            "ee_pos_true": out["ee_pos_true"].copy(),
+            "tracking_error": out["tracking_error"].copy(),
+            "reward_terms": {"tracking": out["tracking"].copy(), "effort": out["effort"].copy()},
+            "action_clipped": out["action_clipped"] != 0.0,
+            "n_clipped": out["n_clipped"].astype(int),
+            "joint_limit_hits": out["joint_limit_hits"].astype(int),
             "tipped_over": np.zeros(self.num_envs, dtype=bool),
             "true_params_hash": self._hashes.copy(),
         }

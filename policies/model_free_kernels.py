@@ -18,11 +18,15 @@ Arrays (row i: robot i; n actuators, na = n - 2 arm joints, D = max_delay + 1 ri
 | `prm` | (PRM_LEN,) float | the law's constants (`PRM_*`) |
 | `ipr` | (IPR_LEN,) int | the law's integer constants and switches (`IPR_*`) |
 | `ep` | (EP_LEN,) float | the estimator's constants (`EP_*`) |
-| `lay` | (LAY_LEN,) int | the offsets of the float state's blocks (`LAY_*`, `layout`) |
+| `lay` | (LAY_LEN,) int | the offsets of the float state's blocks: `lay[LAY.hist]` (`FloatBlocks` names them) |
 | `fst` | (N, F) float | the float state: the scaffolding's blocks, then the estimator's segment (`est_layout`) |
 | `ist` | (N, I_LEN) int | step count, sign index, actuator model, delay, blocking flags, the draws due, estimator ints |
 | `signs` | (N, SIGN_BLOCK, n + 3) float | each row's current block of random signs (dither, task dither) |
 | `noise` | (N, 3, n) float | each row's standard-normal draw for J_hat(0)'s perturbation (`j0_noise`) |
+
+Where the state is named: the blocks of `fst` are `FloatBlocks` (their order, names and widths, in one place:
+`layout` computes the offsets `lay` from it; the kernels read `f[lay[LAY.hist] + ...]`, Python
+`blocks(lay).hist`); the constants and integer state by their `PRM_*`, `IPR_*`, `EP_*` and `I_*` offsets below.
 
 The estimator's segment (relative offsets; `kind`: `KALMAN`, `STRUCTURED`, `BROYDEN`, `RLS`): J (3 x n) at 0,
 J_dot (3 x n) at 3n, then the kind's own state: the Kalman filter's [X; P] ((3 + 2k) x 2k, k = n or na) and its
@@ -35,6 +39,7 @@ May import: numpy, numba (through `mobman_env.numba_cache`), the standard librar
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -72,11 +77,40 @@ EP_LEN = 21
 # --- the integer state ---
 I_K, I_SIGN, I_MODEL, I_DELAY, I_COUNTING, I_ANYBLK, I_NEED, I_EST = range(8)
 I_LEN = I_EST + 2  # the estimator's: Kalman update count or Broyden's skipped steps; heading initialised
-# --- offsets of the float state's blocks (`layout`) ---
-(LAY_Q0, LAY_PREVQ, LAY_PREVS, LAY_SF, LAY_PREVVD, LAY_TD, LAY_LAGMS, LAY_BCOUNT, LAY_BLOCKED) = range(9)
-(LAY_BLOCKQ, LAY_W, LAY_PA, LAY_PB, LAY_JP, LAY_HIST, LAY_LAGX, LAY_DZ, LAY_STOP, LAY_SDIR) = range(9, 19)
-(LAY_EST, LAY_LEN_) = range(19, 21)
-LAY_LEN = 21
+
+
+# --- the float state's blocks (`layout`) ---
+class FloatBlocks(NamedTuple):
+    """The blocks of a row of `fst`, in order: `layout(n, max_delay, kind)` holds their offsets (an int array,
+    `lay`, which the kernels index as `lay[LAY.hist]`) and `blocks` the same offsets by name. n actuators,
+    na = n - 2 arm joints, D = max_delay + 1 ring entries; the widths are `layout`'s."""
+
+    q0: int  # na: the arm angles at the reset (the posture pull's target), rad
+    prev_q: int  # n: the last observed actuator angles, rad
+    prev_s: int  # 3: the last measured position (r_a, or r_a - p_c in the paper's formulation), m
+    s_filtered: int  # 3: the position filter's estimate, m
+    prev_vd: int  # 3: the last target velocity (the lookahead's), m/s
+    task_dither: int  # 3: this pair of steps' task dither, m/s
+    lag_ms: int  # D + N_LAGS: the actuator models' running mean squares (delays 0..max_delay, then the lags)
+    block_count: int  # n: consecutive checks each actuator looked blocked
+    blocked: int  # n: the direction each actuator is blocked in (+1, -1; 0: free)
+    block_q: int  # n: the angle where it was blocked, rad
+    weights: int  # n: the pseudo-inverse's weights (`BLOCK_WEIGHT` for a blocked actuator)
+    probe_a: int  # n x n: the probe's sum of x x^T
+    probe_b: int  # 3 x n: the probe's sum of y x^T
+    j_probe: int  # 3 x n: the probe's fit of J
+    hist: int  # D x n: the commands issued (a ring, entry k % D holds step k - 1's)
+    lag_x: int  # N_LAGS x n: each lag model's actuator speeds
+    dither_z: int  # n: the low-passed dither
+    stop: int  # n: the learnt stops' angles, rad
+    stop_dir: int  # n: their directions (0: none)
+    est: int  # the estimator's segment (`est_layout`)
+    length: int  # the end: the row's length
+
+
+#: the entries of `lay` by name: `lay[LAY.hist]` is the offset of the ring of commands
+LAY = FloatBlocks(*range(len(FloatBlocks._fields)))
+LAY_LEN = len(LAY)
 # --- the structured estimate's scalars, after the Kalman filter's three ---
 (S_YAW, S_YAWM, S_OMEGA, S_C, S_S, S_LX, S_LY, S_RX, S_RY, S_BX, S_BY) = range(3, 14)
 S_M = 14  # the wheel map's rows (m0, n0, m1, n1, m2, n2)
@@ -101,17 +135,20 @@ def est_layout(kind: int, n: int) -> tuple[int, int]:
 
 
 def layout(n: int, max_delay: int, kind: int) -> np.ndarray:
-    """The offsets `lay` of the float state's blocks for n actuators; lay[LAY_LEN_] is the row's length."""
+    """The offsets `lay` of the float state's blocks (`FloatBlocks` order) for n actuators; lay[LAY.length] is
+    the row's length."""
     d = max_delay + 1
-    sizes = [n - 2, n, 3, 3, 3, 3, d + N_LAGS, n, n, n, n, n * n, 3 * n, 3 * n, d * n, N_LAGS * n, n, n, n]
-    lay = np.zeros(LAY_LEN, dtype=np.int64)
-    off = 0
-    for i, size in enumerate(sizes):
-        lay[i] = off
-        off += size
-    lay[LAY_EST] = off
-    lay[LAY_LEN_] = off + est_layout(kind, n)[1]
-    return lay
+    widths = FloatBlocks(
+        q0=n - 2, prev_q=n, prev_s=3, s_filtered=3, prev_vd=3, task_dither=3, lag_ms=d + N_LAGS, block_count=n,
+        blocked=n, block_q=n, weights=n, probe_a=n * n, probe_b=3 * n, j_probe=3 * n, hist=d * n, lag_x=N_LAGS * n,
+        dither_z=n, stop=n, stop_dir=n, est=est_layout(kind, n)[1], length=0,
+    )  # fmt: skip
+    return np.concatenate([[0], np.cumsum(widths[:-1])]).astype(np.int64)
+
+
+def blocks(lay: np.ndarray) -> FloatBlocks:
+    """The offsets `lay` by name."""
+    return FloatBlocks(*(int(o) for o in lay))
 
 
 # --- the estimators ----------------------------------------------------------------------------------------
@@ -441,24 +478,24 @@ def reset_rows(prm, ipr, ep, lay, fst, ist, rows, jp, ee_pos, abp, tv):
     for r in range(rows.shape[0]):
         i = rows[r]
         f = fst[i]
-        for j in range(lay[LAY_EST]):
+        for j in range(lay[LAY.est]):
             f[j] = 0.0
         for j in range(ist.shape[1]):
             ist[i, j] = 0
         for j in range(na):
-            f[lay[LAY_Q0] + j] = jp[i, j]
+            f[lay[LAY.q0] + j] = jp[i, j]
         for j in range(n):
-            f[lay[LAY_PREVQ] + j] = jp[i, j]
-            f[lay[LAY_W] + j] = 1.0
+            f[lay[LAY.prev_q] + j] = jp[i, j]
+            f[lay[LAY.weights] + j] = 1.0
         s0, s1, s2 = ee_pos[i, 0], ee_pos[i, 1], ee_pos[i, 2]
         if whole == 0:
             s0, s1 = s0 - abp[i, 0], s1 - abp[i, 1]
-        o, osf = lay[LAY_PREVS], lay[LAY_SF]
+        o, osf = lay[LAY.prev_s], lay[LAY.s_filtered]
         f[o], f[o + 1], f[o + 2] = s0, s1, s2
         f[osf], f[osf + 1], f[osf + 2] = s0, s1, s2
         for j in range(3):
-            f[lay[LAY_PREVVD] + j] = tv[i, j]
-        est_reset(kind, n, ep, f[lay[LAY_EST] :], ist[i, I_EST:])
+            f[lay[LAY.prev_vd] + j] = tv[i, j]
+        est_reset(kind, n, ep, f[lay[LAY.est] :], ist[i, I_EST:])
 
 
 @njit(cache=True)
@@ -530,7 +567,7 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
     nrow = fst.shape[0]
     n, na, n_probe, dd = ipr[IPR_N], ipr[IPR_NA], ipr[IPR_NPROBE], ipr[IPR_D]
     structured, angles = ipr[IPR_STRUCT] != 0, ipr[IPR_ANGLES] != 0
-    oest = lay[LAY_EST]
+    oest = lay[LAY.est]
     x = np.empty(n)
     avg = np.empty(n)
     pred = np.empty(n)
@@ -555,7 +592,7 @@ def act_rows(prm, ipr, ep, lay, fst, ist, ee_pos, ee_vel, abp, abv, jp, jv, tp, 
         it[I_K] = k + 1
         ring = k % dd
         for j in range(n):
-            f[lay[LAY_HIST] + ring * n + j] = last_u[i, j]  # the command issued at step k - 1
+            f[lay[LAY.hist] + ring * n + j] = last_u[i, j]  # the command issued at step k - 1
         probing = k < n_probe
         # --- the measurement (x, y), the position filter, the actuator model
         y0, y1, y2 = _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, avg)
@@ -593,7 +630,7 @@ def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, 
     avg: the actuators' mean speeds over the last step, from the joint angles), and the position filter."""
     n, dt = ipr[IPR_N], prm[PRM_DT]
     whole, use_vel, angles = ipr[IPR_WHOLE] != 0, ipr[IPR_USEVEL] != 0, ipr[IPR_ANGLES] != 0
-    oprevq, oprevs, osf = lay[LAY_PREVQ], lay[LAY_PREVS], lay[LAY_SF]
+    oprevq, oprevs, osf = lay[LAY.prev_q], lay[LAY.prev_s], lay[LAY.s_filtered]
     ax, ay = (0.0, 0.0) if whole else (abp[i, 0], abp[i, 1])
     s0, s1, s2 = ee_pos[i, 0] - ax, ee_pos[i, 1] - ay, ee_pos[i, 2]
     if use_vel:
@@ -608,7 +645,7 @@ def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, 
             else:
                 x[j] = jv[i, j]
     else:
-        oj = lay[LAY_JP] if probing else lay[LAY_EST]  # J_probe, or the estimator's J (both 3 x n at their offset)
+        oj = lay[LAY.j_probe] if probing else lay[LAY.est]  # J_probe, or the estimator's J (both 3 x n at their offset)
         ds0 = ds1 = ds2 = 0.0
         for j in range(n):
             dq = jp[i, j] - f[oprevq + j]
@@ -638,7 +675,7 @@ def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, 
     delay: the speed is constant over the step, x = avg)."""
     n, dd, maxd = ipr[IPR_N], ipr[IPR_D], ipr[IPR_MAXD]
     angles = ipr[IPR_ANGLES] != 0
-    olagx, ohist, olagms = lay[LAY_LAGX], lay[LAY_HIST], lay[LAY_LAGMS]
+    olagx, ohist, olagms = lay[LAY.lag_x], lay[LAY.hist], lay[LAY.lag_ms]
     for m in range(N_LAGS):  # each lag model's actuator speeds after the command of step k - 1
         dec, rise = prm[PRM_LAG_DECAY + m], prm[PRM_LAG_RISE + m]
         for j in range(n):
@@ -672,7 +709,7 @@ def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, 
         else:
             pred[j] = f[ohist + ((ring - it[I_DELAY]) % dd) * n + j]
     if angles:
-        ost, osd = lay[LAY_STOP], lay[LAY_SDIR]
+        ost, osd = lay[LAY.stop], lay[LAY.stop_dir]
         for j in range(n):
             if f[osd + j] != 0.0 and jp[i, j] == f[ost + j]:
                 x[j] = 0.0  # held at a learnt stop: it ended the step there, at rest
@@ -688,10 +725,10 @@ def _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, ls
     """The estimate's step: the probe's least-squares fit (and at its end J_hat(0), perturbed by `j0_noise`), or
     the estimator's update."""
     n, n_probe, kind = ipr[IPR_N], ipr[IPR_NPROBE], ipr[IPR_KIND]
-    ojp = lay[LAY_JP]
+    ojp = lay[LAY.j_probe]
     if k <= n_probe:
         if k > 0:
-            _probe_fit(prm, f, n, x, y0, y1, y2, k == n_probe, lay[LAY_PA], lay[LAY_PB], ojp, lsc, xs)
+            _probe_fit(prm, f, n, x, y0, y1, y2, k == n_probe, lay[LAY.probe_a], lay[LAY.probe_b], ojp, lsc, xs)
         if k == n_probe:
             for r in range(3):
                 for j in range(n):
@@ -718,8 +755,8 @@ def _target(prm, ipr, lay, f, e, it, i, ring, probing, abp, abv, jp, tp, tv, jc,
     qa, and the task velocity v (returned): the target's velocity half a step ahead plus the feedback on the
     filtered position, predicted forward by J_hat times the commands issued since the (delayed) observation."""
     n, na, dd, dt = ipr[IPR_N], ipr[IPR_NA], ipr[IPR_D], prm[PRM_DT]
-    oj = lay[LAY_JP] if probing else lay[LAY_EST]
-    oprevvd, osf, ohist = lay[LAY_PREVVD], lay[LAY_SF], lay[LAY_HIST]
+    oj = lay[LAY.j_probe] if probing else lay[LAY.est]
+    oprevvd, osf, ohist = lay[LAY.prev_vd], lay[LAY.s_filtered], lay[LAY.hist]
     v0, v1, v2 = tv[i, 0], tv[i, 1], tv[i, 2]
     look = ipr[IPR_LOOKAHEAD] != 0 and not probing
     hd = prm[PRM_HALF_DT]
@@ -762,7 +799,7 @@ def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
     """The null-space motion z (the posture pull and the random-sign dither, low-passed with `dither_time`) and
     v with the task dither added (returned)."""
     n, na = ipr[IPR_N], ipr[IPR_NA]
-    oq0, otd = lay[LAY_Q0], lay[LAY_TD]
+    oq0, otd = lay[LAY.q0], lay[LAY.task_dither]
     pg = prm[PRM_POSTURE]
     for j in range(n):
         z[j] = (f[oq0 + j] - qa[j]) * pg if (pg > 0.0 and j < na) else 0.0
@@ -779,7 +816,7 @@ def _excitation(prm, ipr, lay, f, it, i, k, probing, signs, qa, z, v0, v1, v2):
                 v0, v1, v2 = v0 - f[otd], v1 - f[otd + 1], v2 - f[otd + 2]
         dz, al = prm[PRM_DITHER], prm[PRM_DITHER_ALPHA]
         if dz > 0.0:
-            odz = lay[LAY_DZ]
+            odz = lay[LAY.dither_z]
             for j in range(n):
                 dj = dz * signs[i, si, j]
                 if al < 1.0:  # the low-passed signs (`dither_time`)
@@ -798,7 +835,7 @@ def _solve_row(prm, lay, f, it, i, k, n, probing, q, jc, jw, z, v0, v1, v2, u):
     """u[i] = z + J_w^T (J_c J_w^T + damping)^-1 (v - J_c z), J_w = J_c W (the joint-stop weights, and within
     `stop_margin` of a learnt stop a weight falling with the distance), the probe on top, never further into a
     stop, and towards a learnt stop at most at distance / STOP_TIME."""
-    ow, obl, ost, osd = lay[LAY_W], lay[LAY_BLOCKED], lay[LAY_STOP], lay[LAY_SDIR]
+    ow, obl, ost, osd = lay[LAY.weights], lay[LAY.blocked], lay[LAY.stop], lay[LAY.stop_dir]
     anyb = it[I_ANYBLK] != 0
     margin = prm[PRM_STOP_MARGIN]
     for j in range(n):
@@ -849,7 +886,7 @@ def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
     the measured speeds); release those that moved `block_release` away
     (`policies.nnbc_plus.ModelFreeConfig.block_release`). An arm joint's block is also learnt as a stop (its
     angle and direction, kept for the episode: `stop_margin`)."""
-    obc, obl, obq, ow = lay[LAY_BCOUNT], lay[LAY_BLOCKED], lay[LAY_BLOCKQ], lay[LAY_W]
+    obc, obl, obq, ow = lay[LAY.block_count], lay[LAY.blocked], lay[LAY.block_q], lay[LAY.weights]
     if it[I_COUNTING] == 0 and it[I_ANYBLK] == 0:
         quiet = True
         for j in range(n):
@@ -872,8 +909,8 @@ def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
             f[obq + j] = q[j]
             new_any = True
             if j < na and prm[PRM_STOP_MARGIN] > 0.0:
-                f[lay[LAY_STOP] + j] = q[j]
-                f[lay[LAY_SDIR] + j] = f[obl + j]
+                f[lay[LAY.stop] + j] = q[j]
+                f[lay[LAY.stop_dir] + j] = f[obl + j]
     it[I_COUNTING] = 1 if counting else 0
     if it[I_ANYBLK] != 0 or new_any:
         anyb = False

@@ -472,7 +472,7 @@ class ModelFreeLaw(BatchedController):
         self._estimator = estimator
         self._layout_key: tuple | None = None
         self.config = config
-        self.fst = np.zeros((n, int(self.lay[K.LAY_LEN_])))
+        self.fst = np.zeros((n, int(self.lay[K.LAY.length])))
         self.ist = np.zeros((n, K.I_LEN), dtype=np.int64)
         self.signs = np.zeros((n, _SIGN_BLOCK, n_act + 3))
         self.noise = np.zeros((n, 3, n_act))
@@ -480,7 +480,7 @@ class ModelFreeLaw(BatchedController):
         self._zeros2 = np.zeros((n, 2))
         self._zeros1 = np.zeros((n, 1))
         self._need = 0
-        o = int(self.lay[K.LAY_EST])
+        o = int(self.lay[K.LAY.est])
         for i in range(n):  # a row never started holds a reset estimator (what `estimator` shows before reset)
             K.est_reset(self.kind, self.n_act, self.ep, self.fst[i, o:], self.ist[i, K.I_EST :])
 
@@ -549,7 +549,8 @@ class ModelFreeLaw(BatchedController):
         return self.ist[:, K.I_K]
 
     def block(self, i: int, name: int, rows: int, cols: int) -> np.ndarray:
-        """Row i's float-state block `name` (a `LAY_*` index) as a rows x cols view."""
+        """Row i's float-state block `name` (an index into `lay`: `K.LAY.<the block's name>`, see
+        `policies.model_free_kernels.FloatBlocks`) as a rows x cols view."""
         o = int(self.lay[name])
         return self.fst[i, o : o + rows * cols].reshape(rows, cols)
 
@@ -557,15 +558,15 @@ class ModelFreeLaw(BatchedController):
         """Row i's J_hat (a view): the probe's fit until the probe has finished, then the estimator's J."""
         n = self.n_act
         if self.ist[i, K.I_K] <= self.n_probe:
-            return self.block(i, K.LAY_JP, 3, n)
-        return self.block(i, K.LAY_EST, 6, n)[:3]
+            return self.block(i, K.LAY.j_probe, 3, n)
+        return self.block(i, K.LAY.est, 6, n)[:3]
 
     def Jdot_hat_row(self, i: int) -> np.ndarray:
-        return self.block(i, K.LAY_EST, 6, self.n_act)[3:]
+        return self.block(i, K.LAY.est, 6, self.n_act)[3:]
 
     def estimator_row(self, i: int) -> Any:
         """Row i's estimator (`policies.estimators`), a view of its state segment."""
-        o = int(self.lay[K.LAY_EST])
+        o = int(self.lay[K.LAY.est])
         e, ie = self.fst[i, o:], self.ist[i, K.I_EST :]
         return ESTIMATOR_CLASSES[self.kind].view(self.n_act, self.ep, e, ie)
 
@@ -733,7 +734,7 @@ class EstimatingController(LawView):
     @property
     def blocked(self) -> np.ndarray:
         """(n,) +1 / -1: the actuator is held at a stop in that direction; 0: free (a copy)."""
-        return self.law.block(0, K.LAY_BLOCKED, 1, self.n_act)[0].copy()
+        return self.law.block(0, K.LAY.blocked, 1, self.n_act)[0].copy()
 
 
 class NNBCPlus(EstimatingController):
