@@ -5,11 +5,13 @@ A **condition** is what an episode runs under besides its robot, task, controlle
 (`robots`, `tasks`) and its track. Every episode record names its condition (results schema 4, `condition`), so a
 results file, a scorecard or a plot groups episodes by that name and nothing re-joins folders.
 
-Tracks: **dev** (public: a controller may be tuned on it, on development seeds 0-999), **heldout** (protocol v2's
-held-out conditions, fixed in code before the tuning of release 0.3: `HELDOUT_SHA256` keeps them as they were; the
-protocol v3 held-out track is drawn per release by `eval.heldout`, and its drawn conditions join this table when
-they are revealed) and **research** (conditions the result pages under docs/results ran: named here so that a page
-and the bench mean the same thing by the same name; not in any bench by default).
+Tracks (protocol v3): **dev** (public: a controller may be tuned on it, on development seeds 0-999; it holds every
+retired held-out condition, `retired` naming the held-out track it came from: protocol v2's, fixed in code before
+the tuning of release 0.3, whose definitions `HELDOUT_SHA256` keeps as they were), **heldout** (the newest
+release's held-out draw once its seed is revealed, `eval.heldout`: never tuned on, run once on reported seeds and
+published as it comes; until then the track is empty) and **research** (conditions the result pages under
+docs/results ran: named here so that a page and the bench mean the same thing by the same name; not in any bench
+by default).
 
 An episode run outside the table (`mobman-eval run --model-error 0.1`, a sweep's axes) gets the name of the table
 entry whose env arguments are exactly its own, else a name made from those arguments (`condition_name`), e.g.
@@ -19,9 +21,9 @@ arguments.
 The table (`conditions_markdown`, in the docs' protocol page, `mobman-eval bench --list`, and each scorecard):
 the dev track holds `default` (kinematic, 5% wear), `wear20`, `noise` (1 mm, 0.01 m/s), `drift` (`wear_rate`
 0.005), `lag` (`actuator_tau` 0.05 s), `yaw-noise` (`obs_noise_yaw` 1 mrad) on the dev robots, `physics` and
-`physics-lag` on the PUMA, and the difficulty ladder; the held-out track `fast-rich`, `rate50`, `lag100`,
-`noise-heavy`, `combined`, `scaled-arms`, `physics-robots` and `physics-combined`; not in a default bench,
-selectable with `--conditions`: `wear0`, `wear10`, `wear30` (dev: the error-vs-wear curve) and the research
+`physics-lag` on the PUMA, the difficulty ladder and protocol v2's held-out conditions (`fast-rich`, `rate50`,
+`lag100`, `noise-heavy`, `combined`, `scaled-arms`, `physics-robots`, `physics-combined`); not in a default
+bench, selectable with `--conditions`: `wear0`, `wear10`, `wear30` (the error-vs-wear curve) and the research
 conditions.
 
 **The difficulty ladder.** A success rate of 100% ranks nothing, and the scorecard of release 0.2 saturated at
@@ -39,7 +41,7 @@ loop (a 3 Hz bandwidth; electric drives reach 5-30 Hz, a heavy base with its whe
 good odometry-plus-gyro heading (see `mobman_env.env.WheeledPumaEnv`'s "Actuators" and "Observation Space").
 Protocol v2's held-out track doubles both and combines them with wear and noise.
 
-This module imports the standard library and `eval.errors`.
+This module imports the standard library, `eval.errors` and `eval.heldout`.
 """
 
 from __future__ import annotations
@@ -95,6 +97,9 @@ class Condition:
     """The robots (`ROBOTS`) it runs on."""
     tasks: tuple[str, ...] | None = None
     """The tasks (`TASKS`) it runs on; None: every task of the bench."""
+    retired: str | None = None
+    """The held-out track it was run on before it became public ("v2": protocol v2's, fixed in code; "0.4": a
+    release's drawn one), None for a condition that was never held out. A retired condition is on the dev track."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "env_kwargs", {**AXES, **dict(self.env_kwargs)})
@@ -129,6 +134,7 @@ class Condition:
             "env_kwargs": dict(self.env_kwargs),
             "robots": list(self.robots),
             "tasks": None if self.tasks is None else list(self.tasks),
+            "retired": self.retired,
         }
 
     @classmethod
@@ -145,14 +151,16 @@ class Condition:
             env_kwargs=kw,
             robots=tuple(d.get("robots") or DEV_ROBOTS),
             tasks=None if d.get("tasks") is None else tuple(d["tasks"]),
+            retired=d.get("retired"),
         )
 
     def v2_dict(self) -> dict[str, Any]:
-        """The condition as protocol v2 wrote it (the axes as fields of their own): what `HELDOUT_SHA256` hashes."""
+        """The condition as protocol v2 wrote it (the axes as fields of their own; its held-out conditions on the
+        "heldout" track): what `HELDOUT_SHA256` hashes."""
         return {
             "name": self.name,
             "description": self.description,
-            "track": self.track,
+            "track": "heldout" if self.retired == "v2" else self.track,
             "dynamics": self.dynamics,
             "model_error": self.model_error,
             "obs_noise": self.obs_noise,
@@ -208,26 +216,31 @@ CONDITIONS: dict[str, Condition] = {
         Condition("wear0", "the catalogue robot itself (no wear)", env_kwargs={"model_error": 0.0}),
         Condition("wear10", "10% wear", env_kwargs={"model_error": 0.1}),
         Condition("wear30", "30% wear", env_kwargs={"model_error": 0.3}),
-        # --- protocol v2's held-out track: fixed before any tuning against protocol v2 (HELDOUT_SHA256) ---------
+        # --- protocol v2's held-out track (HELDOUT_SHA256), retired into the dev track by protocol v3 ------------
         Condition(
             "fast-rich",
             "held out: a 6-harmonic random path of 0.4 m in 8 s",
-            track="heldout",
+            track="dev",
+            retired="v2",
             env_kwargs={"path": {"type": "random", "size": 0.4, "n_terms": 6, "duration": 8.0}},
             tasks=("random",),
         ),
-        Condition("rate50", "held out: 50 Hz control", track="heldout", env_kwargs={"control_freq": 50.0}),
-        Condition("lag100", "held out: actuator lag tau = 100 ms", track="heldout", env_kwargs={"actuator_tau": 0.1}),
+        Condition("rate50", "held out: 50 Hz control", track="dev", retired="v2", env_kwargs={"control_freq": 50.0}),
+        Condition(
+            "lag100", "held out: actuator lag tau = 100 ms", track="dev", retired="v2", env_kwargs={"actuator_tau": 0.1}
+        ),
         Condition(
             "noise-heavy",
             "held out: 2 mm, 0.02 m/s and 3 mrad heading noise",
-            track="heldout",
+            track="dev",
+            retired="v2",
             env_kwargs={"obs_noise": 0.002, "obs_noise_vel": 0.02, "obs_noise_yaw": 0.003},
         ),
         Condition(
             "combined",
             "held out: 15% wear, drift 0.3%/s, lag 30 ms, 1 mm + 0.01 m/s + 2 mrad noise",
-            track="heldout",
+            track="dev",
+            retired="v2",
             env_kwargs={
                 "model_error": 0.15,
                 "obs_noise": 0.001,
@@ -237,18 +250,22 @@ CONDITIONS: dict[str, Condition] = {
                 "wear_rate": 0.003,
             },
         ),
-        Condition("scaled-arms", "held out: random arms scaled 0.7-1.4x", track="heldout", robots=("scaled-arm",)),
+        Condition(
+            "scaled-arms", "held out: random arms scaled 0.7-1.4x", track="dev", retired="v2", robots=("scaled-arm",)
+        ),
         Condition(
             "physics-robots",
             "held out: contact dynamics on the UR5, the Panda and random arms",
-            track="heldout",
+            track="dev",
+            retired="v2",
             env_kwargs=_PHYSICS,
             robots=("ur5", "panda", "random-arm"),
         ),
         Condition(
             "physics-combined",
             "held out: contact dynamics, 10% wear, lag 30 ms, 1 mm + 0.01 m/s + 2 mrad noise",
-            track="heldout",
+            track="dev",
+            retired="v2",
             env_kwargs={
                 **_PHYSICS,
                 "model_error": 0.1,
@@ -313,6 +330,25 @@ CONDITIONS: dict[str, Condition] = {
     )
 }
 
+
+def _revealed_draws() -> list[Condition]:
+    """The conditions of every release's held-out draw whose seed is revealed (`eval.heldout.REVEALED_SEEDS`):
+    the newest release's on the heldout track, older ones retired into dev."""
+    from eval import heldout as H
+
+    out: list[Condition] = []
+    newest = max(H.REVEALED_SEEDS, key=lambda r: tuple(int(x) for x in r.split(".")), default=None)
+    for release in H.REVEALED_SEEDS:
+        for d in H.revealed_draw(release):
+            c = Condition.from_dict({**d, "name": f"{d['name']}-{release}"})
+            if release != newest:
+                c = Condition.from_dict({**c.to_dict(), "track": "dev", "retired": release})
+            out.append(c)
+    return out
+
+
+CONDITIONS.update({c.name: c for c in _revealed_draws()})
+
 #: SHA-256 of protocol v2's held-out conditions as fixed before any tuning against it (`heldout_digest()`, over
 #: their v2 form); a test keeps the table equal to it
 HELDOUT_SHA256 = "5f62ef3b88f2dd28a2842a44e35bc6b654f5cc823d277ec586509820630bbaf3"
@@ -322,7 +358,7 @@ HELDOUT_COMMIT = "0a0752963d633337486a25e2ee13d44386d8e7ef"
 
 def heldout_digest() -> str:
     """SHA-256 of protocol v2's held-out conditions (canonical JSON of their v2 form): equals `HELDOUT_SHA256`."""
-    table = [c.v2_dict() for c in CONDITIONS.values() if c.track == "heldout"]
+    table = [c.v2_dict() for c in CONDITIONS.values() if c.retired == "v2"]
     return hashlib.sha256(json.dumps(table, sort_keys=True).encode()).hexdigest()
 
 
@@ -347,10 +383,10 @@ def _text(value: Any) -> str:
 
 def condition_name(env_kwargs: Mapping[str, Any]) -> str:
     """The name of the condition of an episode whose env arguments are `env_kwargs` (the axes left out take
-    `AXES`'s values): the table entry's with exactly these arguments (dev and research tracks first, the
-    table's order), else `dynamics, key=value, ...` over the axes and then the other arguments, sorted."""
+    `AXES`'s values): the table entry's with exactly these arguments (never-held-out entries first, the table's
+    order), else `dynamics, key=value, ...` over the axes and then the other arguments, sorted."""
     full = {**AXES, **{k: v for k, v in env_kwargs.items() if v is not None}}
-    for c in sorted(CONDITIONS.values(), key=lambda c: c.track == "heldout"):
+    for c in sorted(CONDITIONS.values(), key=lambda c: c.retired is not None):
         if dict(c.env_kwargs) == full:
             return c.name
     parts = [str(full["dynamics"])]
@@ -370,8 +406,9 @@ def conditions_markdown(conditions: Mapping[str, Mapping[str, Any]]) -> str:
         c = Condition.from_dict({**d, "name": name})
         extra = ", ".join(f"`{k}` {v}" for k, v in c.extra_kwargs.items()) or "-"
         tasks = ", ".join(c.tasks or []) or "all"
+        track = c.track + (f" (held out in {c.retired})" if c.retired else "")
         rows.append(
-            f"| `{name}` | {c.track} | {', '.join(c.robots)} | {tasks} | {c.dynamics} "
+            f"| `{name}` | {track} | {', '.join(c.robots)} | {tasks} | {c.dynamics} "
             f"| {c.model_error:g} | {c.obs_noise * 1e3:g} | {extra} | {c.description} |"
         )
     return "\n".join(rows)

@@ -318,6 +318,28 @@ def wilson_interval(successes: int, n: int, z: float = Z95) -> list[float] | Non
     return [low, high]
 
 
+#: Protocol v3's success thresholds, m: 1, 2 and 6 mm (the paper's figure), reported over feasible episodes.
+V3_TOLERANCES: tuple[float, ...] = (0.001, 0.002, 0.006)
+
+
+def feasible_success(records: Sequence[dict], tolerances: Sequence[float] = V3_TOLERANCES) -> dict[str, Any]:
+    """Protocol v3's success block of `records`: over the episodes whose path the true robot can follow
+    (`feasible` true, `mobman_env.feasibility`), the success rate at each of `tolerances` with its Wilson 95%
+    interval; the infeasible episodes and those of unknown feasibility (older records, another package's env)
+    are counted, never scored. Rates are None when no episode is feasible."""
+    feasible = [r for r in records if r.get("feasible") is True]
+    n = len(feasible)
+    rates = success_curve(feasible, tolerances) if n else [None] * len(tolerances)
+    return {
+        "tolerances_m": [float(t) for t in tolerances],
+        "n_feasible": n,
+        "n_infeasible": sum(r.get("feasible") is False for r in records),
+        "n_unknown": sum(r.get("feasible") is None for r in records),
+        "success": rates,
+        "success_ci95": [None if rate is None else wilson_interval(round(rate * n), n) for rate in rates],
+    }
+
+
 def success_curve(records: Sequence[dict], tolerances: Sequence[float] = SUCCESS_CURVE_TOLERANCES) -> list[float]:
     """Success rate of `records` at every tolerance (m), by `is_success`'s rule on each record's max error,
     status and tipping; failed episodes count as failures. [] when there are no records."""

@@ -49,7 +49,7 @@ def test_default_controllers_are_the_registry():
     assert not [p for p in BC.default_policies() if ":" in p]  # no sb3:/module: forms
 
 
-@pytest.mark.parametrize("track", ["dev", "heldout", "all"])
+@pytest.mark.parametrize("track", ["dev", "all"])
 def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
     cfg, notes = BC.BenchConfig(track=track).resolved()
     env_args = BC.env_arguments("WheeledPuma-Circle-v0")
@@ -60,9 +60,18 @@ def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
     assert cfg.policies == BC.default_policies()
     assert cfg.seed_list("default") == tuple(range(SEED, SEED + BC.DEFAULT_SEEDS))
     assert cfg.seed_list("physics") == tuple(range(SEED, SEED + BC.DEFAULT_PHYSICS_SEEDS))
-    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == ({"dev", "heldout"} if track == "all" else {track})
+    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == {"dev"}  # release 0.4's draw is not revealed yet
+    retired = [c for c in cfg.conditions if BC.CONDITIONS[c].retired == "v2"]  # protocol v2's held-out, now dev
+    assert retired == ["fast-rich", "rate50", "lag100", "noise-heavy", "combined", "scaled-arms"] + [
+        c for c in ("physics-robots", "physics-combined") if c in cfg.conditions
+    ]
     assert BC.CONDITIONS["noise"].obs_noise == 0.001 and BC.CONDITIONS["noise"].extra_kwargs == {"obs_noise_vel": 0.01}
     assert BC.CONDITIONS["wear20"].model_error == 0.2 and BC.CONDITIONS["physics"].dynamics == "physics"
+
+
+def test_the_heldout_track_before_its_draw_is_revealed_is_refused_naming_why():
+    with pytest.raises(EvalError, match=r"held-out track has no condition yet: release 0\.4's .*commit 248394a"):
+        BC.BenchConfig(track="heldout").resolved()
 
 
 def test_a_condition_the_env_cannot_build_is_refused_by_name(monkeypatch):
@@ -144,7 +153,11 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
     assert results["schema"] == 4 and not (out / "conditions").exists()
     assert [r["condition"] for r in results["episodes"]] == ["default"] * 8 + ["wear20"] * 8
     assert all(isinstance(r["feasible"], bool) for r in results["episodes"])
-    assert sc["schema"] == 3 and sc["protocol"]["seeds"] == [SEED, SEED + 1] and sc["protocol"]["version"] == 2
+    assert sc["schema"] == 4 and sc["protocol"]["seeds"] == [SEED, SEED + 1] and sc["protocol"]["version"] == 3
+    assert sc["protocol"]["heldout_release"]["release"] == "0.4" and not sc["protocol"]["heldout_release"]["revealed"]
+    for row in sc["rows"]:  # protocol v3: success at 1 / 2 / 6 mm over the feasible episodes, the others counted
+        block = row["feasible"]
+        assert block["n_feasible"] + block["n_infeasible"] == row["n"] and block["n_unknown"] == 0
     assert sc["protocol"]["heldout_commit"] == BC.HELDOUT_COMMIT and sc["protocol"]["track"] == "dev"
     assert len(sc["rows"]) == 2 * 2 * 2 and len(sc["pooled"]) == 2 * 2
     assert {(r["condition"], r["env"], r["policy"]) for r in sc["rows"]} == {
@@ -195,7 +208,8 @@ def test_cli_bench_list_markdown_and_readme(tmp_path, capsys):
     block = capsys.readouterr().out
     assert block == readme_markdown(load_scorecard(out / "scorecard.json"))
     assert "| zero | 0% [0-79] |" in block and "| jmpi |" in block  # one episode: Wilson [0, 0.79]
-    assert "| zero | none | 0% [0-79] | 0% [0-79] |" in block  # the track's table: knowledge, success, clean
+    # the track's table: knowledge, success at 1 / 2 / 6 mm over feasible episodes, success over all, clean
+    assert "| zero | none | 0% · 0% · 0% [0-79] | 0% [0-79] | 0% [0-79] |" in block
 
     readme = tmp_path / "README.md"
     readme.write_text("# x\n\n<!-- bench:begin b/scorecard.json -->\nstale\n<!-- bench:end -->\n\nafter\n")
@@ -490,3 +504,43 @@ def test_against_refuses_another_protocol(tmp_path):
         )
     with pytest.raises(EvalError, match="name them with --policy"):
         run_bench(BC.BenchConfig(), tmp_path / "n", progress=False, against=tmp_path / "c")
+
+
+def test_v3_success_is_over_feasible_episodes_and_counts_the_others():
+    from eval.metrics import feasible_success
+
+    def ep(err, feasible, status="ok"):
+        return {"max_error_m": err, "feasible": feasible, "status": status}
+
+    eps = [ep(0.0005, True), ep(0.0015, True), ep(0.004, True), ep(0.05, True), ep(0.0001, False), ep(0.0, None)]
+    eps.append(ep(None, True, status="failed"))  # a failed feasible episode is a failure, never left out
+    block = feasible_success(eps)
+    assert block["tolerances_m"] == [0.001, 0.002, 0.006]
+    assert (block["n_feasible"], block["n_infeasible"], block["n_unknown"]) == (5, 1, 1)
+    assert block["success"] == [0.2, 0.4, 0.6]  # the infeasible 0.1 mm episode and the unknown one do not count
+    assert block["success_ci95"][2] == pytest.approx([0.2307, 0.8824], abs=1e-4)  # Wilson, 3 of 5
+    none = feasible_success([ep(0.001, False)])
+    assert none["success"] == [None] * 3 and none["n_infeasible"] == 1
+
+
+@pytest.mark.parametrize(
+    "subset",
+    [{"conditions": ("wear20",)}, {"conditions": ("wear20",), "tasks": ("circle",)}, {"tasks": ("line",)}],
+)
+def test_against_a_subset_of_the_committed_cells_compares_the_cells_it_ran(tmp_path, subset):
+    """`--against DIR --conditions X` (0.3: a KeyError after every episode ran) and any subset of robots and tasks:
+    the baselines' rows are the committed cells this bench ran; their rows pooled over cells that did not run are
+    left out, and a note says so."""
+    base = _small(policies=("qp", "zero"))
+    run_bench(base, tmp_path / "c", progress=False, plots=False)
+    mine = run_bench(
+        _small(policies=("jmpi",), **subset), tmp_path / "m", progress=False, plots=False, against=tmp_path / "c"
+    )
+    sc = mine.scorecard
+    ran = {(c, e) for c, d in sc["protocol"]["conditions"].items() for e in d["envs"]}
+    assert {(r["condition"], r["env"]) for r in sc["rows"]} == ran
+    assert {r["policy"] for r in sc["rows"]} == {"qp", "zero", "jmpi"}
+    assert mine.n_run == 2 * len(ran) and sc["n_episodes"] == 3 * 2 * len(ran)
+    assert [t["policy"] for t in sc["tracks"]] == ["jmpi"]  # the baselines' track rows pool cells not run here
+    assert any("subset of the committed cells" in n for n in sc["notes"])
+    assert (tmp_path / "m" / "scorecard.md").is_file()

@@ -4,7 +4,8 @@ A researcher wants their controller's row beside the built-in ones, not hours of
 run already. So:
 
 1. the committed scorecard (`DIR/scorecard.json`) names its protocol; the bench asked for must be the same
-   protocol (version, track, seeds, tolerance, settle time, env arguments; its conditions a subset). The file is
+   protocol (version, track, seeds, tolerance, settle time, env arguments); its conditions, robots and tasks may
+   be any subset of the committed ones (`--conditions`, `--robots`, `--tasks`). The file is
    data from someone else: it is read through the one JSON reader and its shape checked (`eval.schemas`), and
    the controllers and env ids it names must be built-in controllers, `sb3:` agents and registered env ids
    (`eval.schemas.check_scorecard_names`), all before anything runs;
@@ -14,9 +15,12 @@ run already. So:
    of the baselines are reused as they are; if one does not, the baselines are run again too, and the bench says
    which sample differed, by how much, and the kernel hashes of both sides (`provenance.kernels`);
 3. only the new controllers run the protocol's grid; the scorecard joins their rows to the baselines' (the
-   probability of improvement against the references uses the committed references' episodes).
+   probability of improvement against the references uses the committed references' episodes). With a subset,
+   the baselines' rows are those of the committed cells this bench ran; their rows pooled over more cells than
+   ran here (a condition's other robots or tasks, the track, the ladder's other rungs) are left out, and a note
+   says so: they would not compare with the new controller's.
 
-The output folder holds the new controllers' episodes (`conditions/*/`) and the joined scorecard; bench.json
+The output folder holds the new controllers' episodes (`results.json`) and the joined scorecard; bench.json
 records the committed scorecard it was run against (path and sha256) and the sample check.
 
 Imports `eval.bench.*`, `eval.metrics`, `eval.rollout`, `eval.output`.
@@ -86,8 +90,10 @@ def check_protocol(committed: dict, protocol: dict) -> None:
     if missing:
         diff.append(f"conditions {missing} are not in the committed scorecard")
     for c in protocol["conditions"]:
-        if c in old["conditions"] and old["conditions"][c].get("envs") != protocol["conditions"][c]["envs"]:
-            diff.append(f"condition {c!r} runs other robots or tasks there")
+        if c in old["conditions"] and not set(protocol["conditions"][c]["envs"]) <= set(
+            old["conditions"][c].get("envs") or []
+        ):
+            diff.append(f"condition {c!r} runs robots or tasks here that the committed scorecard has not")
     if diff:
         raise EvalError(
             "--against: this bench is not the committed scorecard's protocol (" + "; ".join(diff) + "); run the "
@@ -162,14 +168,40 @@ def check_samples(committed: dict, samples: list[dict]) -> tuple[bool, list[str]
     return ok, lines
 
 
+def subset_of(committed: dict, protocol: dict) -> tuple[set, set, bool]:
+    """(the (condition, env) cells this bench runs, the conditions it runs whole, whether it runs every committed
+    cell): what of the committed baselines' rows compare with its own."""
+    cells = {(c, e) for c, d in protocol["conditions"].items() for e in d["envs"]}
+    old = committed["protocol"]["conditions"]
+    whole = {c for c, d in protocol["conditions"].items() if set(d["envs"]) == set(old[c].get("envs") or [])}
+    every = cells == {(c, e) for c, d in old.items() for e in d.get("envs") or []}
+    return cells, whole, every
+
+
 def merge(committed: dict, new: dict, baselines: list[str], track_eps: dict[str, list[dict]]) -> dict:
     """The scorecard of the new controllers (`new`, built from their episodes) joined with the committed rows of
     `baselines`; the probability of improvement of every new controller against the committed references' episodes
     (`track_eps`: the new controllers' episodes of each track, each with its `cell`)."""
     out = dict(new)
-    for key in ("rows", "pooled", "by_robot", "tracks", "ladder", "entries", "samples"):
-        keep = [r for r in committed.get(key, []) if r.get("policy", r.get("spec")) in baselines]
+    ran, whole, every = subset_of(committed, new["protocol"])
+    inside = {  # which committed rows of the baselines compare with this bench's (see the module docstring)
+        "rows": lambda r: (r["condition"], r["env"]) in ran,
+        "samples": lambda r: (r["condition"], r["env"]) in ran,
+        "pooled": lambda r: r["condition"] in whole,
+        "by_robot": lambda r: r["condition"] in whole,
+        "tracks": lambda r: every,
+        "ladder": lambda r: every,
+        "entries": lambda r: True,
+    }
+    for key, keep_row in inside.items():
+        keep = [r for r in committed.get(key, []) if r.get("policy", r.get("spec")) in baselines and keep_row(r)]
         out[key] = keep + list(new.get(key, []))
+    if not every:
+        out["notes"] = [
+            *new.get("notes", []),
+            f"--against with a subset of the committed cells ({len(ran)} of them ran): the baselines' rows pooled "
+            "over cells that did not run here (their tracks, the ladder, conditions run in part) are left out",
+        ]
     refs = committed.get("reference_episodes", {})
     prob = [r for r in committed.get("prob_improvement", []) if r["policy"] in baselines]
     for track, eps in track_eps.items():
@@ -189,7 +221,9 @@ def merge(committed: dict, new: dict, baselines: list[str], track_eps: dict[str,
     out["prob_improvement"] = prob
     out["reference_episodes"] = refs
     out["protocol"] = {**new["protocol"], "policies": list(dict.fromkeys([*baselines, *new["protocol"]["policies"]]))}
-    base_rows = [r for r in committed.get("rows", []) if r["policy"] in baselines]
+    base_rows = [
+        r for r in committed.get("rows", []) if r["policy"] in baselines and (r["condition"], r["env"]) in ran
+    ]
     out["n_episodes"] = new["n_episodes"] + sum(int(r["n"]) for r in base_rows)
     out["n_expected"] = new["n_expected"] + sum(int(r["n"]) for r in base_rows)
     out["n_failed"] = new["n_failed"] + sum(int(r["n_failed"]) for r in base_rows)

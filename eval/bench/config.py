@@ -64,20 +64,23 @@ DEFAULT_SEEDS = 5
 #: The tracks of `--track`.
 TRACKS = ("dev", "heldout", "all")
 #: Protocol version (recorded in bench.json and the scorecard).
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 
 #: Policy names never in the default controller list (none today; the `sb3:` and `module:` spec forms are not
 #: registry names, so they never appear in it either).
 EXCLUDED_POLICIES: frozenset[str] = frozenset()
 
 
-#: The ceiling the ladder is read against.
-LADDER_CEILING = "qp-oracle"
+#: The known-model laws the ladder is read against: its ceiling is the one of them that tracks the fastest rung
+#: (protocol v3's reference of a cell is the best known-model law).
+LADDER_CEILINGS = ("mpc-oracle", "qp-oracle")
 #: A rung counts as tracked by a controller when at least this share of its episodes succeed.
 LADDER_SUCCESS = 0.9
 
 
-#: The conditions of a default bench per track, in order (`wear0`, `wear10`, `wear30` only on request).
+#: The conditions of a default bench per track, in order (`wear0`, `wear10`, `wear30` only on request): the dev
+#: track's (retired held-out conditions included) and the revealed held-out draw of the newest release (empty
+#: until its seed is revealed, `eval.heldout`).
 DEFAULT_CONDITIONS: dict[str, tuple[str, ...]] = {
     "dev": tuple(n for n, c in CONDITIONS.items() if c.track == "dev" and n not in ("wear0", "wear10", "wear30")),
     "heldout": tuple(n for n, c in CONDITIONS.items() if c.track == "heldout"),
@@ -243,6 +246,16 @@ class BenchConfig:
         number("tolerance", self.tolerance, low=0.0, open_low=True, hint="m, e.g. 0.006", error=EvalError)
         number("settle_time", self.settle_time, low=0.0, hint="s, e.g. 0.5", error=EvalError)
         conditions: list[str] = []
+        if self.conditions is None and self.track == "heldout" and not DEFAULT_CONDITIONS["heldout"]:
+            from eval import heldout as H
+
+            release = max(H.RELEASE_SEED_SHA256, key=lambda r: tuple(int(x) for x in r.split(".")))
+            raise EvalError(
+                f"the held-out track has no condition yet: release {release}'s held-out draw is made from a seed "
+                f"committed as a hash (commit {H.RELEASE_SEED_COMMIT[release][:7]}) and revealed once, when the "
+                "release's controllers are fixed (docs/protocol.md); run --track dev, or name conditions with "
+                "--conditions"
+            )
         if self.conditions is None:
             for name in DEFAULT_CONDITIONS[self.track]:
                 why = self._cannot_run(name, missing_robots)

@@ -75,6 +75,7 @@ def protocol_dict(cfg: BenchConfig) -> dict:
         "track": cfg.track,
         "heldout_sha256": HELDOUT_SHA256,
         "heldout_commit": HELDOUT_COMMIT,
+        "heldout_release": _heldout_release(),
         "robots": list(dict.fromkeys(r for name in cfg.conditions for r in cfg.condition_robots(name))),
         "tasks": list(cfg.tasks),
         "envs": envs,
@@ -90,6 +91,20 @@ def protocol_dict(cfg: BenchConfig) -> dict:
         "tolerance": cfg.tolerance,
         "settle_time": cfg.settle_time,
         "env_kwargs": dict(cfg.env_kwargs),
+    }
+
+
+def _heldout_release() -> dict:
+    """Protocol v3's held-out draw of the newest release: its seed's committed hash and commit, and whether it is
+    revealed (its conditions are then the heldout track)."""
+    from eval import heldout as H
+
+    release = max(H.RELEASE_SEED_SHA256, key=lambda r: tuple(int(x) for x in r.split(".")))
+    return {
+        "release": release,
+        "seed_sha256": H.RELEASE_SEED_SHA256[release],
+        "seed_commit": H.RELEASE_SEED_COMMIT[release],
+        "revealed": release in H.REVEALED_SEEDS,
     }
 
 

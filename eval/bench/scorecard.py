@@ -1,18 +1,20 @@
-"""The scorecard of a bench: per-condition sweep results -> scorecard.json (schema 3), scorecard.md, plots, and
+"""The scorecard of a bench: the bench's one results file -> scorecard.json (schema 4), scorecard.md, plots, and
 the README block.
 
 scorecard.json:
 
 ```
-{"schema": 3, "kind": "mobman-bench-scorecard", "protocol": {"version": 2, "track", "heldout_sha256",
-   "heldout_commit", "robots", "tasks", "envs", "conditions": {name: {track, dynamics, model_error, obs_noise,
-   env_kwargs, robots, tasks, description, envs, seeds}}, "policies", "seeds", "seed_start", "kinematic_seeds",
-   "physics_seeds", "tolerance", "settle_time", "env_kwargs"},
+{"schema": 4, "kind": "mobman-bench-scorecard", "protocol": {"version": 3, "track", "heldout_sha256",
+   "heldout_commit" (protocol v2's held-out conditions, retired into dev), "heldout_release": {"release",
+   "seed_sha256", "seed_commit", "revealed"} (protocol v3's draw), "robots", "tasks", "envs",
+   "conditions": {name: {track, env_kwargs (dynamics, model_error, obs_noise included), robots, tasks,
+   description, retired, envs, seeds}}, "policies", "seeds", "seed_start", "kinematic_seeds", "physics_seeds",
+   "tolerance", "settle_time", "env_kwargs"},
  "notes": [...],                     # e.g. conditions this mobman_env cannot build, non-reported seeds
- "provenance": {...}, "statistics": {...}, "versions": {...}, "git": "...",   # as results.json schema 3
+ "provenance": {...}, "statistics": {...}, "versions": {...}, "git": "...",   # as results.json
  "precision": {"significant_digits": {policy: digits}, "chaotic": [policy, ...]},
  "n_episodes", "n_expected", "n_failed", "wall_s",
- "rows": [ results.json aggregate rows (one per condition, env, policy) with "condition", "track", "knowledge" ],
+ "rows": [ aggregate rows (one per condition, env, policy) with "condition", "track", "knowledge", "feasible" ],
  "pooled": [ one row per (condition, policy) over the condition's robots and tasks (strata = envs) ],
  "by_robot": [ one row per (condition, robot, policy) for the conditions of several robots, as "pooled" ],
  "tracks": [ one row per (track, policy) over every condition of the track (strata = condition x env) ],
@@ -23,6 +25,11 @@ scorecard.json:
  "reference_episodes": {reference: {condition: {env: [max_error_m per seed]}}},   # for `--against`
  "samples": [ {"condition", "env", "policy", "seed", "fields": {...}} ]}           # re-run bit for bit by `--against`
 ```
+
+"feasible" (rows, pooled, tracks; protocol v3): `eval.metrics.feasible_success` of the row's episodes, the success
+rates at 1, 2 and 6 mm over the episodes whose path the true robot can follow, with their Wilson intervals, and the
+counts of infeasible episodes (counted, not scored) and of episodes of unknown feasibility. Schema 3 (protocol v2)
+lacks it and reads as before; its rows' conditions have the v2 form (axes as fields of their own).
 
 The scorecard leads with the held-out track when it has one (`scorecard.md`, the README block): its conditions
 were fixed before any tuning (`protocol.heldout_commit`), so they are the figures to trust.
@@ -57,10 +64,12 @@ from eval.output.results import statistics_block
 from eval.output.tables import iqm_text, markdown_table, success_text
 
 KIND = "mobman-bench-scorecard"
-SCHEMA = 3
+SCHEMA = 4
+#: The scorecard schemas `load_scorecard` reads (3: protocol v2's, without the feasibility blocks).
+READABLE_SCHEMAS = (3, 4)
 #: the controllers every other one is compared with (probability of improvement), when they ran: the known-model
 #: ceiling, the nominal-model law and the structure-aware adaptive baseline
-REFERENCES = ("qp-oracle", "qp", "calib-qp")
+REFERENCES = ("mpc-oracle", "qp-oracle", "qp", "calib-qp")
 #: the per-episode fields `--against` compares bit for bit on its re-run samples
 SAMPLE_FIELDS = ("max_error_m", "rms_error_m", "final_error_m", "effort", "cmd_accel_rms", "n_steps", "success")
 
@@ -75,6 +84,11 @@ def _max_error(rec: dict) -> float:
 
 def _first(values: Iterable[Any]) -> Any:
     return next((v for v in values if v is not None), None)
+
+
+def _feasible(eps: Sequence[dict], **match: Any) -> dict:
+    """Protocol v3's block of the episodes of `eps` whose fields equal `match` (`eval.metrics.feasible_success`)."""
+    return M.feasible_success([r for r in eps if all(r.get(k) == v for k, v in match.items())])
 
 
 def by_condition(protocol: dict, results: dict) -> dict[str, list[dict]]:
@@ -119,11 +133,11 @@ def build_scorecard(
                 artefacts.setdefault(pol, {})[art["sha256"]] = dict(art)
         policy_kind = {p: _first(r.get("knowledge") for r in eps if r["policy"] == p) for p in protocol["policies"]}
         for a in M.aggregate(eps):
-            rows.append({"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a})
+            row = {"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a}
+            rows.append({**row, "feasible": _feasible(eps, env=a["env"], policy=a["policy"])})
         for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
-            pooled.append(
-                {"condition": name, "track": track, "env": None, "knowledge": policy_kind.get(a["policy"]), **a}
-            )
+            row = {"condition": name, "track": track, "env": None, "knowledge": policy_kind.get(a["policy"]), **a}
+            pooled.append({**row, "feasible": _feasible(eps, policy=a["policy"])})
         robots = {robot_of(str(r["env"])) for r in eps}
         if len(robots) > 1:
             tagged = [{**r, "robot": robot_of(str(r["env"]))} for r in eps]
@@ -149,7 +163,8 @@ def build_scorecard(
     tracks = []
     for track, eps in track_eps.items():
         for a in M.aggregate(eps, group_keys=("policy",), strata_key="cell"):
-            tracks.append({"track": track, "knowledge": knowledge.get(a["policy"]), **a})
+            row = {"track": track, "knowledge": knowledge.get(a["policy"]), **a}
+            tracks.append({**row, "feasible": _feasible(eps, policy=a["policy"])})
     return to_jsonable(
         {
             "schema": SCHEMA,
@@ -277,10 +292,11 @@ def load_scorecard(path: str | Path) -> dict:
         raise EvalError(f"scorecard {str(path)!r} not found (a bench writes DIR/scorecard.json)") from None
     if not isinstance(data, dict) or data.get("kind") != KIND:
         raise EvalError(f"{str(path)!r} is not a bench scorecard (its 'kind' is not {KIND!r})")
-    if data.get("schema") != SCHEMA:
+    if data.get("schema") not in READABLE_SCHEMAS:
         raise EvalError(
-            f"{str(path)!r} has scorecard schema {data.get('schema')!r}; this mobman reads {SCHEMA} (protocol v2). A "
-            "schema-2 scorecard is protocol v1's (release 0.2): read its scorecard.md, or run the bench again"
+            f"{str(path)!r} has scorecard schema {data.get('schema')!r}; this mobman reads "
+            f"{', '.join(map(str, READABLE_SCHEMAS))} (protocols v2 and v3). A schema-2 scorecard is protocol v1's "
+            "(release 0.2): read its scorecard.md, or run the bench again"
         )
     check_shape(data, SCORECARD, str(path))
     return data
@@ -315,11 +331,40 @@ def _num_mm(x: float | None, pol: str) -> str:
     return format_mm(x, pol)
 
 
+def feasible_text(block: dict | None) -> str:
+    """ "12% · 40% · 91% [86-94]": protocol v3's success at its tolerances over feasible episodes (the last with
+    its Wilson 95% interval), "-" for a scorecard without feasibility (protocol v2) or no feasible episode."""
+    if not block or not block.get("n_feasible"):
+        return "-"
+    rates = " · ".join(f"{r * 100:.0f}%" for r in block["success"])
+    ci = block["success_ci95"][-1]
+    return rates + (f" [{ci[0] * 100:.0f}-{ci[1] * 100:.0f}]" if ci else "")
+
+
+def _feasible_note(rows: list[dict]) -> list[str]:
+    """The line under a v3 table: which tolerances, and how many episodes were infeasible (counted apart)."""
+    blocks = [r["feasible"] for r in rows if r.get("feasible")]
+    if not blocks:
+        return []
+    tol = " / ".join(f"{t * 1e3:g}" for t in blocks[0]["tolerances_m"])
+    n_inf = max(b["n_infeasible"] for b in blocks)
+    n_all = max(b["n_feasible"] + b["n_infeasible"] + b["n_unknown"] for b in blocks)
+    return [
+        f"Success at {tol} mm is over the feasible episodes only: {n_inf} of each controller's {n_all} episodes "
+        "ask for more speed than the true robot has (a reference law that knows everything peaks above 90% of the "
+        "actuator limits, `mobman_env.feasibility`); they are counted here, not scored.",
+        "",
+    ]
+
+
 def track_table(sc: dict, track: str) -> list[str]:
-    """Controllers over every condition of `track` pooled: knowledge class, success and clean success [Wilson
-    95%], the max error's IQM [bootstrap 95%], p90 and worst (mm), and the commands' smoothness."""
+    """Controllers over every condition of `track` pooled: knowledge class, protocol v3's success at 1 / 2 / 6 mm
+    over feasible episodes, success and clean success over every episode [Wilson 95%], the max error's IQM
+    [bootstrap 95%], p90 and worst (mm), and the commands' smoothness."""
     body = []
-    for r in (r for r in sc["tracks"] if r["track"] == track):
+    track_rows = [r for r in sc["tracks"] if r["track"] == track]
+    v3 = any(r.get("feasible") for r in track_rows)
+    for r in track_rows:
         pol = str(r["policy"])
         me = r["max_error_m"]
         clean = r.get("clean_success_rate")
@@ -332,6 +377,7 @@ def track_table(sc: dict, track: str) -> list[str]:
             [
                 pol,
                 str(r.get("knowledge") or "unknown"),
+                *([feasible_text(r.get("feasible"))] if v3 else []),
                 success_text(r),
                 clean_text,
                 iqm_text(r),
@@ -350,7 +396,8 @@ def track_table(sc: dict, track: str) -> list[str]:
             [
                 "controller",
                 "knowledge",
-                "success [95% CI]",
+                *(["success at 1 · 2 · 6 mm, feasible [95% CI at 6 mm]"] if v3 else []),
+                "success, all [95% CI]" if v3 else "success [95% CI]",
                 "clean success [95% CI]",
                 "max error IQM [95% CI] (mm)",
                 "p90 (mm)",
@@ -360,6 +407,7 @@ def track_table(sc: dict, track: str) -> list[str]:
             body,
         ),
         "",
+        *_feasible_note(track_rows),
     ]
 
 
@@ -367,8 +415,29 @@ def condition_success_table(sc: dict, track: str) -> list[str]:
     """Controllers x the track's conditions: success rate [Wilson 95%] over each condition's robots and tasks."""
     conds = [n for n in _conditions(sc) if sc["protocol"]["conditions"][n].get("track", "dev") == track]
     cell = {(r["condition"], str(r["policy"])): r for r in sc["pooled"]}
-    body = [[p] + [success_text(cell[(c, p)]) if (c, p) in cell else "" for c in conds] for p in _policies(sc)]
     tol_mm = sc["protocol"]["tolerance"] * 1e3
+    if any(r.get("feasible") for r in sc["pooled"]):  # protocol v3: over the feasible episodes, infeasible counted
+        body = [
+            [p]
+            + [
+                _feasible_at(cell[(c, p)]["feasible"], sc["protocol"]["tolerance"]) if (c, p) in cell else ""
+                for c in conds
+            ]
+            for p in _policies(sc)
+        ]
+        n_inf = {
+            c: max((r["feasible"]["n_infeasible"] for r in sc["pooled"] if r["condition"] == c), default=0)
+            for c in conds
+        }
+        heads = [c + (f" ({n_inf[c]} infeasible)" if n_inf[c] else "") for c in conds]
+        return [
+            f"Success rate per {track} condition over its feasible episodes, % [Wilson 95%] (max tracking error <= "
+            f"{tol_mm:g} mm), its robots and tasks pooled; the heading counts each controller's infeasible episodes:",
+            "",
+            markdown_table(["controller", *heads], body),
+            "",
+        ]
+    body = [[p] + [success_text(cell[(c, p)]) if (c, p) in cell else "" for c in conds] for p in _policies(sc)]
     return [
         f"Success rate per {track} condition, % [Wilson 95%] (max tracking error <= {tol_mm:g} mm), its robots and "
         "tasks pooled:",
@@ -378,9 +447,18 @@ def condition_success_table(sc: dict, track: str) -> list[str]:
     ]
 
 
+def _feasible_at(block: dict, tolerance: float) -> str:
+    """The success over feasible episodes at `tolerance` (one of the block's) with its interval; "-" if none."""
+    if not block.get("n_feasible") or tolerance not in block["tolerances_m"]:
+        return "-"
+    k = block["tolerances_m"].index(tolerance)
+    rate, ci = block["success"][k], block["success_ci95"][k]
+    return f"{rate * 100:.0f}%" + (f" [{ci[0] * 100:.0f}-{ci[1] * 100:.0f}]" if ci else "")
+
+
 def ladder_table(sc: dict) -> list[str]:
     """The difficulty ladder: per controller the success rate on each rung and the fastest rung it tracks."""
-    from eval.bench.config import LADDER_CEILING, LADDER_SUCCESS
+    from eval.bench.config import LADDER_CEILINGS, LADDER_SUCCESS
 
     entries = sc.get("ladder") or []
     if not entries:
@@ -394,11 +472,12 @@ def ladder_table(sc: dict) -> list[str]:
             + [f"{by[d]['success_rate'] * 100:.0f}%" if d in by else "" for d in durations]
             + ["-" if e["fastest"] is None else f"{e['fastest']:g} s"]
         )
-    ceiling = next((e for e in entries if e["policy"] == LADDER_CEILING), None)
+    known = [e for e in entries if e["policy"] in LADDER_CEILINGS and e["fastest"] is not None]
+    ceiling = min(known, key=lambda e: (e["fastest"], LADDER_CEILINGS.index(e["policy"])), default=None)
     ceil_text = (
         ""
         if ceiling is None or ceiling["fastest"] is None
-        else f" (the ceiling, {LADDER_CEILING}: {ceiling['fastest']:g} s)"
+        else f" (the ceiling, the best known-model law, {ceiling['policy']}: {ceiling['fastest']:g} s)"
     )
     return [
         f"Difficulty ladder: success on a 5-harmonic 0.3 m random path (PUMA, kinematic) in each duration, and the "
@@ -443,11 +522,29 @@ def headline_tables(sc: dict) -> list[str]:
     return lines
 
 
+def _heldout_text(p: dict, short: bool = False) -> str:
+    """Where the protocol's held-out conditions come from: v2's fixed commit; v3's release draw (its seed's hash
+    and commit, revealed or not) with v2's conditions retired into dev."""
+    v2 = (
+        f"{str(p['heldout_commit'])[:7]}"
+        if short
+        else f"{p['heldout_commit']} (sha256 {str(p['heldout_sha256'])[:12]})"
+    )
+    rel = p.get("heldout_release")
+    if not rel:
+        return f"held-out track fixed at {v2}" if short else f"held-out conditions fixed at commit {v2}"
+    state = "revealed and run" if rel["revealed"] else "not revealed yet"
+    return (
+        f"held-out draw of release {rel['release']}: seed hash committed at {str(rel['seed_commit'])[:7]}, {state}; "
+        f"protocol v2's held-out conditions (fixed at {v2}) retired into dev"
+    )
+
+
 def readme_markdown(sc: dict) -> str:
     """The README block of a scorecard: what ran, on what, then the headline tables (held-out first)."""
     p = sc["protocol"]
     prov = sc.get("provenance") or {}
-    heldout = f", held-out track fixed at {str(p['heldout_commit'])[:7]}" if "heldout" in _tracks(sc) else ""
+    heldout = f", {_heldout_text(p, short=True)}" if "heldout" in _tracks(sc) or p.get("heldout_release") else ""
     lines = [
         f"`mobman-eval bench` (protocol v{p['version']}, track {p['track']}{heldout}): {len(_conditions(sc))} "
         f"conditions x {len(p['robots'])} robots x {len(p['tasks'])} tasks x {len(_policies(sc))} controllers; "
@@ -499,8 +596,7 @@ def scorecard_markdown(sc: dict) -> str:
     lines = [
         "# mobman-eval bench: scorecard",
         "",
-        f"Protocol v{p['version']}, track {p['track']}; held-out conditions fixed at commit {p['heldout_commit']} "
-        f"(sha256 {str(p['heldout_sha256'])[:12]}); seeds from {p['seed_start']} ({p['kinematic_seeds']} per "
+        f"Protocol v{p['version']}, track {p['track']}; {_heldout_text(p)}; seeds from {p['seed_start']} ({p['kinematic_seeds']} per "
         f"kinematic cell, {p['physics_seeds']} per physics cell); success = max tracking error <= "
         f"{p['tolerance'] * 1e3:g} mm over the whole episode (failed or tipped-over episodes are not successes); "
         f"clean success = success without a joint-limit hit; steady-state errors over t >= {p['settle_time']:g} s. "
