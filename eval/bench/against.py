@@ -221,9 +221,7 @@ def merge(committed: dict, new: dict, baselines: list[str], track_eps: dict[str,
     out["prob_improvement"] = prob
     out["reference_episodes"] = refs
     out["protocol"] = {**new["protocol"], "policies": list(dict.fromkeys([*baselines, *new["protocol"]["policies"]]))}
-    base_rows = [
-        r for r in committed.get("rows", []) if r["policy"] in baselines and (r["condition"], r["env"]) in ran
-    ]
+    base_rows = [r for r in committed.get("rows", []) if r["policy"] in baselines and (r["condition"], r["env"]) in ran]
     out["n_episodes"] = new["n_episodes"] + sum(int(r["n"]) for r in base_rows)
     out["n_expected"] = new["n_expected"] + sum(int(r["n"]) for r in base_rows)
     out["n_failed"] = new["n_failed"] + sum(int(r["n_failed"]) for r in base_rows)
