@@ -10,7 +10,7 @@ res = eval.load_results("runs/first")   # a results.json or its folder (schema 1
 res.to_dataframe()                      # pandas: one row per episode (pip install "mobman[pandas]")
 ```
 
-Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme|timings` (`eval.cli.main(argv)`); eval/README.md is
+Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme|timings|compact` (`eval.cli.main(argv)`); eval/README.md is
 the manual.
 
 ## Layout and dependency rule
@@ -29,7 +29,7 @@ every module and fails on a cycle or an upward import):
    announced, before the first episode)
 5. `checks` (everything checked before the first rollout), `output` (`files` <- `provenance`, `precision` <-
    `tables` <- `results`, `styles` <- `plots` <- `stat_plots`, `video`, `picture`, `journal`, `readme` <-
-   `layout`: what is written)
+   `layout`, `compact`: what is written)
 6. `grid` (the one executor path of run and sweep: episodes dispatched, each record journaled as it ends)
 7. `runner` (`run`), `sweep` (`config`, `report`, `plots` <- `run`: resumable grids)
 8. `paper` (section IV of the paper), `bench` (the benchmark protocol v2: `config` <- `chaos`, `scorecard` <-

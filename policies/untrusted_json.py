@@ -12,6 +12,11 @@ one, `read_json(path, max_bytes, what, schema)`:
 5. checks it against `schema` (the classes below), so that a file of the wrong shape is refused with the path of
    the field, what was found and what is expected, before anything runs: no traceback after an hour of episodes.
 
+A large file may be stored compressed (xz, `eval.output.compact`): `NAME.json.xz` stands for `NAME.json`, which
+`read_json` reads when only the compressed twin exists (or when it is named). The cap then bounds both the
+compressed bytes and what they unpack to, checked while unpacking: a small xz file of a gigabyte of zeros is
+refused after `max_bytes + 1` bytes, not after a gigabyte.
+
 Every failure is a `policies.untrusted.FileRefused` (a ValueError) naming the file; callers turn it into
 their own error type (`eval.errors.EvalError`, exit 2 on the command line).
 
@@ -26,6 +31,7 @@ May import the standard library and `policies.untrusted` only.
 from __future__ import annotations
 
 import json
+import lzma
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -33,6 +39,7 @@ from typing import Any
 from policies.untrusted import FileRefused, read_regular
 
 __all__ = [
+    "COMPRESSED_SUFFIX",
     "MAX_DEPTH",
     "AnyJSON",
     "Bool",
@@ -48,7 +55,12 @@ __all__ = [
     "json_depth",
     "parse_json",
     "read_json",
+    "read_xz",
+    "stored_path",
 ]
+
+#: The suffix of a JSON file's compressed twin (`scorecard.json.xz` for `scorecard.json`).
+COMPRESSED_SUFFIX = ".xz"
 
 #: Deepest nesting a file may have (mobman's scorecards, results and configs are at most 7 levels deep).
 MAX_DEPTH = 32
@@ -222,11 +234,42 @@ def parse_json(data: bytes, where: str, schema: Schema | None = None) -> Any:
     return value
 
 
+def stored_path(path: str | Path) -> Path:
+    """The file that holds `path`'s content: `path` itself if it exists (or is a symlink), else its compressed twin
+    `path.xz` if that exists, else `path` (whose reader then says it does not exist)."""
+    path = Path(path)
+    if path.exists() or path.is_symlink():
+        return path
+    twin = path.with_name(path.name + COMPRESSED_SUFFIX)
+    return twin if twin.exists() or twin.is_symlink() else path
+
+
+def read_xz(path: Path, max_bytes: int, what: str) -> bytes:
+    """The bytes the xz file `path` unpacks to, if it is a regular file of at most `max_bytes` and unpacks to at
+    most `max_bytes` (checked while unpacking); `FileRefused` naming the file, the cap and the fix otherwise."""
+    packed = read_regular(path, max_bytes, what)
+    unpacker = lzma.LZMADecompressor(format=lzma.FORMAT_XZ)
+    try:
+        data = unpacker.decompress(packed, max_length=max_bytes + 1)
+    except lzma.LZMAError as exc:
+        raise FileRefused(f"{path}: not a valid xz file ({exc}); copy the {what} again") from None
+    if len(data) > max_bytes:
+        raise FileRefused(
+            f"{path} unpacks to more than {max_bytes} bytes; a {what} is at most that: copy it again from the run"
+        )
+    if not unpacker.eof:
+        raise FileRefused(f"{path}: the xz stream is cut short; copy the {what} again")
+    return data
+
+
 def read_json(path: str | Path, max_bytes: int, what: str, schema: Schema | None = None) -> Any:
     """The JSON value of the file `path` (a `what`: "results file", "scorecard", ...), after the checks of the
     module docstring; `FileRefused` naming the file and the fix otherwise (FileNotFoundError passes through
-    unchanged when the file does not exist, so callers can say how to make it)."""
-    path = Path(path)
+    unchanged when the file does not exist, so callers can say how to make it). `path` may be, or stand for, an
+    xz-compressed twin (`stored_path`)."""
+    path = stored_path(path)
     if not path.exists() and not path.is_symlink():
         raise FileNotFoundError(f"{path}: no such {what}")
+    if path.name.endswith(COMPRESSED_SUFFIX):
+        return parse_json(read_xz(path, max_bytes, what), str(path), schema)
     return parse_json(read_regular(path, max_bytes, what), str(path), schema)

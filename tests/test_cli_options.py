@@ -58,6 +58,7 @@ def test_every_command_is_covered():
         "mobman-eval picture",
         "mobman-eval readme",
         "mobman-eval timings",
+        "mobman-eval compact",
         "mobman-train",
         "mobman-train report",
     }

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import pytest
 
+from eval.output.compact import stored_bytes
 from eval.output.provenance import CLEAN, DIRTY_NAMED, DIRTY_UNNAMED, PROVENANCE_SCHEMA, provenance_class
 
 RESULTS = Path(__file__).resolve().parents[1] / "docs" / "results"
@@ -43,7 +44,7 @@ DIRTY_TODAY = (
 def _provenance(path: Path) -> dict | None:
     """The provenance of a file mobman wrote (its `provenance` dict, else its top-level `git` as one), or None
     for any other JSON file."""
-    data = json.loads(path.read_text())
+    data = json.loads(stored_bytes(path))
     if not isinstance(data, dict):
         return None
     if isinstance(data.get("provenance"), dict):
@@ -55,7 +56,8 @@ def _provenance(path: Path) -> dict | None:
 def committed() -> dict[str, dict]:
     """{path relative to docs/results: provenance} of every committed file that has one."""
     found = {}
-    for path in sorted(RESULTS.rglob("*.json")):
+    for path in sorted([*RESULTS.rglob("*.json"), *RESULTS.rglob("*.json.xz")]):
+        path = path.with_suffix("") if path.suffix == ".xz" else path  # a compacted file, named as the file it holds
         prov = _provenance(path)
         if prov is not None:
             found[path.relative_to(RESULTS).as_posix()] = prov

@@ -13,6 +13,7 @@ from eval.cli import main
 from eval.cli.readme import render
 from eval.errors import EvalError
 from eval.output.blocks import escape_copied, replace_blocks
+from eval.output.compact import stored_bytes
 from eval.output.readme import render_generated
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -70,7 +71,7 @@ def _page_with_outside_source(tmp_path, kind: str, source: str) -> tuple[Path, P
     (repo / "docs").mkdir()
     if kind == "bench":
         outside = tmp_path / "outside.json"
-        outside.write_text((ROOT / "docs/results/bench-v2-dev/scorecard.json").read_text())
+        outside.write_text(stored_bytes(ROOT / "docs/results/bench-v2-dev/scorecard.json").decode())
         block = "<!-- bench:begin {} -->\nold\n<!-- bench:end -->\n"
     else:
         outside = tmp_path / "outside.md"
@@ -116,7 +117,7 @@ def test_a_source_tree_without_git_is_its_pages_repository(tmp_path, capsys):
 def test_readme_keeps_a_symlinked_page_and_its_mode(tmp_path, argv):
     (tmp_path / ".git").mkdir()
     (tmp_path / "summary.md").write_text("## Table\n\n| x |\n")
-    (tmp_path / "scorecard.json").write_text((ROOT / "docs/results/bench-v2-dev/scorecard.json").read_text())
+    (tmp_path / "scorecard.json").write_text(stored_bytes(ROOT / "docs/results/bench-v2-dev/scorecard.json").decode())
     real = tmp_path / "real.md"
     block = (
         "<!-- bench:begin scorecard.json -->\nold\n<!-- bench:end -->\n"
@@ -175,7 +176,7 @@ def test_a_bench_block_escapes_what_the_scorecard_names(tmp_path, monkeypatch):
     from eval.bench import scorecard
 
     (tmp_path / ".git").mkdir()
-    (tmp_path / "scorecard.json").write_text((ROOT / "docs/results/bench-v2-dev/scorecard.json").read_text())
+    (tmp_path / "scorecard.json").write_text(stored_bytes(ROOT / "docs/results/bench-v2-dev/scorecard.json").decode())
     monkeypatch.setattr(scorecard, "readme_markdown", lambda sc: "| <img src=x> |\n<!-- bench:end -->\nx\n")
     page = "<!-- bench:begin scorecard.json -->\nold\n<!-- bench:end -->\n"
     once = scorecard.render_readme(page, tmp_path)[0]

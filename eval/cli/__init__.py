@@ -11,9 +11,10 @@ mobman-eval paper                # the paper's section IV, both dynamics modes, 
 mobman-eval speed                # env steps/s, predict microseconds, episodes/s
 mobman-eval picture              # docs/assets/robot.png: nnbc-plus tracking the Line, physics mode
 mobman-eval timings              # how long the README's steps take here (wall and CPU, with the load)
+mobman-eval compact scorecard.json  # store a large result as scorecard.json.xz (every reader takes it)
 ```
 
-One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`, `timings`) builds its
+One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`, `timings`, `compact`) builds its
 parser from the fields of the library's frozen config dataclasses (`eval.cli.options`: one option per field, its help the
 field's docstring, its default the field's default) and calls one function; `main(argv=None)`, so tests call it
 in-process. The same concept has the same option everywhere: `--policy SPEC` (repeatable, comma lists; one spec
@@ -34,14 +35,14 @@ from mobman_env import __version__
 from mobman_env.packages import shadowing_message
 
 #: the subcommands, each a module of this package with add_parser(sub) and main(args)
-SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme", "timings")
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme", "timings", "compact")
 
 
 def _subcommands() -> dict:
     """The subcommand modules, imported only after the shadowing check (they import policies)."""
-    from eval.cli import bench, paper, picture, readme, run, speed, sweep, timings
+    from eval.cli import bench, compact, paper, picture, readme, run, speed, sweep, timings
 
-    modules = (run, sweep, bench, paper, speed, picture, readme, timings)
+    modules = (run, sweep, bench, paper, speed, picture, readme, timings, compact)
     return dict(zip(SUBCOMMANDS, modules, strict=True))
 
 
