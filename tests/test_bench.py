@@ -6,6 +6,7 @@ Benches here are 1 s kinematic circles (SHORT) on two tasks: they test the machi
 from __future__ import annotations
 
 import json
+import re
 
 import pytest
 from test_eval_helpers import SHORT
@@ -149,6 +150,10 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
     for name in ("bench.json", "scorecard.md", "plots/success_default.png", "plots/success_wear20.png"):
         assert (out / name).is_file(), name
     assert (out / "plots" / "error_vs_wear.png").is_file()  # two wear levels: 0.05 and 0.2
+    page = (out / "scorecard.md").read_text()  # the page shows every plot written beside it, under its table
+    shown = re.findall(r"!\[[^\]]*\]\((plots/[^)]+\.png)\)", page)
+    assert sorted(shown) == sorted(p.relative_to(out).as_posix() for p in (out / "plots").glob("*.png"))
+    assert page.index("## default") < page.index("(plots/success_default.png)") < page.index("## wear20")
     results = json.loads((out / "results.json").read_text())  # one results file, every record naming its condition
     assert results["schema"] == 4 and not (out / "conditions").exists()
     assert [r["condition"] for r in results["episodes"]] == ["default"] * 8 + ["wear20"] * 8

@@ -257,10 +257,10 @@ def _episode_config(
 
 
 def write_scorecard(out: Path, sc: dict, plots: bool = True) -> list[Path]:
-    """scorecard.json, scorecard.md and (with `plots`) the PNGs, each written atomically."""
+    """scorecard.json, (with `plots`) the PNGs, and scorecard.md showing them, each written atomically."""
     atomic_write_text(out / "scorecard.json", scorecard_json_text(sc))
-    atomic_write_text(out / "scorecard.md", scorecard_markdown(sc))
-    written = [out / "scorecard.json", out / "scorecard.md"]
+    written = [out / "scorecard.json"]
+    stems = []
     if plots and sc["pooled"]:
         import matplotlib.pyplot as plt
 
@@ -269,7 +269,9 @@ def write_scorecard(out: Path, sc: dict, plots: bool = True) -> list[Path]:
             atomic_save_figure(fig, path)
             plt.close(fig)
             written.append(path)
-    return written
+            stems.append(stem)
+    atomic_write_text(out / "scorecard.md", scorecard_markdown(sc, stems))
+    return [*written, out / "scorecard.md"]
 
 
 def _ray_session(backend: str, address: str | None, workers: int):

@@ -48,14 +48,14 @@ from __future__ import annotations
 import json
 import math
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
 from eval import metrics as M
 from eval.bench.config import ROBOTS, Condition, conditions_markdown
 from eval.errors import EvalError
-from eval.output.blocks import replace_blocks
+from eval.output.blocks import escape_copied, replace_blocks
 from eval.output.files import to_jsonable
 from eval.output.precision import CHAOTIC, CHAOTIC_NOTE, SIGNIFICANT_DIGITS, format_mm, is_chaotic
 from eval.output.provenance import git_rev, provenance, versions
@@ -588,9 +588,14 @@ def condition_table(sc: dict, condition: str) -> str:
     return markdown_table(header, body)
 
 
-def scorecard_markdown(sc: dict) -> str:
+def scorecard_markdown(sc: dict, figures: Collection[str] = ()) -> str:
     """scorecard.md: what ran and where, the tracks (held-out first), the ladder, the probability of improvement,
-    the conditions and one table per condition."""
+    the conditions and one table per condition; each of `figures` (the stems of the PNGs written beside it in
+    plots/, `scorecard_figures`) is shown under the table it pictures."""
+
+    def figure(stem: str, alt: str) -> list[str]:
+        return [f"![{escape_copied(alt)}](plots/{stem}.png)", ""] if stem in figures else []
+
     p = sc["protocol"]
     prov = sc.get("provenance") or {}
     lines = [
@@ -614,12 +619,14 @@ def scorecard_markdown(sc: dict) -> str:
         lines += [f"## The {track} track", ""]
         lines += track_table(sc, track) + condition_success_table(sc, track) + prob_table(sc, track)
     if sc.get("ladder"):
-        lines += ["## The difficulty ladder", "", *ladder_table(sc)]
+        lines += ["## The difficulty ladder", "", *ladder_table(sc), *figure("ladder", "success per ladder rung")]
     lines += ["## Conditions", "", conditions_markdown(p["conditions"])]
     lines.append("")
+    lines += figure("error_vs_wear", "max error vs wear, kinematic, every robot and task pooled")
     for name in _conditions(sc):
         c = p["conditions"][name]
         lines += [f"## {name} ({c.get('track', 'dev')}): {c['description']}", "", condition_table(sc, name), ""]
+        lines += figure(f"success_{name}", f"success vs tolerance: {name}, every robot and task pooled")
     lines += [
         "Per-robot cells: success rate · max-error IQM (mm), the robot's tasks pooled. Plots: "
         "`plots/success_<condition>.png` (success vs tolerance, with its band), `plots/ladder.png`, "
