@@ -66,6 +66,11 @@ def test_the_gallery_command_writes_every_robot(tmp_path, capsys):
     assert len({tuple(pixels[f"random-arm-{i}"]) for i in range(3)}) == 3  # three different arms
     record = json.loads((folder / "gallery.json").read_text())
     assert set(record["robots"]) == set(GALLERY) and record["size"] == [96, 72]
+    from eval.output.picture import PATHS
+
+    with Image.open(folder / "paths.png") as img:  # the tasks' paths: a drawn figure, not a blank one
+        assert img.format == "PNG" and len(set(img.convert("L").getdata())) > 10
+    assert set(record["paths"]) == set(PATHS)
     again = build(PictureConfig, build_parser().parse_args(shlex.split(record["command"])[1:]), picture_cli.OPTIONS)
     assert again == PictureConfig(gallery=str(folder), width=96, height=72)
     assert "gallery.json" in capsys.readouterr().out
@@ -81,7 +86,9 @@ def test_the_robots_page_shows_the_committed_gallery():
 
     docs = Path(__file__).resolve().parents[1] / "docs"
     shown = re.findall(r"\]\(assets/gallery/([\w-]+\.png)\)", (docs / "tasks.md").read_text())
-    assert sorted(shown) == sorted(f"{stem}.png" for stem in GALLERY)
+    assert sorted(shown) == sorted([*(f"{stem}.png" for stem in GALLERY), "paths.png"])
+    assert (docs / "assets" / "gallery" / "paths.png").stat().st_size <= 300_000
+    shown.remove("paths.png")  # the tasks' paths: a matplotlib figure, not a rendered robot
     record = json.loads((docs / "assets" / "gallery" / "gallery.json").read_text())
     assert set(record["robots"]) == set(GALLERY)
     for name in shown:

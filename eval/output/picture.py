@@ -10,7 +10,9 @@ PyBullet. Next to the PNG, `<stem>.json` records the command, the episode's figu
 `--gallery DIR` renders the robots instead (`render_gallery`): the PUMA 560, the UR5, the Panda and three
 random arms, each on its platform in its start configuration of the Circle task with the desired path drawn, one
 PNG each (`GALLERY`) and `gallery.json` (the command, the robots, the provenance). No episode runs: the env is
-reset (kinematic mode) and rendered, and the camera frames every body but the ground.
+reset (kinematic mode) and rendered, and the camera frames every body but the ground. Beside them,
+`paths.png` draws the desired path of each task (`PATHS`: the four PUMA tasks, the Random task on three seeds)
+in the world frame over its whole duration, its start marked (matplotlib; `render_paths`).
 """
 
 from __future__ import annotations
@@ -46,6 +48,18 @@ GALLERY: dict[str, tuple[str, int]] = {
     "random-arm-1": ("WheeledRandomArm-Circle-v0", 1),
     "random-arm-2": ("WheeledRandomArm-Circle-v0", 2),
 }
+#: the tasks pictured in the gallery's paths.png: title -> (env id, reset seed); the Random task's draws are those of
+#: dev seeds 0, 1 and 2 (an illustration, not a result)
+PATHS: dict[str, tuple[str, int]] = {
+    "Circle": ("WheeledPuma-Circle-v0", 0),
+    "Line": ("WheeledPuma-Line-v0", 0),
+    "Lemniscate": ("WheeledPuma-Lemniscate-v0", 0),
+    "Random, seed 0": ("WheeledPuma-Random-v0", 0),
+    "Random, seed 1": ("WheeledPuma-Random-v0", 1),
+    "Random, seed 2": ("WheeledPuma-Random-v0", 2),
+}
+#: points per path in paths.png
+PATH_POINTS = 400
 #: the gallery's camera: degrees about the vertical and below the horizon
 GALLERY_YAW, GALLERY_PITCH = 30.0, -20.0
 
@@ -181,6 +195,49 @@ def render_robot(env_id: str, seed: int, width: int, height: int) -> np.ndarray:
         env.close()
 
 
+def path_points(env_id: str, seed: int, n: int = PATH_POINTS) -> tuple[np.ndarray, float]:
+    """`n` points of the desired path of `env_id`'s episode of `seed` (kinematic mode), evenly in time over the
+    whole episode (world frame, m), and the episode's duration (s)."""
+    import gymnasium as gym
+
+    env = gym.make(env_id, dynamics="kinematic")
+    try:
+        env.reset(seed=seed)
+        path = env.unwrapped.path
+        return np.array([path.position(t) for t in np.linspace(0.0, path.duration, n)]), float(path.duration)
+    finally:
+        env.close()
+
+
+def render_paths(out: Path) -> None:
+    """paths.png: one 3-D panel per task of `PATHS`, the desired path in the world frame with its start marked."""
+    import matplotlib.pyplot as plt
+
+    from eval.output.files import atomic_save_figure
+
+    fig = plt.figure(figsize=(10.5, 6.4))
+    for i, (title, (env_id, seed)) in enumerate(PATHS.items()):
+        pts, duration = path_points(env_id, seed)
+        ax = fig.add_subplot(2, 3, i + 1, projection="3d")
+        ax.plot(*pts.T, color="tab:green", lw=1.6)
+        ax.scatter(*pts[0], color="black", s=18, depthshade=False)
+        ax.set_title(f"{title} ({duration:g} s)", fontsize=10)
+        extent = np.maximum(np.ptp(pts, axis=0), 0.3 * np.ptp(pts, axis=0).max())  # a line gets a visible box
+        centre = (pts.max(axis=0) + pts.min(axis=0)) / 2
+        ax.set_xlim(centre[0] - extent[0] / 2, centre[0] + extent[0] / 2)
+        ax.set_ylim(centre[1] - extent[1] / 2, centre[1] + extent[1] / 2)
+        ax.set_zlim(centre[2] - extent[2] / 2, centre[2] + extent[2] / 2)
+        ax.set_box_aspect(extent)
+        ax.tick_params(labelsize=7)
+        ax.set_xlabel("x (m)", fontsize=8)
+        ax.set_ylabel("y (m)", fontsize=8)
+        ax.set_zlabel("z (m)", fontsize=8)
+    fig.suptitle("The desired end-effector paths (PUMA 560; start marked in black)", fontsize=11)
+    fig.tight_layout()
+    atomic_save_figure(fig, out, dpi=90)
+    plt.close(fig)
+
+
 def render_gallery(config: PictureConfig) -> dict:
     """Write one PNG per robot of `GALLERY` into `config.gallery` (`config.width` x `config.height`) and
     gallery.json beside them; returns that record."""
@@ -189,9 +246,11 @@ def render_gallery(config: PictureConfig) -> dict:
     folder = Path(config.gallery)
     for stem, (env_id, seed) in GALLERY.items():
         _write_png(folder / f"{stem}.png", render_robot(env_id, seed, config.width, config.height))
+    render_paths(folder / "paths.png")
     record = {
         "command": config.command(),
         "robots": {stem: {"env": env_id, "seed": seed} for stem, (env_id, seed) in GALLERY.items()},
+        "paths": {title: {"env": env_id, "seed": seed} for title, (env_id, seed) in PATHS.items()},
         "size": [config.width, config.height],
         "provenance": provenance(),
     }
