@@ -273,6 +273,7 @@ MAX_DURATION = 3600.0  # s: one hour, 360,000 control steps at 100 Hz
 MIN_DURATION = 0.01  # s: one control step at 100 Hz (the timing law divides by the duration)
 MAX_ANGLE = 2 * math.pi  # rad: tilt and yaw in [-2 pi, 2 pi]; every angle has a representative there
 MAX_TERMS = 20  # sinusoids per axis of a random path (the amplitudes fall as 1/k: term 20 is 5% of term 1)
+MAX_PEAK = 10.0  # a random path's `max_peak`: redraw until the reference law's peak speed ratio is at most this
 MAX_DIRECTION = 1e6  # per component of a line's direction (only the direction counts: it is normalised)
 
 _DURATION = _Range(MIN_DURATION, MAX_DURATION, "s")
@@ -288,6 +289,7 @@ FIELD_RANGES: dict[str, dict[str, _Range | None]] = {
         "size": _SIZE,
         "n_terms": _Range(1, MAX_TERMS, "", integer=True),
         "duration": _DURATION,
+        "max_peak": _Range(0.0, MAX_PEAK, "(the peak speed ratio of mobman_env.feasibility, e.g. 0.9)", open_low=True),
     },
 }
 _CLASSES = {"circle": CirclePath, "line": LinePath, "lemniscate": LemniscatePath, "random": RandomPath}
@@ -306,6 +308,7 @@ def validate_spec(spec: Any) -> dict:
     | direction | line | 3 finite numbers in [-1e6, 1e6], not all zero (normalised) |
     | seed | random | integer in [0, 2**63 - 1] |
     | n_terms | random | integer in [1, 20] |
+    | max_peak | random (without a seed) | (0, 10]: redraw the path until it is feasible to this peak speed ratio |
 
     Bools, strings and complex numbers are refused, also where they would convert (`"0.4"`, `True`).
     """
@@ -335,6 +338,11 @@ def validate_spec(spec: Any) -> dict:
             out[key] = number(
                 name, value, low=accepted.low, high=accepted.high, open_low=accepted.open_low, hint=accepted.unit
             )
+    if "max_peak" in out and "seed" in out:
+        raise ValueError(
+            f"{kind} path: max_peak redraws the path from the episode's generator until it is feasible, so it "
+            f"cannot be combined with a fixed seed; give one of them (seed {out['seed']}, max_peak {out['max_peak']})"
+        )
     return out
 
 
@@ -342,6 +350,7 @@ def path_from_spec(spec: dict, start: Any, rng: np.random.Generator | None = Non
     """Build a path from a spec, anchored at `start` (3,). A random spec without a seed draws one from `rng`."""
     spec = validate_spec(spec)
     kind = spec.pop("type")
+    spec.pop("max_peak", None)  # the redraw is the engine batch's (`RobotBatch.set_path`): it needs the robot
     start = _vec3(start, "path start")
     if kind == "line" and "direction" in spec:
         spec["direction"] = tuple(spec["direction"])

@@ -80,3 +80,40 @@ def test_a_margin_outside_0_1_is_refused(margin):
     with pytest.raises(ValueError, match="margin"):
         F.check_env(env, margin)
     env.close()
+
+
+def test_a_ladder_rung_drawn_feasible_is_feasible_deterministic_and_the_same_in_the_vector_env():
+    """`max_peak` redraws a random path from the episode's generator until the reference law stays within it: the
+    2.5 s rung (most of its plain draws infeasible, above) becomes feasible on every dev seed, a seed gives the same
+    path twice, and row i of a vector env reset with seed s draws what a single env reset with s + i draws."""
+    from eval.conditions import CONDITIONS, LADDER_MAX_PEAK
+
+    kw = {"dynamics": "kinematic", **CONDITIONS["ladder-2.5s"].env_kwargs}
+    assert kw["path"]["max_peak"] == LADDER_MAX_PEAK == 1.0 - F.FEASIBILITY_MARGIN
+    env = gym.make("WheeledPuma-Random-v0", **kw)
+    specs = []
+    for seed in range(8):
+        env.reset(seed=seed)
+        assert F.check_env(env).feasible, seed
+        specs.append(env.unwrapped.path.to_spec())
+    env.reset(seed=3)
+    assert env.unwrapped.path.to_spec() == specs[3]
+    venv = gym.make_vec("WheeledPuma-Random-v0", num_envs=4, vectorization_mode="vector_entry_point", **kw)
+    venv.reset(seed=0)
+    assert [venv.unwrapped._batch.paths[i].to_spec() for i in range(4)] == specs[:4]
+    venv.close()
+    env.close()
+
+
+@pytest.mark.parametrize(
+    "path, match",
+    [
+        ({"type": "random", "seed": 3, "max_peak": 0.9}, r"cannot be combined with a fixed seed; give one of them"),
+        ({"type": "random", "max_peak": 0.0}, r"max_peak"),
+        ({"type": "random", "max_peak": 11.0}, r"max_peak"),
+        ({"type": "circle", "max_peak": 0.9}, r"unknown key\(s\) \['max_peak'\]"),
+    ],
+)
+def test_a_bad_max_peak_is_refused_naming_it(path, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make("WheeledPuma-Random-v0", dynamics="kinematic", path=path)
