@@ -203,7 +203,7 @@ def path_points(env_id: str, seed: int, n: int = PATH_POINTS) -> tuple[np.ndarra
     env = gym.make(env_id, dynamics="kinematic")
     try:
         env.reset(seed=seed)
-        path = env.unwrapped.path
+        path = env.unwrapped.path  # type: ignore[attr-defined]  # WheeledPumaEnv (the id is one of ours)
         return np.array([path.position(t) for t in np.linspace(0.0, path.duration, n)]), float(path.duration)
     finally:
         env.close()
