@@ -21,6 +21,8 @@ from policies.stacked import StackedPolicy, VectorEnvRows
 
 #: the 2.5 s rung of the difficulty ladder: a 5-harmonic random path of 0.3 m in 2.5 s
 RUNG = {"type": "random", "size": 0.3, "n_terms": 5, "duration": 2.5}
+#: a short catalogue-sized circle for the noise test (5 s: enough steps for the noise's tail to pass 6 mm)
+SHORT_NOISY_PATH = {"type": "circle", "radius": 0.3, "duration": 5.0}
 
 
 def _max_errors(spec: str, seeds, env_id: str = "WheeledPuma-Circle-v0", **kwargs) -> np.ndarray:
@@ -279,3 +281,22 @@ def test_in_physics_under_lag_the_oracle_neither_chatters_nor_trails_qp_oracle()
     env.close()
     assert mpc["max_error_m"] < qp["max_error_m"], (mpc["max_error_m"], qp["max_error_m"])
     assert mpc["cmd_accel_rms"] < 100.0, mpc["cmd_accel_rms"]
+
+
+def test_error_time_keeps_mpc_oracle_from_following_heavy_sensor_noise():
+    """`noise-heavy` (development seeds): removing the measured error at once (the default) follows 2 mm of
+    position noise past the tolerance; `error_time` 0.02 s removes it at 50 1/s and tracks within 6 mm."""
+    from eval.conditions import CONDITIONS
+
+    c = CONDITIONS["noise-heavy"]
+    kwargs = {"model_error": c.model_error, "obs_noise": c.obs_noise, **c.extra_kwargs, "path": SHORT_NOISY_PATH}
+    seeds = [0, 1, 2]
+    at_once = _max_errors("mpc-oracle", seeds, **kwargs)
+    smooth = _max_errors("mpc-oracle:error_time=0.02", seeds, **kwargs)
+    assert np.all(smooth <= 0.006) and np.all(smooth < at_once) and at_once.max() > 0.006, (at_once, smooth)
+
+
+@pytest.mark.parametrize("value", [-0.01, float("nan")])
+def test_a_bad_error_time_is_refused_naming_it(value):
+    with pytest.raises(ValueError, match="error_time"):
+        MPCConfig(error_time=value)

@@ -13,6 +13,7 @@ from PIL import Image
 from eval.cli import build_parser, main
 from eval.cli import picture as picture_cli
 from eval.cli.options import build
+from eval.errors import EvalError
 from eval.output.picture import PictureConfig
 
 
@@ -96,3 +97,50 @@ def test_the_robots_page_shows_the_committed_gallery():
         assert path.stat().st_size <= 100_000, f"{name}: {path.stat().st_size} bytes"
         with Image.open(path) as img:
             assert list(img.size) == record["size"], name
+
+
+def test_traces_plot_one_episode_per_controller_and_record_them(tmp_path):
+    """`--traces PNG` (`render_traces`): one episode per controller on one env and seed, a drawn figure and a
+    record whose command renders the same plot again; a controller that tracks ends far below one that does not."""
+    from eval.output.picture import TRACES, render_traces
+
+    out = tmp_path / "traces.png"
+    config = PictureConfig(traces=str(out), env="WheeledPuma-Circle-v0", seed=10_000, dynamics="kinematic")
+    path = {"type": "circle", "radius": 0.2, "duration": 4.0}
+    record = render_traces(config, {"qp": "QP", "zero": "no motion"}, path=path)
+    with Image.open(out) as img:
+        assert img.format == "PNG" and len(set(img.convert("L").getdata())) > 10
+    assert json.loads(out.with_suffix(".json").read_text()) == json.loads(json.dumps(record))
+    eps = record["episodes"]
+    assert {spec: ep["status"] for spec, ep in eps.items()} == {"qp": "ok", "zero": "ok"}
+    assert eps["qp"]["max_error_mm"] < 6.0 < eps["zero"]["max_error_mm"]
+    again = build(PictureConfig, build_parser().parse_args(shlex.split(record["command"])[1:]), picture_cli.OPTIONS)
+    assert again == config
+    assert list(TRACES)[:2] == ["nnbc", "jmpi"] and "nnbc-plus" in TRACES  # the paper's laws first, ours last
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"traces": "traces.jpg"}, r"--traces 'traces.jpg' must name a .png file"),
+        ({"traces": "t.png", "gallery": "g"}, r"give --gallery or --traces, not both"),
+    ],
+)
+def test_bad_traces_options_are_refused_naming_them(kwargs, match):
+    with pytest.raises(EvalError, match=match):
+        PictureConfig(**kwargs).validate()
+
+
+def test_the_controllers_page_shows_the_committed_traces():
+    """docs/controllers.md shows assets/traces.png, rendered by the command its record names, of every family."""
+    from pathlib import Path
+
+    from eval.output.picture import TRACES
+
+    docs = Path(__file__).resolve().parents[1] / "docs"
+    page = (docs / "controllers.md").read_text()
+    record = json.loads((docs / "assets" / "traces.json").read_text())
+    assert "](assets/traces.png)" in page and record["command"] in " ".join(page.split())
+    assert list(record["episodes"]) == list(TRACES)
+    assert all(ep["status"] == "ok" and ep["max_error_mm"] > 0 for ep in record["episodes"].values())
+    assert (docs / "assets" / "traces.png").stat().st_size <= 300_000

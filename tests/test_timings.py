@@ -62,3 +62,24 @@ def test_the_cli_writes_json_and_markdown(tmp_path, monkeypatch):
 @pytest.mark.parametrize("seconds, text", [(75.4, "75 s"), (119.6, "120 s"), (252.0, "4.2 min")])
 def test_durations_are_printed_in_seconds_then_minutes(seconds, text):
     assert timings._duration(seconds) == text
+
+
+def test_the_readme_quotes_the_committed_timings_through_a_generated_block():
+    """One recorded source: docs/results/timings/timings.json holds every README step, passed, from a clean tree,
+    and the README's "How long" quotes its CPU and wall times through the generated block (no typed figure)."""
+    from pathlib import Path
+
+    from eval.output.provenance import CLEAN, provenance_class
+
+    root = Path(__file__).resolve().parents[1]
+    record = json.loads((root / "docs" / "results" / "timings" / "timings.json").read_text())
+    assert [s["step"] for s in record["steps"]] == list(timings.STEPS)
+    assert all(s["returncode"] == 0 for s in record["steps"]), [s["step"] for s in record["steps"]]
+    assert provenance_class(record["provenance"]) == CLEAN
+    readme = (root / "README.md").read_text()
+    begin = "<!-- generated:begin docs/results/timings/timings.md Timings -->"
+    assert readme.count(begin) == 1
+    block = readme.split(begin)[1].split("<!-- generated:end -->")[0]
+    for step in record["steps"]:
+        assert f"{timings._duration(step['wall_s'])} | {timings._duration(step['cpu_s'])} | passed" in block
+    assert "How long: on the project's" not in readme  # the hand-typed paragraph it replaced

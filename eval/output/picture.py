@@ -13,6 +13,11 @@ PNG each (`GALLERY`) and `gallery.json` (the command, the robots, the provenance
 reset (kinematic mode) and rendered, and the camera frames every body but the ground. Beside them,
 `paths.png` draws the desired path of each task (`PATHS`: the four PUMA tasks, the Random task on three seeds)
 in the world frame over its whole duration, its start marked (matplotlib; `render_paths`).
+
+`--traces PNG` plots instead the tracking error over one episode of one controller per family (`TRACES`: the
+paper's two laws, the nominal-model CLIK and QP, the calibrating QP, the known-model MPC, and the model-free RLS and
+nnbc-plus) on one env and seed (`--env`, `--seed`, `--dynamics`), on a log scale with the 6 mm tolerance, and a
+JSON record beside it (`render_traces`): the controllers page's picture of how each family tracks.
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from __future__ import annotations
 import io
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -58,6 +64,19 @@ PATHS: dict[str, tuple[str, int]] = {
     "Random, seed 1": ("WheeledPuma-Random-v0", 1),
     "Random, seed 2": ("WheeledPuma-Random-v0", 2),
 }
+#: the controllers page's traces: spec -> its family, in the page's order (one controller per family)
+TRACES: dict[str, str] = {
+    "nnbc": "the paper's NNBC (model-free)",
+    "jmpi": "the paper's JMPI (nominal model)",
+    "clik-full": "CLIK (nominal model)",
+    "qp": "whole-body QP (nominal model)",
+    "calib-qp": "QP calibrating the catalogue",
+    "mpc-oracle": "MPC (true model)",
+    "rls": "RLS Jacobian (model-free)",
+    "nnbc-plus": "nnbc-plus (model-free)",
+}
+#: the tolerance line of the traces plot, mm (the benchmark's success tolerance)
+TRACES_TOLERANCE_MM = 6.0
 #: points per path in paths.png
 PATH_POINTS = 400
 #: the gallery's camera: degrees about the vertical and below the horizon
@@ -81,6 +100,9 @@ class PictureConfig:
     gallery: str | None = None
     """A folder: render the gallery of robots into it (`GALLERY`: one PNG per robot and gallery.json) instead of
     an episode; --out, --env, --policy, --seed and --dynamics are then not used."""
+    traces: str | None = None
+    """A PNG file: plot the tracking error over one episode of each controller family (`TRACES`) on --env, --seed
+    and --dynamics instead of rendering a frame (its record goes beside it, with the suffix .json)."""
     width: int = 960
     """Image width, pixels (64-4096)."""
     height: int = 540
@@ -90,6 +112,8 @@ class PictureConfig:
         """The command line that renders this picture (or this gallery)."""
         if self.gallery is not None:
             return f"mobman-eval picture --gallery {self.gallery} --width {self.width} --height {self.height}"
+        if self.traces is not None:
+            return f"mobman-eval picture --traces {self.traces} --env {self.env} --seed {self.seed} --dynamics {self.dynamics}"
         return (
             f"mobman-eval picture --out {self.out} --env {self.env} --policy {self.policy} --seed {self.seed} "
             f"--dynamics {self.dynamics} --width {self.width} --height {self.height}"
@@ -97,6 +121,12 @@ class PictureConfig:
 
     def validate(self) -> None:
         """Raise EvalError naming an `out` that is not a .png file or a size out of range, with the fix."""
+        if self.traces is not None and Path(self.traces).suffix.lower() != ".png":
+            raise EvalError(
+                f"picture: --traces {self.traces!r} must name a .png file, e.g. --traces docs/assets/traces.png"
+            )
+        if self.gallery is not None and self.traces is not None:
+            raise EvalError("picture: give --gallery or --traces, not both (each writes its own pictures)")
         if self.gallery is None and Path(self.out).suffix.lower() != ".png":
             raise EvalError(f"picture: --out {self.out!r} must name a .png file, e.g. --out docs/assets/robot.png")
         low, high = SIZE_RANGE
@@ -236,6 +266,56 @@ def render_paths(out: Path) -> None:
     fig.tight_layout()
     atomic_save_figure(fig, out, dpi=90)
     plt.close(fig)
+
+
+def render_traces(config: PictureConfig, traces: dict[str, str] | None = None, **env_kwargs: Any) -> dict:
+    """Run one episode of each controller of `traces` (default `TRACES`) on `config.env` (seed `config.seed`,
+    `config.dynamics`, `env_kwargs`), plot each one's tracking error (mm, log scale) against time into the PNG
+    `config.traces`, and write the record beside it (its `.json`); returns the record. A failed episode is
+    recorded as failed and left out of the plot."""
+    import matplotlib.pyplot as plt
+
+    from eval.output.files import atomic_save_figure
+    from eval.output.styles import color_of, linestyle_of, tolerance_line
+    from eval.rollout import make_env, make_policy, rollout
+
+    assert config.traces is not None
+    out = Path(config.traces)
+    traces = TRACES if traces is None else traces
+    fig, ax = plt.subplots(figsize=(9.0, 4.6))
+    episodes = {}
+    for spec, family in traces.items():
+        env = make_env(config.env, dynamics=config.dynamics, env_kwargs=env_kwargs)
+        try:
+            rec, arrays = rollout(env, make_policy(spec, env, seed=config.seed), seed=config.seed)
+        finally:
+            env.close()
+        episodes[spec] = {"family": family, "status": rec["status"], "max_error_mm": None}
+        if arrays is None or rec["status"] != "ok":
+            continue
+        err_mm = np.maximum(1e3 * arrays["error"], 1e-4)  # log axis: an exact zero shows at 0.1 um
+        episodes[spec]["max_error_mm"] = round(float(err_mm.max()), 4)
+        ax.semilogy(arrays["t"], err_mm, color=color_of(spec), ls=linestyle_of(spec), lw=1.2, label=f"{spec}: {family}")
+    tolerance_line(ax, 1e-3 * TRACES_TOLERANCE_MM)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("tracking error (mm)")
+    ax.set_title(f"{config.env}, {config.dynamics}, seed {config.seed}: one episode per controller family", fontsize=10)
+    ax.grid(True, which="major", alpha=0.3)
+    ax.legend(fontsize=7, loc="center left", bbox_to_anchor=(1.01, 0.5))
+    fig.tight_layout()
+    atomic_save_figure(fig, out, dpi=90)
+    plt.close(fig)
+    record = {
+        "command": config.command(),
+        "env": config.env,
+        "seed": config.seed,
+        "dynamics": config.dynamics,
+        "env_kwargs": env_kwargs,
+        "episodes": episodes,
+        "provenance": provenance(),
+    }
+    atomic_write_json(out.with_suffix(".json"), record)
+    return record
 
 
 def render_gallery(config: PictureConfig) -> dict:
