@@ -65,8 +65,10 @@ def test_durations_are_printed_in_seconds_then_minutes(seconds, text):
 
 
 def test_the_readme_quotes_the_committed_timings_through_a_generated_block():
-    """One recorded source: docs/results/timings/timings.json holds every README step, passed, from a clean tree,
-    and the README's "How long" quotes its CPU and wall times through the generated block (no typed figure)."""
+    """One recorded source: docs/results/timings/timings.json holds every README step from a clean tree (the
+    compile and the main job passed; the tests step's result is whatever the suite of that commit gave, this test
+    included, so it is shown, not asserted), and the README's "How long" quotes its CPU and wall times through the
+    generated block (no typed figure)."""
     from pathlib import Path
 
     from eval.output.provenance import CLEAN, provenance_class
@@ -74,12 +76,13 @@ def test_the_readme_quotes_the_committed_timings_through_a_generated_block():
     root = Path(__file__).resolve().parents[1]
     record = json.loads((root / "docs" / "results" / "timings" / "timings.json").read_text())
     assert [s["step"] for s in record["steps"]] == list(timings.STEPS)
-    assert all(s["returncode"] == 0 for s in record["steps"]), [s["step"] for s in record["steps"]]
+    assert [s["returncode"] for s in record["steps"][:2]] == [0, 0], record["steps"][:2]
     assert provenance_class(record["provenance"]) == CLEAN
     readme = (root / "README.md").read_text()
     begin = "<!-- generated:begin docs/results/timings/timings.md Timings -->"
     assert readme.count(begin) == 1
     block = readme.split(begin)[1].split("<!-- generated:end -->")[0]
     for step in record["steps"]:
-        assert f"{timings._duration(step['wall_s'])} | {timings._duration(step['cpu_s'])} | passed" in block
+        result = "passed" if step["returncode"] == 0 else f"failed (exit {step['returncode']})"
+        assert f"{timings._duration(step['wall_s'])} | {timings._duration(step['cpu_s'])} | {result}" in block
     assert "How long: on the project's" not in readme  # the hand-typed paragraph it replaced
