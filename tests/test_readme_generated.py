@@ -259,3 +259,20 @@ def test_a_hostile_megabyte_of_backticks_is_escaped_in_one_pass():
     out = escape_copied(text)
     assert len(text) > 2**20 and "<!--" not in out
     assert escape_copied("`<!--` <!--") == "`<!\u200b--` &lt;!--"
+
+
+def test_a_copied_section_keeps_its_images_and_links_pointing_at_their_files(tmp_path):
+    """A generated block copies a section with its relative image and link targets rewritten from the source's
+    folder to the page's (a scorecard.md shows plots/x.png beside itself); URLs and anchors stay."""
+    (tmp_path / ".git").mkdir()
+    (tmp_path / "results" / "b").mkdir(parents=True)
+    (tmp_path / "results" / "b" / "scorecard.md").write_text(
+        "## Ladder\n\n| x |\n\n![ladder](plots/ladder.png)\n\n[up](../a.md#top) [site](https://example.org/p) [here](#k)\n"
+    )
+    (tmp_path / "docs").mkdir()
+    page = tmp_path / "docs" / "page.md"
+    page.write_text("<!-- generated:begin ../results/b/scorecard.md Ladder -->\nold\n<!-- generated:end -->\n")
+    assert main(["readme", str(page)]) == 0
+    text = page.read_text()
+    assert "![ladder](../results/b/plots/ladder.png)" in text
+    assert "[up](../results/a.md#top) [site](https://example.org/p) [here](#k)" in text

@@ -23,6 +23,8 @@ folder), so that a block naming `/etc/passwd` or `../../x` cannot copy a file fr
 
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 from eval.errors import EvalError
@@ -91,6 +93,26 @@ def read_text(path: Path, what: str) -> str:
         ) from None
 
 
+#: a Markdown link or image target: `[text](target)` / `![alt](target)`, the target without spaces or a title
+_LINK = re.compile(r"(!?\[[^\]\n]*\]\()([^)\s]+)(\))")
+
+
+def rebase_links(body: str, source_dir: Path, page_dir: Path) -> str:
+    """`body` (Markdown copied from a file in `source_dir`) with its relative link and image targets rewritten
+    relative to `page_dir`, so that a copied `![plot](plots/x.png)` still shows the file next to its source;
+    absolute URLs, absolute paths and anchors stay as they are."""
+
+    def rebase(m: re.Match) -> str:
+        target = m.group(2)
+        if target.startswith(("#", "/")) or re.match(r"^[A-Za-z][A-Za-z0-9+.-]*:", target):
+            return m.group(0)
+        path, hash_, anchor = target.partition("#")
+        moved = Path(os.path.relpath(source_dir / path, page_dir)).as_posix()
+        return f"{m.group(1)}{moved}{hash_}{anchor}{m.group(3)}"
+
+    return _LINK.sub(rebase, body)
+
+
 def render_generated(text: str, root: str | Path, repo: Path | None = None) -> tuple[str, list[str]]:
     """`text` with every generated block rebuilt from the file it names (relative to `root`, inside `repo`:
     `source_path`), and the paths of those files (each once, in order). EvalError when a block names a missing
@@ -114,6 +136,6 @@ def render_generated(text: str, root: str | Path, repo: Path | None = None) -> t
             raise EvalError(f"{rel}: {exc}") from None
         if rel not in found:
             found.append(rel)
-        return body
+        return rebase_links(body, path.parent, root)
 
     return replace_blocks(text, "generated", rebuild)[0], found
