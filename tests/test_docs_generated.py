@@ -42,3 +42,18 @@ def test_docs_page_blocks_equal_the_committed_results(page):
             continue
         assert min(seeds) >= 10_000, f"{page}: {rel}: the figures of a page come from reported seeds only"
     assert rendered == text, f"{page.relative_to(ROOT)} differs from its results; run `mobman-eval readme {page}`"
+
+
+def test_the_nnbc_plus_v5_goals_page_is_what_its_script_makes_of_the_committed_scorecard():
+    """docs/results/nnbc-plus-v5/goals.md (quoted on the nnbc-plus page) equals goals.py's output on the
+    committed v3 dev scorecard: no figure of it is typed."""
+    import importlib.util
+
+    folder = ROOT / "docs" / "results" / "nnbc-plus-v5"
+    spec = importlib.util.spec_from_file_location("goals", folder / "goals.py")
+    assert spec is not None and spec.loader is not None
+    goals = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(goals)
+    made = goals.main(str(ROOT / "docs" / "results" / "bench-v3-dev" / "scorecard.json.xz"))
+    assert made == (folder / "goals.md").read_text()
+    assert "## Goals" in made and all(f"`{p}`" in made for p in goals.POLICIES)
