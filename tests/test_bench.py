@@ -549,3 +549,25 @@ def test_against_a_subset_of_the_committed_cells_compares_the_cells_it_ran(tmp_p
     assert [t["policy"] for t in sc["tracks"]] == ["jmpi"]  # the baselines' track rows pool cells not run here
     assert any("subset of the committed cells" in n for n in sc["notes"])
     assert (tmp_path / "m" / "scorecard.md").is_file()
+
+
+def test_against_a_compacted_committed_scorecard_reads_it_and_hashes_its_json(tmp_path):
+    """A committed bench whose scorecard is stored compacted (scorecard.json.xz, as docs/results keeps them) is a
+    valid --against DIR, and the hash recorded for it is that of its JSON bytes: the same as before compaction."""
+    import hashlib
+
+    from eval.bench.against import load_against
+    from eval.output.compact import compact
+
+    run_bench(
+        _small(conditions=("default",), policies=("zero",), tasks=("circle",), seeds=2),
+        tmp_path / "c",
+        progress=False,
+        plots=False,
+    )
+    plain = hashlib.sha256((tmp_path / "c" / "scorecard.json").read_bytes()).hexdigest()
+    compact(tmp_path / "c" / "scorecard.json")
+    assert load_against(tmp_path / "c")[1] == plain
+    args = ["bench", "--robots", "puma", "--tasks", "circle", "--conditions", "default", "--quiet", "--no-plots"]
+    assert main([*args, "--against", str(tmp_path / "c"), "--policy", "jmpi", "--out", str(tmp_path / "m")]) == 0
+    assert json.loads((tmp_path / "m" / "bench.json").read_text())["against"]["samples_equal"]

@@ -56,19 +56,23 @@ SAME = ("version", *CONFIG_KEYS.values())
 
 
 def load_against(path: str | Path, typed: Iterable[str] = ()) -> tuple[dict, str]:
-    """The committed scorecard of `path` (a bench folder or its scorecard.json) and its sha256, read through
-    the one JSON reader and checked before anything runs: its shape (`eval.schemas.SCORECARD`) and its names,
+    """The committed scorecard of `path` (a bench folder or its scorecard.json, either stored plain or compacted as
+    scorecard.json.xz) and the SHA-256 of its JSON bytes (the same for both forms), read through the one JSON
+    reader and checked before anything runs: its shape (`eval.schemas.SCORECARD`) and its names,
     since its baselines and samples are built and run here (`eval.schemas.check_scorecard_names`: built-in
     controllers, `sb3:` agents, registered env ids; `typed`, the controllers of --policy, are the user's own)."""
-    from eval.schemas import check_scorecard_names
-    from policies.untrusted import FileRefused, file_sha256
+    import hashlib
+
+    from eval.output.compact import stored_bytes
+    from eval.schemas import MAX_SCORECARD_BYTES, check_scorecard_names
+    from policies.untrusted import FileRefused
 
     path = Path(path)
     file = path / "scorecard.json" if path.is_dir() else path
     sc = S.load_scorecard(file)
     check_scorecard_names(sc, str(file), typed)
     try:
-        return sc, file_sha256(file)
+        return sc, hashlib.sha256(stored_bytes(file, MAX_SCORECARD_BYTES)).hexdigest()
     except FileRefused as exc:
         raise EvalError(str(exc)) from None
 
