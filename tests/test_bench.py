@@ -547,6 +547,7 @@ def test_against_a_subset_of_the_committed_cells_compares_the_cells_it_ran(tmp_p
     assert {r["policy"] for r in sc["rows"]} == {"qp", "zero", "jmpi"}
     assert mine.n_run == 2 * len(ran) and sc["n_episodes"] == 3 * 2 * len(ran)
     assert [t["policy"] for t in sc["tracks"]] == ["jmpi"]  # the baselines' track rows pool cells not run here
+    assert {r["policy"] for r in sc["prob_improvement"]} == {"jmpi"}  # and so do their probabilities
     assert any("subset of the committed cells" in n for n in sc["notes"])
     assert (tmp_path / "m" / "scorecard.md").is_file()
 

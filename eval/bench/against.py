@@ -204,10 +204,12 @@ def merge(committed: dict, new: dict, baselines: list[str], track_eps: dict[str,
         out["notes"] = [
             *new.get("notes", []),
             f"--against with a subset of the committed cells ({len(ran)} of them ran): the baselines' rows pooled "
-            "over cells that did not run here (their tracks, the ladder, conditions run in part) are left out",
+            "over cells that did not run here (their tracks, the ladder, conditions run in part, their probabilities "
+            "of improvement) are left out",
         ]
     refs = committed.get("reference_episodes", {})
-    prob = [r for r in committed.get("prob_improvement", []) if r["policy"] in baselines]
+    # the committed probabilities are over every cell of their track: comparable only when every cell ran here
+    prob = [r for r in committed.get("prob_improvement", []) if r["policy"] in baselines and every]
     for track, eps in track_eps.items():
         mine: dict[str, dict[str, list[float]]] = {}
         for r in eps:
