@@ -226,6 +226,8 @@ class MPCLaw(BatchedController):
         self._lengths = block_lengths(H, B)
         self._omega = np.ones(H)
         self._omega[-1] = c.terminal_weight
+        # the share of the measured error each prediction step still carries (`error_time`; none: removed at once)
+        self._decay = np.exp(-self._h * np.arange(1, H + 1) / c.error_time) if c.error_time > 0 else None
         weights = np.r_[np.ones(m - 2), np.full(2, c.wheel_weight)]
         self._reg = c.effort_weight * self._lengths[:, None] * weights[None, :]
         self._lbx, self._ubx = np.tile(-self._scale, B), np.tile(self._scale, B)
@@ -316,9 +318,8 @@ class MPCLaw(BatchedController):
         d = np.empty((n, c.horizon, 3))
         preview_rows(self._coef, self.has_path, obs["time"][:, 0], self._h, obs["target_pos"], tvel, acc, d)
         d -= obs["ee_pos"][:, None, :]
-        if c.error_time > 0:  # remove the measured error at the rate 1 / error_time, not at once
-            decay = np.exp(-self._h * np.arange(1, c.horizon + 1) / c.error_time)
-            d -= (obs["target_pos"] - obs["ee_pos"])[:, None, :] * decay[None, :, None]
+        if self._decay is not None:  # remove the measured error at the rate 1 / error_time, not at once
+            d -= (obs["target_pos"] - obs["ee_pos"])[:, None, :] * self._decay[None, :, None]
         J = self._model(obs["joint_pos"], obs["base_yaw"], True)
         q = obs["joint_pos"][:, :na]
         z = np.zeros((n, m))

@@ -55,6 +55,7 @@ __all__ = [
     "json_depth",
     "parse_json",
     "read_json",
+    "read_stored",
     "read_xz",
     "stored_path",
 ]
@@ -262,14 +263,22 @@ def read_xz(path: Path, max_bytes: int, what: str) -> bytes:
     return data
 
 
-def read_json(path: str | Path, max_bytes: int, what: str, schema: Schema | None = None) -> Any:
-    """The JSON value of the file `path` (a `what`: "results file", "scorecard", ...), after the checks of the
-    module docstring; `FileRefused` naming the file and the fix otherwise (FileNotFoundError passes through
-    unchanged when the file does not exist, so callers can say how to make it). `path` may be, or stand for, an
-    xz-compressed twin (`stored_path`)."""
+def read_stored(path: str | Path, max_bytes: int, what: str) -> tuple[Path, bytes]:
+    """The file that holds `path` (`stored_path`: it, or its compressed twin) and the JSON bytes it stands for
+    (unpacked if it is an xz file), under the checks of the module docstring; `FileRefused` naming the file and
+    the fix otherwise, FileNotFoundError when neither exists."""
     path = stored_path(path)
     if not path.exists() and not path.is_symlink():
         raise FileNotFoundError(f"{path}: no such {what}")
     if path.name.endswith(COMPRESSED_SUFFIX):
-        return parse_json(read_xz(path, max_bytes, what), str(path), schema)
-    return parse_json(read_regular(path, max_bytes, what), str(path), schema)
+        return path, read_xz(path, max_bytes, what)
+    return path, read_regular(path, max_bytes, what)
+
+
+def read_json(path: str | Path, max_bytes: int, what: str, schema: Schema | None = None) -> Any:
+    """The JSON value of the file `path` (a `what`: "results file", "scorecard", ...), after the checks of the
+    module docstring; `FileRefused` naming the file and the fix otherwise (FileNotFoundError passes through
+    unchanged when the file does not exist, so callers can say how to make it). `path` may be, or stand for, an
+    xz-compressed twin (`read_stored`)."""
+    stored, data = read_stored(path, max_bytes, what)
+    return parse_json(data, str(stored), schema)

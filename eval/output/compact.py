@@ -20,8 +20,7 @@ from pathlib import Path
 
 from eval.errors import EvalError
 from eval.output.files import atomic_write_bytes, atomic_write_json
-from policies.untrusted import read_regular
-from policies.untrusted_json import COMPRESSED_SUFFIX, read_json, read_xz, stored_path
+from policies.untrusted_json import COMPRESSED_SUFFIX, parse_json, read_stored, read_xz
 
 __all__ = ["MAX_JSON_BYTES", "compact", "git_blob_id", "stored_bytes", "update_manifest"]
 
@@ -38,11 +37,9 @@ def git_blob_id(data: bytes) -> str:
 
 
 def stored_bytes(path: str | Path, max_bytes: int = MAX_JSON_BYTES) -> bytes:
-    """The bytes of the file `path` stands for, read from `path` or from its compressed twin (`path.xz`)."""
-    stored = stored_path(path)
-    if stored.name.endswith(COMPRESSED_SUFFIX) and not Path(path).name.endswith(COMPRESSED_SUFFIX):
-        return read_xz(stored, max_bytes, "JSON file")
-    return read_regular(stored, max_bytes, "file")
+    """The JSON bytes of the file `path` stands for, read from `path` or from its compressed twin (`path.xz`):
+    `policies.untrusted_json.read_stored` with this module's cap."""
+    return read_stored(path, max_bytes, "JSON file")[1]
 
 
 def compact(path: str | Path) -> dict:
@@ -56,12 +53,12 @@ def compact(path: str | Path) -> dict:
     if twin.exists():
         raise EvalError(f"{twin} exists already; remove it (or {path}) first, so that no file is overwritten")
     try:
-        read_json(path, MAX_JSON_BYTES, "JSON file")
+        data = read_stored(path, MAX_JSON_BYTES, "JSON file")[1]  # `path` itself: it is not .xz, no twin exists
+        parse_json(data, str(path))
     except FileNotFoundError:
         raise EvalError(f"{path}: no such file; give a JSON file to compact") from None
     except ValueError as exc:
         raise EvalError(f"cannot compact {path}: {exc}") from None
-    data = path.read_bytes()
     packed = lzma.compress(data, format=lzma.FORMAT_XZ, check=lzma.CHECK_CRC64, preset=PRESET)
     atomic_write_bytes(twin, packed)
     if read_xz(twin, MAX_JSON_BYTES, "JSON file") != data:  # pragma: no cover - lzma is lossless

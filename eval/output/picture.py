@@ -75,8 +75,6 @@ TRACES: dict[str, str] = {
     "rls": "RLS Jacobian (model-free)",
     "nnbc-plus": "nnbc-plus (model-free)",
 }
-#: the tolerance line of the traces plot, mm (the benchmark's success tolerance)
-TRACES_TOLERANCE_MM = 6.0
 #: points per path in paths.png
 PATH_POINTS = 400
 #: the gallery's camera: degrees about the vertical and below the horizon
@@ -275,6 +273,7 @@ def render_traces(config: PictureConfig, traces: dict[str, str] | None = None, *
     recorded as failed and left out of the plot."""
     import matplotlib.pyplot as plt
 
+    from eval.metrics import DEFAULT_TOLERANCE
     from eval.output.files import atomic_save_figure
     from eval.output.styles import color_of, linestyle_of, tolerance_line
     from eval.rollout import make_env, make_policy, rollout
@@ -296,7 +295,7 @@ def render_traces(config: PictureConfig, traces: dict[str, str] | None = None, *
         err_mm = np.maximum(1e3 * arrays["error"], 1e-4)  # log axis: an exact zero shows at 0.1 um
         episodes[spec]["max_error_mm"] = round(float(err_mm.max()), 4)
         ax.semilogy(arrays["t"], err_mm, color=color_of(spec), ls=linestyle_of(spec), lw=1.2, label=f"{spec}: {family}")
-    tolerance_line(ax, 1e-3 * TRACES_TOLERANCE_MM)
+    tolerance_line(ax, DEFAULT_TOLERANCE)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("tracking error (mm)")
     ax.set_title(f"{config.env}, {config.dynamics}, seed {config.seed}: one episode per controller family", fontsize=10)
