@@ -111,8 +111,21 @@ PATH_FAMILY = {"duration": (6.0, 20.0), "size": (0.15, 0.45), "n_terms": (2, 7)}
 FAMILY_SHA256 = "9ac8e21fbd3d428a4466a153b09591d07aa63d042dca401f1dc52c590aa45927"
 #: Per release: the SHA-256 of its secret seed (`seed_digest`), committed before the release's tuning started.
 RELEASE_SEED_SHA256: dict[str, str] = {
-    # release 0.4: committed before any of its tuning (nnbc-plus v5, the RL recipes, the MPC laws) started
-    "0.4": "6e6a55d4e9fd221d229ebe55201780119cf08643d9835de007b0f9450a458634",
+    # release 0.4, second seed: its first seed (WITHDRAWN_SEEDS) was lost before any draw; this one was made and
+    # committed on 2026-12-07, after the release's tuning so far and before any held-out condition of it was known
+    "0.4": "0cc1ed2385c05c4e1dea2177a81cec95a609bd602b089de6f5ede4a440d0e6b2",
+}
+#: Per release: digests committed and then withdrawn, never drawn (digest, commit, reason). A withdrawn seed is
+#: never revealed or run; the release's draw is the one of `RELEASE_SEED_SHA256`.
+WITHDRAWN_SEEDS: dict[str, tuple[tuple[str, str, str], ...]] = {
+    "0.4": (
+        (
+            "6e6a55d4e9fd221d229ebe55201780119cf08643d9835de007b0f9450a458634",
+            "248394abd6b8dca7d593b24a14c2a4794c90f449",
+            "committed on 2026-12-04 before any tuning of release 0.4; the seed, kept off the repository, was lost "
+            "when the development machine was reset, before any draw was made from it, so it can never be revealed",
+        ),
+    ),
 }
 #: Per release: the commit that added its seed's digest (scorecards cite it; a test finds the digest in that commit).
 RELEASE_SEED_COMMIT: dict[str, str] = {"0.4": "248394abd6b8dca7d593b24a14c2a4794c90f449"}
