@@ -71,7 +71,7 @@ def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
 
 
 def test_the_heldout_track_before_its_draw_is_revealed_is_refused_naming_why():
-    with pytest.raises(EvalError, match=r"held-out track has no condition yet: release 0\.4's .*commit 248394a"):
+    with pytest.raises(EvalError, match=r"held-out track has no condition yet: release 0\.4's .*commit ae362a4"):
         BC.BenchConfig(track="heldout").resolved()
 
 

@@ -107,3 +107,18 @@ def test_the_seed_digest_was_committed_in_the_commit_the_module_names():
     assert digest in _git("show", f"{commit}:eval/heldout.py")
     parent = subprocess.run(["git", "show", f"{commit}~1:eval/heldout.py"], cwd=ROOT, capture_output=True, text=True)
     assert digest not in parent.stdout
+
+
+def test_a_withdrawn_seed_digest_is_in_its_commit_and_never_the_release_draw():
+    """A withdrawn digest was committed where the record says, is not the release's current digest and is never
+    revealed (a lost seed cannot be; revealing one would be a second draw of the same release)."""
+    for release, entries in H.WITHDRAWN_SEEDS.items():
+        for digest, commit, reason in entries:
+            assert len(digest) == 64 and len(commit) == 40 and reason
+            assert digest != H.RELEASE_SEED_SHA256[release]
+            assert release not in H.REVEALED_SEEDS or H.seed_digest(H.REVEALED_SEEDS[release], release) != digest
+            if (ROOT / ".git").exists():
+                if _git("rev-parse", "--is-shallow-repository") == "true":
+                    _git("fetch", "--unshallow", "--quiet")
+                _git("merge-base", "--is-ancestor", commit, "HEAD")
+                assert digest in _git("show", f"{commit}:eval/heldout.py")
