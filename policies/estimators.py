@@ -80,6 +80,7 @@ def estimator_params(dt: float = 0.0, **kw: float) -> np.ndarray:
         "forgetting": K.EP_LAMBDA,
         "q_rls": K.EP_QRLS,
         "p0": K.EP_P0RLS,
+        "probe_noise_start": K.EP_PROBE_NOISE,
     }
     ep[K.EP_DT] = dt
     for key, value in kw.items():

@@ -53,7 +53,7 @@ BLOCK_WEIGHT = 1e-3  # pseudo-inverse weight of a blocked actuator
 STOP_TIME = 0.1  # s: near a learnt stop an arm joint approaches it at most at (distance / STOP_TIME)
 DELAY_SETTLE = 200  # steps during which the actuator model is refreshed every step
 DELAY_EVERY = 10  # afterwards, every this many steps
-N_LAGS = 3  # len(LAG_TAUS)
+N_LAGS = 6  # len(LAG_TAUS)
 INNOV_MS0 = 1e-4  # (m/s)^2: initial running mean square of the Kalman filter's innovations
 NEED_SIGNS, NEED_NOISE = 1, 2  # bits of ist[:, I_NEED]: what the row's next step draws
 
@@ -73,7 +73,8 @@ IPR_LEN = 13
 # --- the estimator's constants ---
 (EP_DT, EP_QJ, EP_QR, EP_R0, EP_CLIP, EP_CLIP2, EP_RATE, EP_P0J, EP_P0R, EP_NOISE_RATE, EP_MIDPOINT) = range(11)
 (EP_SYM_PHASE, EP_QPLAT, EP_RPLAT, EP_HEADING, EP_STEP, EP_MIN2, EP_LAMBDA, EP_QRLS, EP_P0RLS, EP_TRMAX) = range(11, 21)
-EP_LEN = 21
+EP_PROBE_NOISE = 21  # 1: the Kalman kinds' R starts at the probe's residual variance (`probe_noise_start`)
+EP_LEN = 22
 # --- the integer state ---
 I_K, I_SIGN, I_MODEL, I_DELAY, I_COUNTING, I_ANYBLK, I_NEED, I_EST = range(8)
 I_LEN = I_EST + 2  # the estimator's: Kalman update count or Broyden's skipped steps; heading initialised
@@ -98,6 +99,7 @@ class FloatBlocks(NamedTuple):
     weights: int  # n: the pseudo-inverse's weights (`BLOCK_WEIGHT` for a blocked actuator)
     probe_a: int  # n x n: the probe's sum of x x^T
     probe_b: int  # 3 x n: the probe's sum of y x^T
+    probe_yy: int  # 1: the probe's sum of |y|^2
     j_probe: int  # 3 x n: the probe's fit of J
     hist: int  # D x n: the commands issued (a ring, entry k % D holds step k - 1's)
     lag_x: int  # N_LAGS x n: each lag model's actuator speeds
@@ -140,7 +142,7 @@ def layout(n: int, max_delay: int, kind: int) -> np.ndarray:
     d = max_delay + 1
     widths = FloatBlocks(
         q0=n - 2, prev_q=n, prev_s=3, s_filtered=3, prev_vd=3, task_dither=3, lag_ms=d + N_LAGS, block_count=n,
-        blocked=n, block_q=n, weights=n, probe_a=n * n, probe_b=3 * n, j_probe=3 * n, hist=d * n, lag_x=N_LAGS * n,
+        blocked=n, block_q=n, weights=n, probe_a=n * n, probe_b=3 * n, probe_yy=1, j_probe=3 * n, hist=d * n, lag_x=N_LAGS * n,
         dither_z=n, stop=n, stop_dir=n, est=est_layout(kind, n)[1], length=0,
     )  # fmt: skip
     return np.concatenate([[0], np.cumsum(widths[:-1])]).astype(np.int64)
@@ -266,6 +268,39 @@ def est_init(kind, n, ep, e, ie, J0):
             for a in range(n):
                 for b in range(n):
                     e[base + a * n + b] = ep[EP_P0RLS] if a == b else 0.0
+
+
+@njit(cache=True)
+def est_noise_start(kind, n, ep, e, r0):
+    """The Kalman kinds' measurement noise R (and its running estimate) start at r0 (m/s)^2, never below
+    meas_std^2; the other kinds have no R."""
+    if kind <= STRUCTURED and ep[EP_NOISE_RATE] > 0.0:
+        ns = 2 * (n - 2 if kind == STRUCTURED else n)
+        o = 6 * n + (3 + ns) * ns
+        r = max(ep[EP_R0], r0)
+        e[o + 1] = r
+        e[o + 2] = r
+
+
+@njit(cache=True, inline="always")
+def probe_residual_variance(f, n, m, opa, opb, opyy, ojp):
+    """The variance of one measured velocity component about the probe's least-squares fit J_hat(0), (m/s)^2:
+    the residual sum of squares of its m pairs (sum |y|^2 - 2 tr(J B^T) + tr(J A J^T), A = sum x x^T, B = sum
+    y x^T) over its 3 (m - n) degrees of freedom. It is what the sensors' noise adds to y (and what J's change
+    over the probe's few steps adds, a little)."""
+    rss = f[opyy]
+    for r in range(3):
+        jb = 0.0
+        jaj = 0.0
+        for a in range(n):
+            ja = f[ojp + r * n + a]
+            jb += ja * f[opb + r * n + a]
+            aj = 0.0
+            for b in range(n):
+                aj += f[opa + a * n + b] * f[ojp + r * n + b]
+            jaj += ja * aj
+        rss += jaj - 2.0 * jb
+    return max(rss, 0.0) / (3.0 * (m - n))
 
 
 @njit(cache=True)
@@ -728,7 +763,10 @@ def _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, ls
     ojp = lay[LAY.j_probe]
     if k <= n_probe:
         if k > 0:
-            _probe_fit(prm, f, n, x, y0, y1, y2, k == n_probe, lay[LAY.probe_a], lay[LAY.probe_b], ojp, lsc, xs)
+            _probe_fit(
+                prm, f, n, x, y0, y1, y2, k == n_probe, lay[LAY.probe_a], lay[LAY.probe_b], lay[LAY.probe_yy], ojp,
+                lsc, xs,
+            )  # fmt: skip
         if k == n_probe:
             for r in range(3):
                 for j in range(n):
@@ -745,6 +783,9 @@ def _estimate(prm, ipr, ep, lay, f, e, ie, i, k, x, y0, y1, y2, noise, h, ph, ls
                     for j in range(n):
                         j0[r, j] = j0[r, j] + sc * noise[i, r, j]
             est_init(kind, n, ep, e, ie, j0)
+            if ep[EP_PROBE_NOISE] != 0.0 and n_probe > n:
+                r0 = probe_residual_variance(f, n, n_probe, lay[LAY.probe_a], lay[LAY.probe_b], lay[LAY.probe_yy], ojp)
+                est_noise_start(kind, n, ep, e, r0)
     else:
         est_update(kind, n, ep, e, ie, x, y0, y1, y2, h, ph)
 
@@ -925,9 +966,10 @@ def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
 
 
 @njit(cache=True)
-def _probe_fit(prm, f, n, x, y0, y1, y2, final, opa, opb, ojp, lsc, xs):
+def _probe_fit(prm, f, n, x, y0, y1, y2, final, opa, opb, opyy, ojp, lsc, xs):
     """J_hat during the probe: the ridge-regularised least squares of the (x, y) pairs so far (final: the tiny
-    ridge of the finished probe, J_hat(0))."""
+    ridge of the finished probe, J_hat(0)); the pairs' sum of |y|^2 beside (`probe_residual_variance`)."""
+    f[opyy] += y0 * y0 + y1 * y1 + y2 * y2
     tr = 0.0
     for a in range(n):
         for b in range(n):

@@ -57,3 +57,19 @@ def test_the_nnbc_plus_v5_goals_page_is_what_its_script_makes_of_the_committed_s
     made = goals.main(str(ROOT / "docs" / "results" / "bench-v3-dev" / "scorecard.json.xz"))
     assert made == (folder / "goals.md").read_text()
     assert "## Goals" in made and all(f"`{p}`" in made for p in goals.POLICIES)
+
+
+def test_the_nnbc_plus_v5_experiment_tables_are_what_the_panel_makes_of_its_csvs():
+    """Each experiments/*.md beside a panel CSV in docs/results/nnbc-plus-v5 (quoted on the nnbc-plus page) equals
+    `panel.py --markdown` of that CSV."""
+    import importlib.util
+
+    folder = ROOT / "docs" / "results" / "nnbc-plus-v5"
+    spec = importlib.util.spec_from_file_location("panel", folder / "panel.py")
+    assert spec is not None and spec.loader is not None
+    panel = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(panel)
+    tables = sorted((folder / "experiments").glob("*.md"))
+    assert len(tables) >= 2
+    for md in tables:
+        assert md.read_text() == panel.markdown(str(md.with_suffix(".csv"))), md.name

@@ -2,7 +2,10 @@
 `rls` issue, bit for bit, the actions recorded in `tests/data/model_free_actions_0.3.npz`.
 
 The file was recorded by `record()` with `PYTHONPATH=$PWD python tests/test_model_free_actions.py --write`, last
-by `nnbc-plus` v5 (issue 38), which moved `nnbc-plus`'s and `nnbc-plus-wb`'s actions on purpose (the joint-angle
+by `nnbc-plus` v5.1 (issue 38), whose Kalman filter's R starts at the probe's residual variance: it moved
+`nnbc-plus`'s and `nnbc-plus-wb`'s actions in the noisy Lemniscate (by up to 0.17 rad/s) and in physics (by up to
+1e-4 rad/s: contacts leave a residual), left their noiseless kinematic Circle bit for bit, and `broyden`'s and
+`rls`'s everywhere (they have no R); before, by v5, which moved `nnbc-plus`'s and `nnbc-plus-wb`'s actions on purpose (the joint-angle
 regressor, learnt stops, the low-passed dither) and left `broyden`'s and `rls`'s bit for bit (their defaults
 keep the v4 scaffolding); before, by v4 (issue 28): the actuator-model bank (lag models beside the delays: all
 four controllers), the filtered heading and the 0.02 rad/s probe (`nnbc-plus`, `nnbc-plus-wb`).

@@ -2,9 +2,11 @@
 more controller specs, on the native vector env (kinematic). Prints one compact CSV row per (spec, condition):
 successes, clean successes, max-error median and max (mm), cmd_accel_rms median (rad/s^2), max-error IQM (mm).
 
-    PYTHONPATH=$PWD python docs/results/nnbc-plus-v5/panel.py --specs nnbc-plus,nnbc-plus-wb --seed 0 --seeds 4
+    PYTHONPATH=$PWD python docs/results/nnbc-plus-v5/panel.py --specs "nnbc-plus;nnbc-plus-wb" --seed 0 --seeds 4
+    python docs/results/nnbc-plus-v5/panel.py --markdown experiments/m-probe-noise-start.csv  # the CSV as a table
 
-Development seeds only (below 10,000). Conditions: `CONDITIONS` below (the dev track's, the issue's named ones).
+Development seeds only (below 10,000). Conditions: `CONDITIONS` below (the page's names for the dev track's and
+the issue's named ones), or any kinematic condition of the one conditions table (`eval.conditions`) by its name.
 """
 
 from __future__ import annotations
@@ -41,7 +43,12 @@ CONDITIONS = {
 
 
 def run_cell(spec: str, cond: str, seed: int, seeds: int, robots=ROBOTS, tasks=TASKS) -> list[dict]:
-    me, on, kw = CONDITIONS[cond]
+    if cond in CONDITIONS:
+        me, on, kw = CONDITIONS[cond]
+    else:
+        c = TABLE[cond]
+        assert c.dynamics == "kinematic", f"{cond}: the panel runs kinematic conditions"
+        me, on, kw = c.model_error, c.obs_noise, c.extra_kwargs
     recs = []
     for robot in robots:
         for task in tasks:
@@ -66,8 +73,27 @@ def summary(recs: list[dict]) -> str:
     )
 
 
+def markdown(path: str) -> str:
+    """The panel's CSV (its `main`'s output) as a markdown table: successes and clean successes of 6 mm, the
+    max error's median, largest and IQM (mm) and the commands' acceleration RMS median (rad/s^2)."""
+    import csv
+
+    lines = [
+        "| controller | condition | success | clean | max error median / IQM / largest (mm) | accel RMS median |",
+        "|---|---|---|---|---|---|",
+    ]
+    with open(path, newline="") as f:
+        for r in csv.DictReader(f):
+            lines.append(
+                f"| `{r['spec']}` | {r['condition']} | {r['success']} | {r['clean']} | {r['max_med_mm']} / "
+                f"{r['max_iqm_mm']} / {r['max_max_mm']} | {r['accel_med']} |"
+            )
+    return "\n".join(lines) + "\n"
+
+
 def main(argv=None) -> None:
     p = argparse.ArgumentParser()
+    p.add_argument("--markdown", metavar="CSV", help="print a panel CSV as a markdown table, run nothing")
     p.add_argument("--specs", default="nnbc-plus")
     p.add_argument("--conditions", default=",".join(CONDITIONS))
     p.add_argument("--seed", type=int, default=0)
@@ -75,6 +101,9 @@ def main(argv=None) -> None:
     p.add_argument("--robots", default=",".join(ROBOTS))
     p.add_argument("--tasks", default=",".join(TASKS))
     a = p.parse_args(argv)
+    if a.markdown:
+        sys.stdout.write(markdown(a.markdown))
+        return
     assert a.seed + a.seeds <= 10_000, "development seeds only"
     print("spec,condition,success,clean,max_med_mm,max_max_mm,accel_med,max_iqm_mm,lost", flush=True)
     for spec in a.specs.split(";"):
