@@ -528,33 +528,10 @@ def run_episodes(
     recs = [_empty_record(bases[i], seeds[i], metas[i]) for i in range(n)]
     wall0 = time.perf_counter()
     steps_run = np.zeros(n, dtype=int)
-    arr: dict[str, np.ndarray] = {}
-    k = 0
+    arr: dict[str, np.ndarray] = {}  # the per-step arrays of all robots, step-major (filled by _begin)
+    k = [0]  # the steps taken (a failure records its arrays up to here)
     try:
-        obs, info = envs.reset(seed=seeds)
-        n_steps = np.asarray(info["task"]["n_steps"], dtype=int)
-        m = int(n_steps.max())
-        n_act = len(bases[0].action_scale)
-        # the per-step arrays of all robots, step-major
-        arr = {
-            "r_d": np.empty((m + 1, n, 3)),
-            "r_a": np.empty((m + 1, n, 3)),
-            "p_c": np.empty((m + 1, n, 2)),
-            "error": np.empty((m + 1, n)),
-            "action": np.empty((m, n, n_act)),
-            "predict_us": np.empty((m, n)),
-            "q": np.empty((m + 1, n, n_act - 2)),
-        }
-        _observe(arr, 0, obs, info)
-        task = info["task"]
-        for i, (rec, (feasible, peak)) in enumerate(zip(recs, _feasibility(envs, n), strict=True)):
-            rec.update(
-                path=_path(task["path"], i),
-                start=list(task["start"][i]),
-                true_params_hash=info["true_params_hash"][i],
-                feasible=feasible,
-                feasibility_peak=peak,
-            )
+        obs, info, n_steps = _begin(envs, seeds, bases, recs, arr)
         reset = getattr(policy, "reset", None)
         if reset is not None:
             reset(obs, info, seed=policy_seeds)
@@ -566,35 +543,9 @@ def run_episodes(
             else None
             for i in range(n)
         ]
-        watched = [(i, jac) for i, jac in enumerate(jacs) if jac is not None]
         if on_step is not None:
             on_step(0)
-        running = np.ones(n, dtype=bool)
-        clock = time.perf_counter
-        while running.any():
-            t0 = clock()
-            actions, _ = policy.predict(obs, episode_start=None, deterministic=True)
-            row_us = getattr(policy, "row_us", None)  # a StackedPolicy times each of its parts
-            arr["predict_us"][k] = (clock() - t0) * 1e6 / running.sum() if row_us is None else row_us
-            act = np.asarray(actions, dtype=np.float32)
-            for i, jac in watched:
-                if running[i]:
-                    jac.record(k, obs["joint_pos"][i], obs["base_yaw"][i])
-            obs, _, term, trunc, info = envs.step(act)
-            arr["action"][k] = np.clip(act, -1.0, 1.0)
-            k += 1
-            _observe(arr, k, obs, info)
-            if on_step is not None:
-                on_step(k)
-            ended = running & (term | trunc | (k >= n_steps))
-            for i in np.flatnonzero(ended).tolist():
-                running[i] = False
-                steps_run[i] = k
-                arrays = _arrays(arr, i, k, bases[i].dt)
-                recs[i]["_arrays"] = _finish(
-                    recs[i], arrays, _row_info(info, i), k, bases[i], tolerance, settle_time, jacs[i]
-                )
-                recs[i]["terminated"] = bool(term[i])
+        _loop(envs, policy, obs, n_steps, arr, recs, bases, jacs, steps_run, k, tolerance, settle_time, on_step)
         out = [(rec, rec.pop("_arrays")) for rec in recs]
     except KeyboardInterrupt:
         raise
@@ -603,7 +554,7 @@ def run_episodes(
         out = []
         for i, rec in enumerate(recs):
             rec.pop("_arrays", None)
-            done = int(steps_run[i]) or k
+            done = int(steps_run[i]) or k[0]
             rec.update(status="failed", error=tb, n_steps=done, **_metrics_none())
             out.append((rec, _arrays(arr, i, done, bases[i].dt) if arr else None))
     wall = (time.perf_counter() - wall0) / n
@@ -611,6 +562,86 @@ def run_episodes(
         rec["wall_s"] = wall
         rec["pid"] = os.getpid()
     return out
+
+
+def _begin(
+    envs: Any, seeds: list[int], bases: list[_RobotBase], recs: list[dict], arr: dict[str, np.ndarray]
+) -> tuple[Any, dict, np.ndarray]:
+    """Reset the robots, allocate `arr` (step-major per-step arrays) with step 0 observed, and fill each record's
+    path, start, robot hash and feasibility. Returns (obs, info, each robot's number of steps)."""
+    n = envs.num_envs
+    obs, info = envs.reset(seed=seeds)
+    n_steps = np.asarray(info["task"]["n_steps"], dtype=int)
+    m = int(n_steps.max())
+    n_act = len(bases[0].action_scale)
+    arr.update(
+        r_d=np.empty((m + 1, n, 3)),
+        r_a=np.empty((m + 1, n, 3)),
+        p_c=np.empty((m + 1, n, 2)),
+        error=np.empty((m + 1, n)),
+        action=np.empty((m, n, n_act)),
+        predict_us=np.empty((m, n)),
+        q=np.empty((m + 1, n, n_act - 2)),
+    )
+    _observe(arr, 0, obs, info)
+    task = info["task"]
+    for i, (rec, (feasible, peak)) in enumerate(zip(recs, _feasibility(envs, n), strict=True)):
+        rec.update(
+            path=_path(task["path"], i),
+            start=list(task["start"][i]),
+            true_params_hash=info["true_params_hash"][i],
+            feasible=feasible,
+            feasibility_peak=peak,
+        )
+    return obs, info, n_steps
+
+
+def _loop(
+    envs: Any,
+    policy: Any,
+    obs: Any,
+    n_steps: np.ndarray,
+    arr: dict[str, np.ndarray],
+    recs: list[dict],
+    bases: list[_RobotBase],
+    jacs: list[_JacobianRecorder | None],
+    steps_run: np.ndarray,
+    k: list[int],
+    tolerance: float,
+    settle_time: float,
+    on_step: Callable[[int], None] | None,
+) -> None:
+    """Step every robot until its episode ends, timing each predict; an ended robot's record is finished there
+    (its arrays kept in `rec["_arrays"]`). k[0] counts the steps taken."""
+    n = envs.num_envs
+    watched = [(i, jac) for i, jac in enumerate(jacs) if jac is not None]
+    running = np.ones(n, dtype=bool)
+    clock = time.perf_counter
+    while running.any():
+        t0 = clock()
+        actions, _ = policy.predict(obs, episode_start=None, deterministic=True)
+        row_us = getattr(policy, "row_us", None)  # a StackedPolicy times each of its parts
+        arr["predict_us"][k[0]] = (clock() - t0) * 1e6 / running.sum() if row_us is None else row_us
+        act = np.asarray(actions, dtype=np.float32)
+        for i, jac in watched:
+            if running[i]:
+                jac.record(k[0], obs["joint_pos"][i], obs["base_yaw"][i])
+        obs, _, term, trunc, info = envs.step(act)
+        arr["action"][k[0]] = np.clip(act, -1.0, 1.0)
+        k[0] += 1
+        step = k[0]
+        _observe(arr, step, obs, info)
+        if on_step is not None:
+            on_step(step)
+        ended = running & (term | trunc | (step >= n_steps))
+        for i in np.flatnonzero(ended).tolist():
+            running[i] = False
+            steps_run[i] = step
+            arrays = _arrays(arr, i, step, bases[i].dt)
+            recs[i]["_arrays"] = _finish(
+                recs[i], arrays, _row_info(info, i), step, bases[i], tolerance, settle_time, jacs[i]
+            )
+            recs[i]["terminated"] = bool(term[i])
 
 
 def _feasibility(envs: Any, n: int) -> list[tuple[bool | None, float | None]]:

@@ -203,100 +203,112 @@ def calibrate_rows(
     finite step the heading filter uses their whole change (exact over any number of steps) while alpha and
     gamma wait a step (the angles' change no longer measures one step's wheel speeds)."""
     nrow = ee.shape[0]
-    m = arm.shape[2]
-    n = m - 2
-    kmax = theta.shape[1]
-    g = np.empty(kmax)
+    n = arm.shape[2] - 2
+    g = np.empty(theta.shape[1])
     for i in range(nrow):
         if not _finite_row(ee, pc, pc_vel, yaw, jp, i):
             head[i, 5] = 1.0
             continue
         c, s = math.cos(yaw[i]), math.sin(yaw[i])
-        dx, dy, dz = ee[i, 0] - pc[i, 0], ee[i, 1] - pc[i, 1], ee[i, 2] - prm[i, E.P_H]
-        kk = count[i]
-        o = start[i]
-        for j in range(kk):
-            P[i, j, j] += qf * cap[i, j]
-        for a in range(3):
-            if a == 0:
-                y = c * dx + s * dy
-            elif a == 1:
-                y = c * dy - s * dx
-            else:
-                y = dz
-            e = y
-            for j in range(kk):
-                e -= points[o + j, a] * theta[i, j]
-            den = r_pos if a == 2 else 2.0 * r_pos  # x, y: the end-effector's and the mount's noise
-            for j in range(kk):
-                acc = 0.0
-                for k in range(kk):
-                    acc += P[i, j, k] * points[o + k, a]
-                g[j] = acc
-                den += points[o + j, a] * acc
-            for j in range(kk):
-                theta[i, j] += g[j] * (e / den)
-            for j in range(kk):
-                gj = g[j] / den
-                for k in range(j, kk):
-                    v = P[i, j, k] - gj * g[k]
-                    P[i, j, k] = v
-                    P[i, k, j] = v
-        # the ceiling: no length less certain than its prior
-        for j in range(kk):
-            if P[i, j, j] > cap[i, j]:
-                g[j] = math.sqrt(cap[i, j] / P[i, j, j])
-            else:
-                g[j] = 1.0
-        for j in range(kk):
-            for k in range(kk):
-                P[i, j, k] *= g[j] * g[k]
-        for j in range(kk):
-            cd = code[o + j]
-            if cd < n:
-                arm[i, E.A_A, cd] = theta[i, j]
-            elif cd < 2 * n:
-                arm[i, E.A_D, cd - n] = theta[i, j]
-            else:
-                prm[i, E.P_TOOL] = theta[i, j]
-        # the platform
-        vf = c * pc_vel[i, 0] + s * pc_vel[i, 1]
-        vl = c * pc_vel[i, 1] - s * pc_vel[i, 0]
-        # the wheels' speeds over the last step from their angles (encoders: no noise in the env)
-        dl, dr = jp[i, n] - head[i, 3], jp[i, n + 1] - head[i, 4]
-        head[i, 3], head[i, 4] = jp[i, n], jp[i, n + 1]
-        wl, wr = dl / dt, dr / dt
-        if head[i, 5] == 0.0:
-            _update_scalar(wl + wr, vf, r_vel, qf, plat, pvar, pcap, i, 0)
-            _update_scalar(wr - wl, vl, r_vel, qf, plat, pvar, pcap, i, 2)
-        head[i, 5] = 0.0
-        # beta from the heading: a Kalman filter on (heading psi, beta), psi_k = psi_k-1 + beta dW (dW: the
-        # change of the wheels' angle difference), the measured heading = psi + noise
-        dw = dr - dl
-        be = plat[i, 1]
-        psi = head[i, 0] + be * dw
-        p11 = pvar[i, 1]
-        p00 = head[i, 1] + dw * (2.0 * head[i, 2] + dw * p11)
-        p01 = head[i, 2] + dw * p11
-        p11 = p11 + qf * pcap[i, 1]
-        den = p00 + r_yaw
-        k0, k1 = p00 / den, p01 / den
-        nu = yaw[i] - psi
-        head[i, 0] = psi + k0 * nu
-        plat[i, 1] = be + k1 * nu
-        p11 = p11 - k1 * p01
-        p01 = p01 * (1.0 - k0)
-        head[i, 1] = p00 * (1.0 - k0)
-        if p11 > pcap[i, 1]:
-            p01 *= math.sqrt(pcap[i, 1] / p11)
-            p11 = pcap[i, 1]
-        head[i, 2] = p01
-        pvar[i, 1] = p11
+        _arm_update(i, c, s, n, points, start, count, code, ee, pc, theta, P, cap, r_pos, qf, arm, prm, g)
+        _platform_update(i, c, s, n, pc_vel, yaw, jp, dt, plat, pvar, pcap, head, r_vel, r_yaw, qf)
         al, be, ga = plat[i, 0], plat[i, 1], plat[i, 2]
         if al > 0.0 and be > 0.0:  # else the row keeps its last platform (never seen: a guard against r, b <= 0)
             prm[i, E.P_R] = 2.0 * al
             prm[i, E.P_B] = al / be
             prm[i, E.P_MNT] = ga / be
+
+
+@njit(cache=True, inline="always")
+def _arm_update(i, c, s, n, points, start, count, code, ee, pc, theta, P, cap, r_pos, qf, arm, prm, g):
+    """Row i's arm lengths: one Kalman update per axis of the end-effector's offset from the mount in the
+    platform's frame (heading cos c, sin s), the ceiling (no length less certain than its prior), and the
+    estimates written into the model row. g: scratch of length kmax."""
+    dx, dy, dz = ee[i, 0] - pc[i, 0], ee[i, 1] - pc[i, 1], ee[i, 2] - prm[i, E.P_H]
+    kk = count[i]
+    o = start[i]
+    for j in range(kk):
+        P[i, j, j] += qf * cap[i, j]
+    for a in range(3):
+        if a == 0:
+            y = c * dx + s * dy
+        elif a == 1:
+            y = c * dy - s * dx
+        else:
+            y = dz
+        e = y
+        for j in range(kk):
+            e -= points[o + j, a] * theta[i, j]
+        den = r_pos if a == 2 else 2.0 * r_pos  # x, y: the end-effector's and the mount's noise
+        for j in range(kk):
+            acc = 0.0
+            for k in range(kk):
+                acc += P[i, j, k] * points[o + k, a]
+            g[j] = acc
+            den += points[o + j, a] * acc
+        for j in range(kk):
+            theta[i, j] += g[j] * (e / den)
+        for j in range(kk):
+            gj = g[j] / den
+            for k in range(j, kk):
+                v = P[i, j, k] - gj * g[k]
+                P[i, j, k] = v
+                P[i, k, j] = v
+    # the ceiling: no length less certain than its prior
+    for j in range(kk):
+        if P[i, j, j] > cap[i, j]:
+            g[j] = math.sqrt(cap[i, j] / P[i, j, j])
+        else:
+            g[j] = 1.0
+    for j in range(kk):
+        for k in range(kk):
+            P[i, j, k] *= g[j] * g[k]
+    for j in range(kk):
+        cd = code[o + j]
+        if cd < n:
+            arm[i, E.A_A, cd] = theta[i, j]
+        elif cd < 2 * n:
+            arm[i, E.A_D, cd - n] = theta[i, j]
+        else:
+            prm[i, E.P_TOOL] = theta[i, j]
+
+
+@njit(cache=True, inline="always")
+def _platform_update(i, c, s, n, pc_vel, yaw, jp, dt, plat, pvar, pcap, head, r_vel, r_yaw, qf):
+    """Row i's platform: alpha and gamma from the mount's velocity against the wheels' speeds (from their
+    angles), beta from the heading (a Kalman filter on heading and beta)."""
+    vf = c * pc_vel[i, 0] + s * pc_vel[i, 1]
+    vl = c * pc_vel[i, 1] - s * pc_vel[i, 0]
+    # the wheels' speeds over the last step from their angles (encoders: no noise in the env)
+    dl, dr = jp[i, n] - head[i, 3], jp[i, n + 1] - head[i, 4]
+    head[i, 3], head[i, 4] = jp[i, n], jp[i, n + 1]
+    wl, wr = dl / dt, dr / dt
+    if head[i, 5] == 0.0:
+        _update_scalar(wl + wr, vf, r_vel, qf, plat, pvar, pcap, i, 0)
+        _update_scalar(wr - wl, vl, r_vel, qf, plat, pvar, pcap, i, 2)
+    head[i, 5] = 0.0
+    # beta from the heading: a Kalman filter on (heading psi, beta), psi_k = psi_k-1 + beta dW (dW: the
+    # change of the wheels' angle difference), the measured heading = psi + noise
+    dw = dr - dl
+    be = plat[i, 1]
+    psi = head[i, 0] + be * dw
+    p11 = pvar[i, 1]
+    p00 = head[i, 1] + dw * (2.0 * head[i, 2] + dw * p11)
+    p01 = head[i, 2] + dw * p11
+    p11 = p11 + qf * pcap[i, 1]
+    den = p00 + r_yaw
+    k0, k1 = p00 / den, p01 / den
+    nu = yaw[i] - psi
+    head[i, 0] = psi + k0 * nu
+    plat[i, 1] = be + k1 * nu
+    p11 = p11 - k1 * p01
+    p01 = p01 * (1.0 - k0)
+    head[i, 1] = p00 * (1.0 - k0)
+    if p11 > pcap[i, 1]:
+        p01 *= math.sqrt(pcap[i, 1] / p11)
+        p11 = pcap[i, 1]
+    head[i, 2] = p01
+    pvar[i, 1] = p11
 
 
 def unit_rows(params: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

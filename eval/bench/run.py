@@ -128,24 +128,10 @@ def run_bench(
     `rerun_changed`: run again the episodes a condition's journal holds from other code (without it such a
     journal is refused before anything is written: `eval.grid.same_code`). `against`: a committed bench (folder or scorecard.json) whose baselines' rows are reused after a sample of
     them is run again bit for bit (`eval.bench.against`); then only `config.policies` run."""
-    committed: dict | None = None
-    against_record: dict[str, Any] | None = None
-    if against is not None:
-        if config.policies is None:
-            raise EvalError(
-                "--against runs only your controllers beside the committed scorecard's: name them with --policy "
-                "(e.g. --policy mymod:Ctrl)"
-            )
-        committed, sha = A.load_against(against, typed=config.policies)
-        against_record = {"scorecard": str(against), "sha256": sha}
+    committed, against_record = _load_against(config, against)
     cfg, notes = config.resolved()
     out = Path(out) if out is not None else DEFAULT_OUT
-    if max_episodes is not None and (
-        isinstance(max_episodes, bool) or not isinstance(max_episodes, int) or max_episodes < 0
-    ):
-        raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
-    EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
-    integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
+    _check_execution(max_episodes, workers, backend, address, batch_size)
     assert cfg.conditions is not None and cfg.policies is not None
     if progress:  # an sb3: agent loads torch and is built on each of ~100 cells: seconds, not silent
         n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
@@ -153,26 +139,10 @@ def run_bench(
     for line in check_cells(cfg):
         if progress:
             print(f"bench: {line}", file=sys.stderr)
-    protocol = protocol_dict(cfg)
     baselines: list[str] = []
-    if committed is not None:
-        A.check_protocol(committed, protocol)
-        assert cfg.policies is not None and cfg.conditions is not None and against_record is not None
-        baselines = [q for q in committed["protocol"]["policies"] if q not in cfg.policies]
-        samples = A.pick_samples(committed, baselines, list(cfg.conditions))
-        same, lines = A.check_samples(committed, samples)
-        against_record.update(samples_equal=same, samples=lines)
-        if progress:
-            print("bench --against: " + "\n  ".join(["committed baselines re-run here:", *lines]), file=sys.stderr)
-        if not same:
-            notes = [
-                *notes,
-                f"--against {against}: a committed baseline episode differs on this machine (see bench.json); the "
-                "baselines were run again here",
-            ]
-            cfg = replace(cfg, policies=(*cfg.policies, *baselines))
-            protocol = protocol_dict(cfg)
-            baselines = []
+    if committed is not None and against_record is not None:
+        cfg, notes, baselines = _sample_baselines(cfg, notes, committed, against_record, progress)
+    protocol = protocol_dict(cfg)
     assert cfg.policies is not None
     resuming = _check_out_dir(out, protocol)
     tasks = cfg.tasks_of(cfg.policies)
@@ -184,29 +154,11 @@ def run_bench(
         check_all(replace(base, envs=()), {}, checked=cfg.policies)  # Ray installed, the address reachable
     out.mkdir(parents=True, exist_ok=True)
     with FolderLock(out, "bench"):  # a second bench on this --out stops here, before anything is written
-        atomic_write_json(
-            out / "bench.json",
-            {
-                "command": "bench",
-                **protocol,
-                "notes": notes,
-                "out": str(out),
-                "backend": backend,
-                "address": address,
-                "workers": workers,
-                "batch_size": batch_size,
-                "against": against_record,
-            },
-        )
+        execution = {"backend": backend, "address": address, "workers": workers, "batch_size": batch_size}
+        record = {"command": "bench", **protocol, "notes": notes, "out": str(out), **execution}
+        atomic_write_json(out / "bench.json", {**record, "against": against_record})
         if progress:
-            for n in notes:
-                print(f"bench: {n}", file=sys.stderr)
-            print(
-                f"bench: track {cfg.track}, {len(cfg.conditions or ())} conditions x {len(cfg.policies)} controllers "
-                f"({cfg.seeds} kinematic and {cfg.physics_seeds} physics seeds per cell) = {len(tasks)} episodes in "
-                f"{out}",
-                file=sys.stderr,
-            )
+            _announce(cfg, notes, len(tasks), out)
         t0 = time.perf_counter()
         with _ray_session(backend, address, workers):
             res = run_grid(
@@ -235,6 +187,67 @@ def run_bench(
     if res.interrupted:
         raise KeyboardInterrupt
     return BenchResult(out=out, scorecard=sc, n_run=res.n_run, n_skipped=res.n_skipped, n_left=res.n_left)
+
+
+def _load_against(config: BenchConfig, against: str | Path | None) -> tuple[dict | None, dict[str, Any] | None]:
+    """The committed scorecard `--against` names and the record bench.json keeps of it (None, None without)."""
+    if against is None:
+        return None, None
+    if config.policies is None:
+        raise EvalError(
+            "--against runs only your controllers beside the committed scorecard's: name them with --policy "
+            "(e.g. --policy mymod:Ctrl)"
+        )
+    committed, sha = A.load_against(against, typed=config.policies)
+    return committed, {"scorecard": str(against), "sha256": sha}
+
+
+def _check_execution(
+    max_episodes: int | None, workers: int, backend: str, address: str | None, batch_size: int
+) -> None:
+    """Refuse bad execution options before anything runs, naming the value."""
+    if max_episodes is not None and (
+        isinstance(max_episodes, bool) or not isinstance(max_episodes, int) or max_episodes < 0
+    ):
+        raise EvalError(f"max_episodes must be an integer >= 0, got {max_episodes!r}")
+    EvalConfig(workers=workers, backend=backend, address=address).validate_backend()
+    integer("batch_size", batch_size, low=1, hint="e.g. --batch-size 64", error=EvalError)
+
+
+def _sample_baselines(
+    cfg: BenchConfig, notes: list[str], committed: dict, against_record: dict[str, Any], progress: bool
+) -> tuple[BenchConfig, list[str], list[str]]:
+    """`--against`: run a sample of the committed baselines' episodes again (recorded in `against_record`). Equal
+    bit for bit: (cfg, notes, the baselines whose committed rows are reused). Otherwise the baselines join the
+    run and none is reused, with a note."""
+    A.check_protocol(committed, protocol_dict(cfg))
+    assert cfg.policies is not None and cfg.conditions is not None
+    baselines = [q for q in committed["protocol"]["policies"] if q not in cfg.policies]
+    samples = A.pick_samples(committed, baselines, list(cfg.conditions))
+    same, lines = A.check_samples(committed, samples)
+    against_record.update(samples_equal=same, samples=lines)
+    if progress:
+        print("bench --against: " + "\n  ".join(["committed baselines re-run here:", *lines]), file=sys.stderr)
+    if same:
+        return cfg, notes, baselines
+    notes = [
+        *notes,
+        f"--against {against_record['scorecard']}: a committed baseline episode differs on this machine (see "
+        "bench.json); the baselines were run again here",
+    ]
+    return replace(cfg, policies=(*cfg.policies, *baselines)), notes, []
+
+
+def _announce(cfg: BenchConfig, notes: list[str], n_tasks: int, out: Path) -> None:
+    """The bench's notes and what it runs, on stderr."""
+    assert cfg.policies is not None
+    for n in notes:
+        print(f"bench: {n}", file=sys.stderr)
+    print(
+        f"bench: track {cfg.track}, {len(cfg.conditions or ())} conditions x {len(cfg.policies)} controllers "
+        f"({cfg.seeds} kinematic and {cfg.physics_seeds} physics seeds per cell) = {n_tasks} episodes in {out}",
+        file=sys.stderr,
+    )
 
 
 def _episode_config(
