@@ -372,12 +372,57 @@ def evaluate_controllers(config: ReportConfig, env_id: str, dynamics: str, out: 
 # --- the report ---------------------------------------------------------------------------------------------
 
 
+def _families(families: dict[str, list[dict]]) -> tuple[list[dict], dict[str, dict]]:
+    """Per family: its row over its finished runs (each run's final figures set on it) and its median run."""
+    family_rows, medians = [], {}
+    for fam, members in families.items():
+        finished = [r for r in members if r["status"] == "done"]
+        for r in finished:
+            r["final"] = run_final(r["episodes"])
+        if finished:
+            family_rows.append(
+                {**family_row(fam, finished), "dynamics": finished[0]["config"]["dynamics"], **_budget(finished)}
+            )
+            m = median_run(finished, key=_final_iqm)
+            medians[fam] = {"run": m["name"], "seed": m["seed"], "path": m["path"]}
+    return family_rows, medians
+
+
+def _episodes(runs: list[dict], controllers: dict[str, dict]) -> list[dict]:
+    """Every evaluated episode of the runs (named by family, run and `sb3:` policy) and of the controllers."""
+    return [
+        {
+            **e,
+            "family": r["family"],
+            "run": r["name"],
+            "policy": f"sb3:{r['name']}",
+            "dynamics": r["config"]["dynamics"],
+        }
+        for r in runs
+        for e in r.get("episodes", [])
+    ] + [{**e, "dynamics": m} for m, c in controllers.items() for e in c["episodes"]]
+
+
+def _write(config: ReportConfig, out: Path, results: dict, runs: list[dict]) -> None:
+    """The report's files: results.json, config.json, the curves' CSVs, summary.md and (with plots) curves.png."""
+    from eval.output.files import atomic_write_json, atomic_write_text
+    from train.report_text import curves_figure, summary_markdown
+
+    atomic_write_json(out / "results.json", results)
+    atomic_write_json(out / "config.json", config.to_dict())
+    atomic_write_text(out / "curves.csv", _csv(_run_curve_rows(runs)))
+    atomic_write_text(out / "curves_iqm.csv", _csv(results["curves"]))
+    atomic_write_text(out / "summary.md", summary_markdown(results))
+    if config.plots:
+        from eval.output.files import atomic_save_figure
+
+        atomic_save_figure(curves_figure(results, {r["name"]: r["curve"] for r in runs}), out / "curves.png")
+
+
 def build_report(config: ReportConfig) -> dict:
     """Read, evaluate, aggregate and write the report (see the module docstring); the results dict."""
-    from eval.output.files import atomic_write_json, atomic_write_text
     from eval.output.provenance import git_rev, provenance
     from train.report_archive import Evaluation, archived_runs, copy_cached_eval
-    from train.report_text import curves_figure, summary_markdown
 
     live = [{**read_run(p), "train_commit": config.train_commit} for p in config.runs]
     names = {r["name"] for r in live}
@@ -409,30 +454,9 @@ def build_report(config: ReportConfig) -> dict:
         for m in (modes if config.controllers else [])
     }
 
-    family_rows, medians = [], {}
-    for fam, members in families.items():
-        finished = [r for r in members if r["status"] == "done"]
-        for r in finished:
-            r["final"] = run_final(r["episodes"])
-        if finished:
-            family_rows.append(
-                {**family_row(fam, finished), "dynamics": finished[0]["config"]["dynamics"], **_budget(finished)}
-            )
-            m = median_run(finished, key=_final_iqm)
-            medians[fam] = {"run": m["name"], "seed": m["seed"], "path": m["path"]}
-
+    family_rows, medians = _families(families)
     curves = [row for fam, members in families.items() for row in curve_rows(fam, members)]
-    episodes = [
-        {
-            **e,
-            "family": r["family"],
-            "run": r["name"],
-            "policy": f"sb3:{r['name']}",
-            "dynamics": r["config"]["dynamics"],
-        }
-        for r in runs
-        for e in r.get("episodes", [])
-    ] + [{**e, "dynamics": m} for m, c in controllers.items() for e in c["episodes"]]
+    episodes = _episodes(runs, controllers)
     results = {
         "schema": "mobman-rl-report-1",
         "config": config.to_dict(),
@@ -451,15 +475,7 @@ def build_report(config: ReportConfig) -> dict:
         "curves": curves,
         "episodes": episodes,
     }
-    atomic_write_json(out / "results.json", results)
-    atomic_write_json(out / "config.json", config.to_dict())
-    atomic_write_text(out / "curves.csv", _csv(_run_curve_rows(runs)))
-    atomic_write_text(out / "curves_iqm.csv", _csv(curves))
-    atomic_write_text(out / "summary.md", summary_markdown(results))
-    if config.plots:
-        from eval.output.files import atomic_save_figure
-
-        atomic_save_figure(curves_figure(results, {r["name"]: r["curve"] for r in runs}), out / "curves.png")
+    _write(config, out, results, runs)
     for alias, family in config.ship:
         ship_model(results, family, alias, Path(config.models_dir), out / "results.json")
     return results

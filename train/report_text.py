@@ -285,6 +285,34 @@ def _median_note(n: int) -> str:
     return "Only this seed had finished when the report was written, so it is the median by default."
 
 
+def _training_section(results: dict, family: str, run: dict, algo: str) -> list[str]:
+    """A shipped model's README: its "Training" section (command, hyperparameters, code, budget)."""
+    hp_note = (
+        f"the defaults of `mobman-train --algo {algo}` (`train/algos.py`; the same in rl-baselines3-zoo's format: "
+        f"`train/hyperparams/{algo}.yml`)"
+        if not run["hyperparams_overrides"]
+        else f"overrides {run['hyperparams_overrides']} of the defaults of `train/algos.py`"
+    )
+    walls = [r["wall_s"] for r in results["runs"] if r["family"] == family and r["status"] == "done"]
+    return [
+        "## Training",
+        "",
+        "```",
+        run["train_command"],
+        "```",
+        "",
+        f"Hyperparameters: {hp_note}. Training code: git {run.get('train_commit') or results['train_commit'] or 'not recorded'}; "
+        f"versions: {', '.join(f'{k} {v}' for k, v in run['versions'].items() if v)}. Periodic evaluation on "
+        "development seeds only (900-904); the reported seeds were never seen in training or selection.",
+        "",
+        f"Budget of this run: {_steps(run['steps'])} env steps in {run['wall_s'] / 60:.1f} min wall clock "
+        f"({run['steps'] / run['wall_s']:.0f} steps/s; {run['config']['n_envs']} env(s), torch "
+        f"{run['config']['torch_threads']} thread(s)). {_machine(results)} The family's finished runs: "
+        f"{len(walls)}, {sum(walls) / 3600:.2f} h in all.",
+        "",
+    ]
+
+
 def model_readme(results: dict, family: str, alias: str, results_file: str) -> str:
     """README.md of a shipped model: what it is, how it was chosen and trained, and its results beside its
     family and the controllers, every figure read from `results` (the report's results.json)."""
@@ -309,17 +337,10 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         for r in results["runs"]
         if r["family"] == family and r.get("final")
     )
-    hp_note = (
-        f"the defaults of `mobman-train --algo {algo}` (`train/algos.py`; the same in rl-baselines3-zoo's format: "
-        f"`train/hyperparams/{algo}.yml`)"
-        if not run["hyperparams_overrides"]
-        else f"overrides {run['hyperparams_overrides']} of the defaults of `train/algos.py`"
-    )
     eval_cmd = (
         f"mobman-eval run --env {results['env_id']} --policy sb3:{alias} --policy nnbc-plus --seeds "
         f"{cfg['episodes']} --seed {cfg['seed']} --dynamics {dyn} --model-error {ck['model_error']!r}"
     )
-    walls = [r["wall_s"] for r in results["runs"] if r["family"] == family and r["status"] == "done"]
     lines = [
         f"# `sb3:{alias}` — the shipped {title} baseline ({dyn})",
         "",
@@ -340,21 +361,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         eval_cmd,
         "```",
         "",
-        "## Training",
-        "",
-        "```",
-        run["train_command"],
-        "```",
-        "",
-        f"Hyperparameters: {hp_note}. Training code: git {run.get('train_commit') or results['train_commit'] or 'not recorded'}; "
-        f"versions: {', '.join(f'{k} {v}' for k, v in run['versions'].items() if v)}. Periodic evaluation on "
-        "development seeds only (900-904); the reported seeds were never seen in training or selection.",
-        "",
-        f"Budget of this run: {_steps(run['steps'])} env steps in {run['wall_s'] / 60:.1f} min wall clock "
-        f"({run['steps'] / run['wall_s']:.0f} steps/s; {run['config']['n_envs']} env(s), torch "
-        f"{run['config']['torch_threads']} thread(s)). {_machine(results)} The family's finished runs: "
-        f"{len(walls)}, {sum(walls) / 3600:.2f} h in all.",
-        "",
+        *_training_section(results, family, run, algo),
         f"## Results (reported seeds {seeds}, {dyn}, bench condition `{cond}`, success = max error <= "
         f"{cfg['tolerance'] * 1e3:g} mm)",
         "",

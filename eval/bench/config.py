@@ -217,12 +217,43 @@ class BenchConfig:
     def resolved(self) -> tuple[BenchConfig, list[str]]:
         """(a copy with conditions and policies filled in and every value checked, notes for the scorecard).
         EvalError names the bad value, the accepted ones and the fix."""
+        notes: list[str] = []
+        missing_robots = self._check_values(notes)
+        conditions = self._resolve_conditions(missing_robots, notes)
+        clash = sorted(
+            set(self.env_kwargs) & ({"render_mode"} | {k for c in conditions for k in CONDITIONS[c].env_kwargs})
+        )
+        if clash:
+            raise EvalError(f"env_kwargs sets {clash}, which the bench conditions set; remove them")
+        pols = default_policies() if self.policies is None else self.policies
+        if not pols:
+            raise EvalError("no policy given; name some with --policy or leave it out for every built-in one")
+        dup = sorted({p for p in pols if list(pols).count(p) > 1})
+        if dup:
+            raise EvalError(f"policies lists {', '.join(dup)} more than once; give each once")
+        cfg = BenchConfig(
+            track=self.track,
+            robots=self.robots,
+            tasks=self.tasks,
+            conditions=tuple(conditions),
+            policies=tuple(pols),
+            seeds=int(self.seeds),
+            physics_seeds=int(self.physics_seeds),
+            seed_start=int(self.seed_start),
+            tolerance=float(self.tolerance),
+            settle_time=float(self.settle_time),
+            env_kwargs=self.env_kwargs,
+        )
+        return cfg, notes
+
+    def _check_values(self, notes: list[str]) -> list[str]:
+        """Check the track, robots, tasks, seeds, tolerance and settle time (a note for development seeds); return
+        the robots this version of mobman_env lacks (an error when they were asked for by name)."""
         import gymnasium as gym
 
         import mobman_env  # noqa: F401  (registers the ids)
         from mobman_env.validation import integer, number
 
-        notes: list[str] = []
         if self.track not in TRACKS:
             raise EvalError(f"unknown track {self.track!r}; accepted: {', '.join(TRACKS)} (e.g. --track dev)")
         _names("robots", self.robots, ROBOTS)
@@ -245,6 +276,11 @@ class BenchConfig:
             )
         number("tolerance", self.tolerance, low=0.0, open_low=True, hint="m, e.g. 0.006", error=EvalError)
         number("settle_time", self.settle_time, low=0.0, hint="s, e.g. 0.5", error=EvalError)
+        return missing_robots
+
+    def _resolve_conditions(self, missing_robots: list[str], notes: list[str]) -> list[str]:
+        """The conditions to run: the track's defaults (those that cannot run here left out with a note) or the
+        named ones (one that cannot run is an error)."""
         conditions: list[str] = []
         if self.conditions is None and self.track == "heldout" and not DEFAULT_CONDITIONS["heldout"]:
             from eval import heldout as H
@@ -272,31 +308,7 @@ class BenchConfig:
             conditions = list(self.conditions)
         if not conditions:
             raise EvalError("no condition left to run; name some with --conditions (or other --robots, --tasks)")
-        clash = sorted(
-            set(self.env_kwargs) & ({"render_mode"} | {k for c in conditions for k in CONDITIONS[c].env_kwargs})
-        )
-        if clash:
-            raise EvalError(f"env_kwargs sets {clash}, which the bench conditions set; remove them")
-        pols = default_policies() if self.policies is None else self.policies
-        if not pols:
-            raise EvalError("no policy given; name some with --policy or leave it out for every built-in one")
-        dup = sorted({p for p in pols if list(pols).count(p) > 1})
-        if dup:
-            raise EvalError(f"policies lists {', '.join(dup)} more than once; give each once")
-        cfg = BenchConfig(
-            track=self.track,
-            robots=self.robots,
-            tasks=self.tasks,
-            conditions=tuple(conditions),
-            policies=tuple(pols),
-            seeds=int(self.seeds),
-            physics_seeds=int(self.physics_seeds),
-            seed_start=int(self.seed_start),
-            tolerance=float(self.tolerance),
-            settle_time=float(self.settle_time),
-            env_kwargs=self.env_kwargs,
-        )
-        return cfg, notes
+        return conditions
 
     def _cannot_run(self, name: str, missing_robots: Sequence[str]) -> str | None:
         """Why condition `name` cannot run in this bench (no robot or task left, an env argument or a robot this

@@ -116,7 +116,6 @@ def build_scorecard(
     pooled: list[dict] = []
     by_robot: list[dict] = []
     n_episodes = n_failed = 0
-    keys = ("policy", "dynamics", "model_error", "obs_noise")
     track_eps = track_episodes(protocol, results)
     knowledge: dict[str, str] = {}
     artefacts: dict[str, dict[str, dict]] = {}
@@ -131,35 +130,11 @@ def build_scorecard(
             knowledge.setdefault(pol, r.get("knowledge") or "unknown")
             for art in r.get("artefacts") or []:
                 artefacts.setdefault(pol, {})[art["sha256"]] = dict(art)
-        policy_kind = {p: _first(r.get("knowledge") for r in eps if r["policy"] == p) for p in protocol["policies"]}
-        for a in M.aggregate(eps):
-            row = {"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a}
-            rows.append({**row, "feasible": _feasible(eps, env=a["env"], policy=a["policy"])})
-        for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
-            row = {"condition": name, "track": track, "env": None, "knowledge": policy_kind.get(a["policy"]), **a}
-            pooled.append({**row, "feasible": _feasible(eps, policy=a["policy"])})
-        robots = {robot_of(str(r["env"])) for r in eps}
-        if len(robots) > 1:
-            tagged = [{**r, "robot": robot_of(str(r["env"]))} for r in eps]
-            for a in M.aggregate(tagged, group_keys=("robot", *keys), strata_key="env"):
-                by_robot.append({"condition": name, "track": track, "env": None, **a})
-        seen: set[str] = set()
-        for r in sorted(eps, key=lambda r: (str(r["env"]), r["seed"])):
-            if r["policy"] not in seen and r.get("status") == "ok":
-                seen.add(r["policy"])
-                samples.append(
-                    {
-                        "condition": name,
-                        "env": r["env"],
-                        "policy": r["policy"],
-                        "seed": r["seed"],
-                        "fields": {k: r.get(k) for k in SAMPLE_FIELDS},
-                    }
-                )
-            if r["policy"] in REFERENCES:
-                references.setdefault(r["policy"], {}).setdefault(name, {}).setdefault(str(r["env"]), []).append(
-                    _max_error(r)
-                )
+        cell_rows, cell_pooled, cell_by_robot = _condition_rows(name, track, eps, protocol["policies"])
+        rows += cell_rows
+        pooled += cell_pooled
+        by_robot += cell_by_robot
+        _samples_and_references(name, eps, samples, references)
     tracks = []
     for track, eps in track_eps.items():
         for a in M.aggregate(eps, group_keys=("policy",), strata_key="cell"):
@@ -194,6 +169,50 @@ def build_scorecard(
             "samples": samples,
         }
     )
+
+
+def _condition_rows(
+    name: str, track: str, eps: list[dict], policies: Sequence[str]
+) -> tuple[list[dict], list[dict], list[dict]]:
+    """One condition's aggregate rows: per env (`rows`), pooled over its envs (`pooled`, stratified by env) and
+    per robot where it runs on several (`by_robot`)."""
+    keys = ("policy", "dynamics", "model_error", "obs_noise")
+    policy_kind = {p: _first(r.get("knowledge") for r in eps if r["policy"] == p) for p in policies}
+    rows, pooled, by_robot = [], [], []
+    for a in M.aggregate(eps):
+        row = {"condition": name, "track": track, "knowledge": policy_kind.get(a["policy"]), **a}
+        rows.append({**row, "feasible": _feasible(eps, env=a["env"], policy=a["policy"])})
+    for a in M.aggregate(eps, group_keys=keys, strata_key="env"):
+        row = {"condition": name, "track": track, "env": None, "knowledge": policy_kind.get(a["policy"]), **a}
+        pooled.append({**row, "feasible": _feasible(eps, policy=a["policy"])})
+    robots = {robot_of(str(r["env"])) for r in eps}
+    if len(robots) > 1:
+        tagged = [{**r, "robot": robot_of(str(r["env"]))} for r in eps]
+        for a in M.aggregate(tagged, group_keys=("robot", *keys), strata_key="env"):
+            by_robot.append({"condition": name, "track": track, "env": None, **a})
+    return rows, pooled, by_robot
+
+
+def _samples_and_references(name: str, eps: list[dict], samples: list[dict], references: dict) -> None:
+    """Append one condition's samples (each controller's first finished episode, by env and seed: what
+    `--against` runs again) and the reference laws' max errors per env."""
+    seen: set[str] = set()
+    for r in sorted(eps, key=lambda r: (str(r["env"]), r["seed"])):
+        if r["policy"] not in seen and r.get("status") == "ok":
+            seen.add(r["policy"])
+            samples.append(
+                {
+                    "condition": name,
+                    "env": r["env"],
+                    "policy": r["policy"],
+                    "seed": r["seed"],
+                    "fields": {k: r.get(k) for k in SAMPLE_FIELDS},
+                }
+            )
+        if r["policy"] in REFERENCES:
+            references.setdefault(r["policy"], {}).setdefault(name, {}).setdefault(str(r["env"]), []).append(
+                _max_error(r)
+            )
 
 
 def track_episodes(protocol: dict, results: dict) -> dict[str, list[dict]]:
