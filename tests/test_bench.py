@@ -61,7 +61,8 @@ def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
     assert cfg.policies == BC.default_policies()
     assert cfg.seed_list("default") == tuple(range(SEED, SEED + BC.DEFAULT_SEEDS))
     assert cfg.seed_list("physics") == tuple(range(SEED, SEED + BC.DEFAULT_PHYSICS_SEEDS))
-    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == {"dev"}  # release 0.4's draw is not revealed yet
+    # release 0.4's revealed draw is the heldout track (in "all", not in "dev")
+    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == ({"dev"} if track == "dev" else {"dev", "heldout"})
     retired = [c for c in cfg.conditions if BC.CONDITIONS[c].retired == "v2"]  # protocol v2's held-out, now dev
     assert retired == ["fast-rich", "rate50", "lag100", "noise-heavy", "combined", "scaled-arms"] + [
         c for c in ("physics-robots", "physics-combined") if c in cfg.conditions
@@ -70,7 +71,15 @@ def test_default_conditions_are_the_tracks_and_those_this_env_can_build(track):
     assert BC.CONDITIONS["wear20"].model_error == 0.2 and BC.CONDITIONS["physics"].dynamics == "physics"
 
 
-def test_the_heldout_track_before_its_draw_is_revealed_is_refused_naming_why():
+def test_the_heldout_track_is_the_revealed_draw_and_refused_naming_why_before_it(monkeypatch):
+    """Release 0.4's seed is revealed: the held-out track is its draw (`h3-1-0.4` ...), every condition on track
+    heldout. Before a release's seed is revealed the track is empty and a bench on it is refused, naming why."""
+    from eval import heldout as H
+
+    cfg, _ = BC.BenchConfig(track="heldout").resolved()
+    assert cfg.conditions == tuple(f"{d['name']}-0.4" for d in H.revealed_draw("0.4"))
+    assert {BC.CONDITIONS[c].track for c in cfg.conditions} == {"heldout"}
+    monkeypatch.setitem(BC.DEFAULT_CONDITIONS, "heldout", ())
     with pytest.raises(EvalError, match=r"held-out track has no condition yet: release 0\.4's .*commit ae362a4"):
         BC.BenchConfig(track="heldout").resolved()
 
@@ -159,7 +168,7 @@ def test_bench_writes_a_scorecard_and_resumes(tmp_path):
     assert [r["condition"] for r in results["episodes"]] == ["default"] * 8 + ["wear20"] * 8
     assert all(isinstance(r["feasible"], bool) for r in results["episodes"])
     assert sc["schema"] == 4 and sc["protocol"]["seeds"] == [SEED, SEED + 1] and sc["protocol"]["version"] == 3
-    assert sc["protocol"]["heldout_release"]["release"] == "0.4" and not sc["protocol"]["heldout_release"]["revealed"]
+    assert sc["protocol"]["heldout_release"]["release"] == "0.4" and sc["protocol"]["heldout_release"]["revealed"]
     for row in sc["rows"]:  # protocol v3: success at 1 / 2 / 6 mm over the feasible episodes, the others counted
         block = row["feasible"]
         assert block["n_feasible"] + block["n_infeasible"] == row["n"] and block["n_unknown"] == 0

@@ -66,9 +66,35 @@ def test_the_release_seed_digest_is_committed_and_the_seed_not():
     assert H.seed_digest("0" * 32, "0.4") != H.seed_digest("0" * 32, "0.5")  # salted per release
     assert "0.4" not in H.REVEALED_SEEDS or H.seed_digest(H.REVEALED_SEEDS["0.4"], "0.4") == digest
     with pytest.raises(ValueError, match="not revealed yet"):
-        H.revealed_draw("0.4") if "0.4" not in H.REVEALED_SEEDS else H.revealed_draw("0.3")
+        H.revealed_draw("0.4") if "0.4" not in H.REVEALED_SEEDS else _unrevealed("0.9")
     with pytest.raises(ValueError, match="committed no held-out seed"):
         H.revealed_draw("0.1")
+
+
+def _unrevealed(release: str) -> list:
+    """revealed_draw of a release whose digest is committed and whose seed is not revealed (patched in)."""
+    saved = dict(H.RELEASE_SEED_SHA256)
+    H.RELEASE_SEED_SHA256[release] = "0" * 64
+    try:
+        return H.revealed_draw(release)
+    finally:
+        H.RELEASE_SEED_SHA256.clear()
+        H.RELEASE_SEED_SHA256.update(saved)
+
+
+def test_the_revealed_draw_of_release_0_4_is_its_seeds_draw_and_its_conditions_run():
+    """Release 0.4's revealed seed matches the digest committed at ae362a4, and its draw is what the conditions
+    table holds on the heldout track (named `h3-K-0.4`)."""
+    from eval.conditions import CONDITIONS
+
+    seed = H.REVEALED_SEEDS["0.4"]
+    assert H.seed_digest(seed, "0.4") == H.RELEASE_SEED_SHA256["0.4"]
+    drawn = H.revealed_draw("0.4")
+    assert drawn == H.draw(seed) and len(drawn) == H.N_CONDITIONS
+    for d in drawn:
+        c = CONDITIONS[f"{d['name']}-0.4"]
+        assert c.track == "heldout" and c.robots == tuple(d["robots"])
+        assert dict(c.env_kwargs) == {"obs_noise": 0.0, **d["env_kwargs"]}  # the table fills the axes' defaults
 
 
 def test_every_drawn_condition_makes_an_env_that_steps():
