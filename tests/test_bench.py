@@ -231,6 +231,13 @@ def test_cli_bench_list_markdown_and_readme(tmp_path, capsys):
     text = readme.read_text()
     assert "stale" not in text and block in text and text.endswith("<!-- bench:end -->\n\nafter\n")
     assert render_readme(text, tmp_path)[0] == text  # idempotent
+    # "pooled" after the path: each track's pooled table alone (the README's dev block); another word is refused
+    readme.write_text("<!-- bench:begin b/scorecard.json pooled -->\n<!-- bench:end -->\n")
+    pooled = render_readme(readme.read_text(), tmp_path)[0]
+    assert pooled.count("| zero |") == 1 and "| zero | none | 0% · 0% · 0% [0-79]" in pooled
+    assert block.count("| zero |") > 1  # the full block also has the success per condition
+    with pytest.raises(EvalError, match="'pooled' after the path"):
+        render_readme("<!-- bench:begin b/scorecard.json all -->\n<!-- bench:end -->\n", tmp_path)
     assert main(["bench", "--list"]) == 0
     listed = capsys.readouterr().out
     assert "wear20" in listed and "default controllers: " + ", ".join(BC.default_policies()) in listed

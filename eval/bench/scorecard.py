@@ -530,12 +530,14 @@ def prob_table(sc: dict, track: str) -> list[str]:
     ]
 
 
-def headline_tables(sc: dict) -> list[str]:
-    """Per track, held-out first: the pooled table and the success per condition; then the ladder."""
+def headline_tables(sc: dict, pooled_only: bool = False) -> list[str]:
+    """Per track, held-out first: the pooled table and (unless `pooled_only`) the success per condition; then
+    (unless `pooled_only`) the ladder."""
     lines: list[str] = []
     for track in _tracks(sc):
-        lines += track_table(sc, track) + condition_success_table(sc, track)
-    lines += ladder_table(sc)
+        lines += track_table(sc, track) + ([] if pooled_only else condition_success_table(sc, track))
+    if not pooled_only:
+        lines += ladder_table(sc)
     if any(is_chaotic(p) for p in _policies(sc)):
         lines += [CHAOTIC_NOTE + ".", ""]
     return lines
@@ -559,8 +561,9 @@ def _heldout_text(p: dict, short: bool = False) -> str:
     )
 
 
-def readme_markdown(sc: dict) -> str:
-    """The README block of a scorecard: what ran, on what, then the headline tables (held-out first)."""
+def readme_markdown(sc: dict, pooled_only: bool = False) -> str:
+    """The README block of a scorecard: what ran, on what, then the headline tables (held-out first; with
+    `pooled_only`, each track's pooled table alone)."""
     p = sc["protocol"]
     prov = sc.get("provenance") or {}
     heldout = f", {_heldout_text(p, short=True)}" if "heldout" in _tracks(sc) or p.get("heldout_release") else ""
@@ -571,7 +574,7 @@ def readme_markdown(sc: dict) -> str:
         f"cell); {sc['n_episodes']} episodes, {sc['n_failed']} failed. git {str(sc['git'])[:12]}, "
         f"{prov.get('cpu') or '?'}.",
         "",
-        *headline_tables(sc),
+        *headline_tables(sc, pooled_only),
     ]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -706,12 +709,18 @@ def render_readme(text: str, root: str | Path, repo: Path | None = None) -> tupl
     root = Path(root)
     found: list[str] = []
 
-    def rebuild(rel: str) -> str:
+    def rebuild(args: str) -> str:
+        rel, _, form = args.partition(" ")
+        if form.strip() not in ("", "pooled"):
+            raise EvalError(
+                f"a bench block names {args!r}; write '<!-- bench:begin PATH/scorecard.json -->', or with "
+                "'pooled' after the path for each track's pooled table alone"
+            )
         found.append(rel)
         path = source_path(root, rel, repo)
         sc = load_scorecard(path)
         try:
-            return readme_markdown(sc)
+            return readme_markdown(sc, pooled_only=form.strip() == "pooled")
         except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
             raise EvalError(
                 f"{rel}: a scorecard whose rows this mobman cannot render ({type(exc).__name__}: {exc}); write it "

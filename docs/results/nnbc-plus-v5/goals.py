@@ -1,13 +1,15 @@
-"""Issue 38's goals for `nnbc-plus` v5 and `nnbc-plus-wb`, read from a committed dev-track scorecard (reported seeds).
+"""Issue 38's goals for `nnbc-plus` (v5, v5.1) and `nnbc-plus-wb`, read from a committed dev-track scorecard (reported seeds).
 
-    python docs/results/nnbc-plus-v5/goals.py docs/results/bench-v3-dev/scorecard.json.xz > docs/results/nnbc-plus-v5/goals.md
+    python docs/results/nnbc-plus-v5/goals.py docs/results/bench-v3-dev/scorecard.json.xz docs/results/bench-v3-heldout-0.4/scorecard.json.xz > docs/results/nnbc-plus-v5/goals.md
 
 Each goal with the figure measured, over protocol v3's dev track (v2's dev conditions, the ladder, v2's held-out
 conditions): the commands' acceleration RMS median at `default` against `qp`'s (goal <= 3x); the max-error IQM
 at `default` against the cell's reference, the better of `mpc-oracle` and `qp-oracle` (goal <= 3x; against
 `qp-oracle` alone too); success and clean success in every dev cell, condition x robot with its tasks pooled
 (goal >= 95%); and "never diverge": the median max error of every cell where the reference tracks (>= 95%) under
-20 mm. Figures are the scorecard's (`pooled` rows per condition, `by_robot` rows per cell); nothing is typed.
+20 mm. With a held-out scorecard (optional second argument), the held-out goals too: pooled success over the
+track against the better reference's (goal >= 90% of it), and "never diverge" per held-out condition (its robots
+and tasks pooled). Figures are the scorecards' (`pooled` rows per condition, `by_robot` rows per cell); nothing is typed.
 """
 
 from __future__ import annotations
@@ -24,7 +26,30 @@ def _fmt(x: float) -> str:
     return f"{x:.3g}"
 
 
-def main(path: str) -> str:
+def _heldout_rows(path: str) -> tuple[list[str], list[str]]:
+    """The held-out goals' table cells per policy: success against the reference's, and never diverge."""
+    sc = load_scorecard(path)
+    track = {r["policy"]: r for r in sc["tracks"]}
+    pooled = {(r["condition"], r["policy"]): r for r in sc["pooled"]}
+    conds = list(dict.fromkeys(r["condition"] for r in sc["pooled"]))
+    ref = max(REFERENCES, key=lambda q: track[q]["success_rate"])
+    ok, div = [], []
+    for pol in POLICIES:
+        s, rs = track[pol]["success_rate"], track[ref]["success_rate"]
+        ok.append(f"{s:.0%} = {s / rs:.0%} of {ref}'s {rs:.0%}")
+        diverged = [
+            f"{c} {_fmt(1e3 * pooled[(c, pol)]['max_error_m']['median'])} mm"
+            for c in conds
+            if any(pooled[(c, q)]["success_rate"] >= 0.95 for q in REFERENCES)
+            and pooled[(c, pol)]["max_error_m"]["median"] >= 0.020
+        ]
+        div.append(
+            f"{len(diverged)} of {len(conds)} conditions over 20 mm" + (f": {', '.join(diverged)}" if diverged else "")
+        )
+    return ok, div
+
+
+def main(path: str, heldout: str | None = None) -> str:
     sc = load_scorecard(path)
     pooled = {(r["condition"], r["policy"]): r for r in sc["pooled"]}
     cells = {(r["condition"], r["robot"], r["policy"]): r for r in sc["by_robot"]}
@@ -33,9 +58,9 @@ def main(path: str) -> str:
         key=lambda k: (list(dict.fromkeys(r["condition"] for r in sc["pooled"])).index(k[0]), k[1]),
     )
     out = [
-        "# `nnbc-plus` v5 against issue 38's goals",
+        "# `nnbc-plus` against issue 38's goals",
         "",
-        f"From the dev-track scorecard recorded at git {str(sc['git'])[:7]} (protocol v{sc['protocol']['version']}, "
+        f"The law as the dev-track scorecard recorded it at git {str(sc['git'])[:7]} (protocol v{sc['protocol']['version']}, "
         f"seeds from {sc['protocol']['seed_start']}), by `docs/results/nnbc-plus-v5/goals.py`.",
         "",
         "## Goals",
@@ -76,6 +101,14 @@ def main(path: str) -> str:
         "| (against qp-oracle alone) | " + " | ".join(row_qpo) + " |",
         "| robust: >= 95% success and clean success per dev cell | " + " | ".join(row_cells) + " |",
         "| never diverge: median max error < 20 mm where the reference tracks | " + " | ".join(row_div) + " |",
+    ]
+    if heldout is not None:
+        h_ok, h_div = _heldout_rows(heldout)
+        out += [
+            "| held out: success >= 90% of the reference law's (pooled over the draw) | " + " | ".join(h_ok) + " |",
+            "| held out: median max error < 20 mm where the reference tracks | " + " | ".join(h_div) + " |",
+        ]
+    out += [
         "",
         "## Cells below 95%",
         "",
@@ -88,4 +121,4 @@ def main(path: str) -> str:
 
 
 if __name__ == "__main__":
-    sys.stdout.write(main(sys.argv[1]))
+    sys.stdout.write(main(*sys.argv[1:3]))
