@@ -177,7 +177,9 @@ def test_a_bench_block_escapes_what_the_scorecard_names(tmp_path, monkeypatch):
 
     (tmp_path / ".git").mkdir()
     (tmp_path / "scorecard.json").write_text(stored_bytes(ROOT / "docs/results/bench-v2-dev/scorecard.json").decode())
-    monkeypatch.setattr(scorecard, "readme_markdown", lambda sc, pooled_only=False: "| <img src=x> |\n<!-- bench:end -->\nx\n")
+    monkeypatch.setattr(
+        scorecard, "readme_markdown", lambda sc, pooled_only=False: "| <img src=x> |\n<!-- bench:end -->\nx\n"
+    )
     page = "<!-- bench:begin scorecard.json -->\nold\n<!-- bench:end -->\n"
     once = scorecard.render_readme(page, tmp_path)[0]
     assert (
