@@ -201,7 +201,7 @@ DELAY_EVERY = K.DELAY_EVERY  # afterwards, every this many steps
 #: `m-probe-noise-start.csv` against `n-lag-bank-6.csv`) a lag between two of v5's models was mistaken for one
 #: of them and the law diverged: the dev track's lag100 35/48 (largest 1,545 mm) -> 44/48 (269 mm), lag 150 ms
 #: 41/48 (1,094 mm) -> 44/48 (262 mm), combined 36/48 -> 39/48 (nnbc-plus-wb 33/48 -> 43/48); every other cell
-#: the same successes.
+#: the same successes. `rls` and `broyden` share the bank (their results move under lag too).
 LAG_TAUS = tuple(0.02 * 10 ** (k / 5) for k in range(6))
 assert len(LAG_TAUS) == K.N_LAGS  # (the kernel's bank has this many lag models)
 

@@ -5,7 +5,8 @@ The file was recorded by `record()` with `PYTHONPATH=$PWD python tests/test_mode
 by `nnbc-plus` v5.1 (issue 38), whose Kalman filter's R starts at the probe's residual variance: it moved
 `nnbc-plus`'s and `nnbc-plus-wb`'s actions in the noisy Lemniscate (by up to 0.17 rad/s) and in physics (by up to
 1e-4 rad/s: contacts leave a residual), left their noiseless kinematic Circle bit for bit, and `broyden`'s and
-`rls`'s everywhere (they have no R); before, by v5, which moved `nnbc-plus`'s and `nnbc-plus-wb`'s actions on purpose (the joint-angle
+`rls`'s in all three (they have no R, and no episode here has an actuator lag, where the bank they share with
+v5.1 moves them); before, by v5, which moved `nnbc-plus`'s and `nnbc-plus-wb`'s actions on purpose (the joint-angle
 regressor, learnt stops, the low-passed dither) and left `broyden`'s and `rls`'s bit for bit (their defaults
 keep the v4 scaffolding); before, by v4 (issue 28): the actuator-model bank (lag models beside the delays: all
 four controllers), the filtered heading and the 0.02 rad/s probe (`nnbc-plus`, `nnbc-plus-wb`).
