@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import re
+import shlex
 
 import pytest
 from test_eval_helpers import SHORT
@@ -218,6 +219,10 @@ def test_cli_bench_list_markdown_and_readme(tmp_path, capsys):
     args += ["--seeds", "1"]
     assert main([*args, "--env-kwargs", json.dumps(SHORT), "--out", str(out), "--quiet", "--no-plots"]) == 0
     capsys.readouterr()
+    line = json.loads((out / "bench.json").read_text())["command_line"]  # how to make this folder again
+    assert line == shlex.join(
+        ["mobman-eval", *args, "--env-kwargs", json.dumps(SHORT), "--out", str(out)] + ["--quiet", "--no-plots"]
+    )
     assert main(["bench", "--markdown", str(out / "scorecard.json")]) == 0
     block = capsys.readouterr().out
     assert block == readme_markdown(load_scorecard(out / "scorecard.json"))

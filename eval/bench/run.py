@@ -122,23 +122,20 @@ def run_bench(
     plots: bool = True,
     progress: bool = True,
     against: str | Path | None = None,
+    command_line: str | None = None,
 ) -> BenchResult:
     """Run what is left of the bench in `out`, then write scorecard.json, scorecard.md and the plots.
 
-    `rerun_changed`: run again the episodes a condition's journal holds from other code (without it such a
-    journal is refused before anything is written: `eval.grid.same_code`). `against`: a committed bench (folder or scorecard.json) whose baselines' rows are reused after a sample of
-    them is run again bit for bit (`eval.bench.against`); then only `config.policies` run."""
+    `rerun_changed`: run again the episodes the journal holds from other code (else refused: `eval.grid.same_code`).
+    `command_line`: the command that ran it, kept in bench.json (None from Python). `against`: a committed bench
+    (folder or scorecard.json) whose baselines' rows are reused after a sample of them is run again bit for bit
+    (`eval.bench.against`); then only `config.policies` run."""
     committed, against_record = _load_against(config, against)
     cfg, notes = config.resolved()
     out = Path(out) if out is not None else DEFAULT_OUT
     _check_execution(max_episodes, workers, backend, address, batch_size)
     assert cfg.conditions is not None and cfg.policies is not None
-    if progress:  # an sb3: agent loads torch and is built on each of ~100 cells: seconds, not silent
-        n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
-        print(f"bench: building {len(cfg.policies)} controller(s) on each of {n_cells} cells ...", file=sys.stderr)
-    for line in check_cells(cfg):
-        if progress:
-            print(f"bench: {line}", file=sys.stderr)
+    _check_cells(cfg, progress)
     baselines: list[str] = []
     if committed is not None and against_record is not None:
         cfg, notes, baselines = _sample_baselines(cfg, notes, committed, against_record, progress)
@@ -155,8 +152,8 @@ def run_bench(
     out.mkdir(parents=True, exist_ok=True)
     with FolderLock(out, "bench"):  # a second bench on this --out stops here, before anything is written
         execution = {"backend": backend, "address": address, "workers": workers, "batch_size": batch_size}
-        record = {"command": "bench", **protocol, "notes": notes, "out": str(out), **execution}
-        atomic_write_json(out / "bench.json", {**record, "against": against_record})
+        record = {"command": "bench", "command_line": command_line, **protocol, "notes": notes, "out": str(out)}
+        atomic_write_json(out / "bench.json", {**record, **execution, "against": against_record})
         if progress:
             _announce(cfg, notes, len(tasks), out)
         t0 = time.perf_counter()
@@ -236,6 +233,18 @@ def _sample_baselines(
         "bench.json); the baselines were run again here",
     ]
     return replace(cfg, policies=(*cfg.policies, *baselines)), notes, []
+
+
+def _check_cells(cfg: BenchConfig, progress: bool) -> None:
+    """Build every controller on every cell before any episode runs (`check_cells`), saying so: an sb3: agent
+    loads torch and is built on each of ~100 cells, seconds that should not be silent."""
+    assert cfg.conditions is not None and cfg.policies is not None
+    if progress:
+        n_cells = sum(len(cfg.env_ids(name)) for name in cfg.conditions)
+        print(f"bench: building {len(cfg.policies)} controller(s) on each of {n_cells} cells ...", file=sys.stderr)
+    for line in check_cells(cfg):
+        if progress:
+            print(f"bench: {line}", file=sys.stderr)
 
 
 def _announce(cfg: BenchConfig, notes: list[str], n_tasks: int, out: Path) -> None:

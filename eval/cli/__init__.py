@@ -90,6 +90,7 @@ def main(argv: list[str] | None = None) -> int:
 
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = sys.argv[1:] if argv is None else list(argv)  # the command line, for the records that keep it
     if argv is None and getattr(args, "stdout_format", "table") != "table" and getattr(args, "progress", True):
         reserve_stdout()  # a command line piping data: native output (PyBullet, Ray) goes to stderr
     try:

@@ -12,6 +12,7 @@ mobman-eval bench --render-readme README.md         # regenerate the README's be
 
 from __future__ import annotations
 
+import shlex
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -125,7 +126,13 @@ def main(args) -> int:
     config = build(BenchConfig, args, PROTOCOL, **fixed)
     how = build(SweepRun, args, RESUMABLE)
     try:
-        result = run_bench(config, **asdict(how), against=actions.against, **values(args, EvalConfig, EXECUTION))
+        result = run_bench(
+            config,
+            **asdict(how),
+            against=actions.against,
+            command_line=shlex.join(["mobman-eval", *getattr(args, "argv", [])]),
+            **values(args, EvalConfig, EXECUTION),
+        )
     except KeyboardInterrupt:
         print(
             f"\nbench interrupted; finished episodes are in {how.out or DEFAULT_OUT}/episodes.jsonl; run the same "
