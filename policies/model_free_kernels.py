@@ -120,8 +120,10 @@ S_P = 20  # its covariance (a, b, d)
 S_LEN = 23
 
 
+@njit(cache=True)
 def est_nk(kind: int, n: int) -> int:
-    """Columns of the Kalman filter's J (the arm's with the structured estimate), or n."""
+    """Columns of the Kalman filter's J (the arm's with the structured estimate), or n (a kernel: the Kalman
+    kinds' kernels call it too)."""
     return n - 2 if kind == STRUCTURED else n
 
 
@@ -275,7 +277,7 @@ def est_noise_start(kind, n, ep, e, r0):
     """The Kalman kinds' measurement noise R (and its running estimate) start at r0 (m/s)^2, never below
     meas_std^2; the other kinds have no R."""
     if kind <= STRUCTURED and ep[EP_NOISE_RATE] > 0.0:
-        ns = 2 * (n - 2 if kind == STRUCTURED else n)
+        ns = 2 * est_nk(kind, n)
         o = 6 * n + (3 + ns) * ns
         r = max(ep[EP_R0], r0)
         e[o + 1] = r

@@ -443,8 +443,8 @@ class NNBCPlusConfig(ModelFreeConfig):
     probe_noise_start: bool = True
     """Where the Kalman filter's measurement noise R starts: at the variance of the probe's residuals (the
     scatter of the measured y about the probe's least-squares J_hat(0), over its 3 (2n - n) degrees of freedom;
-    never below meas_std^2), or, False (v5), at meas_std^2 (v5.1 starts at the probe's). `noise_rate` then follows the noise from there. From
-    the floor, R needs about 1 / noise_rate = 333 steps to reach a noisy sensor's level, and until then the filter
+    never below meas_std^2; v5.1), or (False, v5) at meas_std^2. `noise_rate` then follows the noise from
+    there. From the floor, R needs about 1 / noise_rate = 333 steps to reach a noisy sensor's level, and until then the filter
     trusts every reading and learns the noise into J_hat: with `obs_noise_vel` = 0.02 m/s (protocol v2's
     noise-heavy velocity noise) v5 lost 34 of 36 episodes on development seeds 0-3 (PUMA, UR5, Panda x Circle,
     Lemniscate, Random; median max error 27 mm; one PUMA Circle episode: 11 mm at step 100 while R was 9e-4,

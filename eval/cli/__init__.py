@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
     except EvalError as exc:
         print(f"mobman-eval {args.command}: error: {exc}", file=sys.stderr)
         if exc.resume:
-            line = resume_command(sys.argv[1:] if argv is None else list(argv), exc.resume)
+            line = resume_command(args.argv, exc.resume)
             print(f"mobman-eval {args.command}: the command that resumes: {line}", file=sys.stderr)
         return 2
     except RunInterrupted as exc:
