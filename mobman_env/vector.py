@@ -22,7 +22,10 @@ continuing, as a single env's `reset()`. `AutoresetMode.SAME_STEP` resets at onc
 info in `info["final_obs"]` / `info["final_info"]` (what the SB3 adapter, `train.vec_env`, uses).
 
 Reset options apply to every robot reset by that call (as `SyncVectorEnv` passes them to each env); autoresets use
-the constructor values. Every argument (seeds, options, actions) is checked for every row before any row's state
+the constructor values, or, with `episode_sampler=f` (a constructor argument of this class only), the options
+`f(rng)` draws for each row's episode from the row's own generator, before the episode's draws (a reset without
+options uses it too): a training distribution of paths and conditions, one draw per episode and row
+(`train.dev_env`). A sampler's options are checked as each row draws them. Every argument (seeds, options, actions) is checked for every row before any row's state
 changes: a refused call leaves the vector env as it was. Rendering is not offered (render_mode must be None):
 render one robot with a single env.
 
@@ -126,6 +129,11 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
                 f"autoreset_mode {autoreset_mode!r} is not supported; accepted: {[m.value for m in AUTORESET_MODES]}"
             )
         kwargs.pop("max_episode_steps", None)  # make_vec passes the spec's
+        sampler = kwargs.pop("episode_sampler", None)
+        if sampler is not None and not callable(sampler):
+            raise ValueError(
+                f"episode_sampler must be a callable (row's numpy Generator) -> reset options dict, got {sampler!r}"
+            )
         if kwargs.get("dynamics", "kinematic") != "kinematic":
             raise ValueError(
                 f"WheeledPumaVectorEnv steps kinematic mode only, got dynamics={kwargs['dynamics']!r}; use "
@@ -153,6 +161,7 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         self._nominals: list[RobotParams] = [tpl.nominal_params] * n
         self._hashes = np.full(n, "", dtype=object)  # each robot's true robot's hash (info), set at its resets
         self._rngs: list[np.random.Generator | None] = [None] * n
+        self._sampler = sampler
         self._autoreset = np.zeros(n, dtype=bool)
         self._started = False
         self._closed = False
@@ -197,7 +206,9 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         n = self.num_envs
         seeds = check_seeds(seed, n)
         tpl = self._template
-        settings = tpl._episode_settings(options, tpl.nominal_params, "kinematic")  # checked before any reseed
+        settings = None  # every row draws its own episode options (`episode_sampler`)
+        if options is not None or self._sampler is None:
+            settings = tpl._episode_settings(options, tpl.nominal_params, "kinematic")  # checked before any reseed
         for i, s in enumerate(seeds):
             if s is not None or self._rngs[i] is None:
                 self._rngs[i], _ = seeding.np_random(s)
@@ -285,26 +296,35 @@ class WheeledPumaVectorEnv(gym.vector.VectorEnv):
         }
         return _masked(info, moving)
 
+    def _sampled_settings(self, i: int) -> tuple:
+        """Row i's episode settings from the reset options `episode_sampler` draws from its generator (before the
+        episode's own draws, so the row's stream stays one fixed sequence)."""
+        tpl = self._template
+        assert self._sampler is not None and self._rngs[i] is not None
+        return tpl._episode_settings(self._sampler(self._rngs[i]), tpl.nominal_params, "kinematic")
+
     def _reset_rows(self, rows: np.ndarray, settings: tuple | None, flat: np.ndarray, infos: dict) -> dict:
         """Start new episodes in `rows` as each single env's reset (its generator as it stands); their
         observations go into `flat`, their reset info into `infos`."""
         tpl, b = self._template, self._batch
-        if settings is None:
+        if settings is None and self._sampler is None:
             settings = tpl._episode_settings(None, tpl.nominal_params, "kinematic")
-        spec, q0, pose, cond = settings
-        starts = []
+        specs, poses, starts = [], [], []
         for i in rows.tolist():
+            spec, q0, pose, cond = settings or self._sampled_settings(i)
             self._nominals[i], q = b.begin_episode(i, self._rngs[i], tpl._source, tpl.nominal_params, q0, pose, cond)
+            specs.append(spec)
+            poses.append(pose)
             starts.append(q)
         ee = b.ee_kinematic(rows)
         for j, i in enumerate(rows.tolist()):
-            b.set_path(i, spec, ee[j], self._rngs[i], tpl.control_freq)
+            b.set_path(i, specs[j], ee[j], self._rngs[i], tpl.control_freq)
         b.draw_noise(rows, self._rngs)
         b.observe_kinematic(rows, flat)
         self._hashes[rows] = [b.hashes[i] for i in rows.tolist()]
         for j, i in enumerate(rows.tolist()):
             info = {
-                "task": b.task(i, ee[j], starts[j], pose),
+                "task": b.task(i, ee[j], starts[j], poses[j]),
                 "true_params_hash": b.hashes[i],
                 "ee_pos_true": ee[j].copy(),
                 "tracking_error": 0.0,

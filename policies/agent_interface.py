@@ -49,6 +49,9 @@ N_ACTIONS = MAX_ARM_JOINTS + 2
 AGENT_OBS_KEYS = ("pos_error", "vel_error", "target_vel", "arm_pos", "joint_vel", "heading", "mask")
 _SIZES = {"pos_error": 3, "vel_error": 3, "target_vel": 3, "arm_pos": MAX_ARM_JOINTS, "joint_vel": N_ACTIONS}
 _SIZES.update(heading=2, mask=N_ACTIONS)
+#: the training env whose observation is already this interface's (`train.dev_env`); an agent trained on it runs
+#: on every registered id (no "trained on another id" warning)
+DEV_TRACK_ID = "MobMan-DevTrack-v0"
 #: the raw env observation keys the agent's observation is computed from
 ENV_KEYS = ("ee_pos", "ee_vel", "target_pos", "target_vel", "joint_pos", "joint_vel", "base_yaw")
 
@@ -81,7 +84,10 @@ def _heading_frame(v: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 
 def agent_observation(obs: dict[str, Any]) -> dict[str, np.ndarray]:
-    """The agent's observation (`AGENT_OBS_KEYS`) from the env's raw observation dict, batched (N, k) or not."""
+    """The agent's observation (`AGENT_OBS_KEYS`) from the env's raw observation dict, batched (N, k) or not; an
+    observation that is the agent's already (`DEV_TRACK_ID` hands it out) is returned as it is (float32)."""
+    if "mask" in obs and "ee_pos" not in obs:
+        return {k: np.asarray(obs[k], dtype=np.float32) for k in AGENT_OBS_KEYS}
     missing = [k for k in ENV_KEYS if k not in obs]
     if missing:
         raise KeyError(f"the agent's observation needs the env keys {missing}; the observation has {sorted(obs)}")

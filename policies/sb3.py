@@ -535,7 +535,7 @@ class SB3Policy:
         except AttributeError:
             env_id = None
         trained = self.trained_env.get("env_id")
-        if trained and env_id and trained != env_id:
+        if trained and env_id and trained not in (env_id, agent_interface.DEV_TRACK_ID):
             warnings.warn(
                 f"the agent {self.path} was trained on {trained} and is evaluated on {env_id}",
                 UserWarning,

@@ -54,6 +54,7 @@ from mobman_env.packages import check_not_shadowed
 # a user's eval.py or policies.py beside their script would hide mobman's: say so before importing them
 check_not_shadowed(("policies", "eval"))
 
+import train.dev_env  # noqa: E402,F401  (registers MobMan-DevTrack-v0)
 from train.config import TrainConfig  # noqa: E402
 
 __all__ = ["TrainConfig", "resume", "run"]

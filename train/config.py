@@ -15,6 +15,7 @@ from typing import Any
 
 from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer, number
+from policies import agent_interface
 from policies.agent_interface import AGENT_OBS_KEYS
 from train import algos
 from train.wrappers import check_wrappers
@@ -25,6 +26,9 @@ from train.wrappers import check_wrappers
 LEARNING_ENV_KWARGS: dict = {"reward_weights": {"tracking": 20.0, "effort": 0.02}, "error_bound": 0.1}
 #: The env arguments that only shape learning; evaluation (periodic and final) uses the env's defaults instead.
 LEARNING_ONLY_KEYS = ("reward_weights", "error_bound")
+#: the dev-track training env (`train.dev_env`) and the fixed id its runs' periodic and final evaluations use
+DEV_TRACK_ID = agent_interface.DEV_TRACK_ID
+DEV_TRACK_EVAL_ID = "WheeledPuma-Circle-v0"
 #: Observation the agent sees: every key of the robot-independent, clock-free interface of
 #: `policies.agent_interface` (the "agent" wrapper): position and velocity errors and the desired velocity in
 #: the heading frame, the joint state padded to the Panda's 7 joints with a mask, the heading. No `time`: a
@@ -175,6 +179,13 @@ class TrainConfig:
     def train_env_kwargs(self) -> dict:
         """Constructor arguments of the training envs."""
         return {**self.env_kwargs, "dynamics": self.dynamics}
+
+    @property
+    def eval_env_id(self) -> str:
+        """The id of the periodic and final evaluations: `env_id`, or for the dev-track training env (which draws
+        its episodes: `train.dev_env`) `DEV_TRACK_EVAL_ID`; the agent's dev-track figures come from
+        `mobman-eval bench --against`."""
+        return DEV_TRACK_EVAL_ID if self.env_id == DEV_TRACK_ID else self.env_id
 
     @property
     def eval_env_kwargs(self) -> dict:

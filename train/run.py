@@ -119,9 +119,9 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
 def probe_envs(config: TrainConfig, build_model: bool = True) -> None:
     """Build the training and evaluation envs once and reset them, and build the model once on the training
     env, so bad env arguments and hyperparameters fail before anything is written."""
-    for kwargs in (config.train_env_kwargs, config.eval_env_kwargs):
+    for env_id, kwargs in ((config.env_id, config.train_env_kwargs), (config.eval_env_id, config.eval_env_kwargs)):
         try:
-            env = AgentObservation(_make_env(config.env_id, kwargs, False), config.wrappers, config.obs_keys)
+            env = AgentObservation(_make_env(env_id, kwargs, False), config.wrappers, config.obs_keys)
         except (TypeError, ValueError, KeyError) as exc:
             raise ValueError(f"bad env arguments {kwargs}: {exc}") from None
         try:
@@ -152,7 +152,7 @@ def _periodic_evaluator(config: TrainConfig):
     def _evaluate(model: Any) -> dict:
         agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys)
         return evaluate(
-            config.env_id,
+            config.eval_env_id,
             config.eval_env_kwargs,
             agent,
             config.eval_seed,
@@ -170,10 +170,15 @@ def final_evaluation(config: TrainConfig, out: Path) -> dict:
     from train.evaluation import final_evaluation as _final
 
     result = _final(
-        config.env_id, config.eval_env_kwargs, out, config.final_eval_seed, config.final_eval_episodes, config.tolerance
+        config.eval_env_id,
+        config.eval_env_kwargs,
+        out,
+        config.final_eval_seed,
+        config.final_eval_episodes,
+        config.tolerance,
     )
     result = {
-        "env_id": config.env_id,
+        "env_id": config.eval_env_id,
         "env_kwargs": config.eval_env_kwargs,
         "first_seed": config.final_eval_seed,
         "episodes": config.final_eval_episodes,
@@ -351,7 +356,7 @@ def _train(config: TrainConfig, model: Any, out: Path, wall_offset: float) -> di
     from train.evaluation import evaluate
 
     reference = evaluate(
-        config.env_id,
+        config.eval_env_id,
         config.eval_env_kwargs,
         ZeroPolicy(),
         config.eval_seed,
@@ -461,7 +466,7 @@ def _final_evaluation_summary(config: TrainConfig, out: Path) -> dict:
 
         cmd = eval_command(
             eval_config(
-                config.env_id,
+                config.eval_env_id,
                 config.eval_env_kwargs,
                 [out / "model.zip"],
                 out / "final_eval",

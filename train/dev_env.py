@@ -1,0 +1,274 @@
+"""`MobMan-DevTrack-v0`: one training env whose episodes are the dev track's kinematic cells, for agents that must
+run every robot, task and condition of the scorecard with one network.
+
+```python
+import gymnasium as gym, train                        # importing train registers the id
+venv = gym.make_vec("MobMan-DevTrack-v0", num_envs=255, autoreset_mode="SameStep")   # training: N robots
+env = gym.make("MobMan-DevTrack-v0")                   # one robot, e.g. for a look or a check_env
+```
+
+**What an episode is.** Each episode draws, from the robot's own generator: a dev condition (uniformly over the
+conditions of the protocol's dev track, `eval.conditions`, that are kinematic and hold the robot), then one of the
+condition's tasks (its own path for the ladder and `fast-rich`, else Circle, Line, Lemniscate or Random), and
+runs it as the dev track's cell does (the condition's env arguments as the episode's reset options: wear,
+sensor noise, drift, actuator lag, heading noise, path). The single env's reset `info` names the draw (`robot`,
+`condition`, `task_name`).
+
+**Which robots.** The fixed arms of the dev track: PUMA 560, UR5, Panda (`ROBOTS`). The single env draws the robot
+per episode too; the vector env gives each robot an equal block of rows (the first third PUMA, then UR5, then
+Panda; `robot_index`), whose rows draw their conditions and tasks per episode: the same distribution,
+stratified. Left out, and so unseen in training: the random and the scaled arm
+families (a random arm's draw and kinematic check cost about 0.2 s per candidate at every reset, as much as
+a few hundred steps of training) and the conditions that change the control rate (`rate50`: the control period
+is one per vector env) or need physics. The scorecard's rows on those cells measure how an agent generalises.
+
+**Interface.** The agent's (`policies.agent_interface`): observations in the heading frame, padded to the
+Panda's 7 arm joints with a mask; 9 action slots, the padded ones ignored. The observation is already the
+agent's, so `train`'s `agent` wrapper passes it through, and an agent trained here runs on every registered id
+through `sb3:` (which applies the same interface to the env's raw observation).
+
+**Seeds.** Robot i of the vector env is seeded S + i at `reset(seed=S)` as every vector env here; training seeds
+are development seeds (`train` keeps them below 1,000). Every draw comes from the row's generator, so a seed
+fixes every episode of a row.
+
+Imports gymnasium, numpy, `mobman_env` and `eval.conditions`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.envs.registration import register, registry
+from gymnasium.vector import AutoresetMode
+
+from eval import conditions as C
+from mobman_env.paths import TASK_SPECS
+from policies import agent_interface as interface
+
+DEV_TRACK_ID = interface.DEV_TRACK_ID
+#: the robots the training env draws (the dev track's fixed arms), by their conditions-table names
+ROBOTS = ("puma", "ur5", "panda")
+#: env arguments a condition may set that the training env cannot draw per episode (one per vector env)
+PER_ENV = ("control_freq",)
+#: what the training env refuses as its own argument: it draws them
+DRAWN = ("robot", "path", "model_error", "obs_noise", "obs_noise_vel", "obs_noise_yaw", "actuator_tau", "wear_rate")
+
+
+@dataclass(frozen=True)
+class Draw:
+    """One cell of the training distribution: a condition's name, a task's name and the reset options."""
+
+    condition: str
+    task: str
+    options: Mapping[str, Any]
+
+
+def robot_draws(robot: str, track: str = "dev") -> list[list[Draw]]:
+    """The draws open to `robot` on `track`, grouped by condition (a list of its tasks' draws per condition): the
+    kinematic conditions that hold the robot and keep the control rate."""
+    groups = []
+    for name in C.on_track(track):
+        cond = C.get(name)
+        kwargs = dict(cond.env_kwargs)
+        if kwargs.pop("dynamics", "kinematic") != "kinematic" or robot not in cond.robots:
+            continue
+        if any(k in kwargs for k in PER_ENV):
+            continue
+        path = kwargs.pop("path", None)
+        tasks = cond.tasks or tuple(TASK_SPECS)
+        groups.append(
+            [
+                Draw(name, task, {**kwargs, "path": dict(path if path is not None else TASK_SPECS[task])})
+                for task in tasks
+            ]
+        )
+    if not groups:
+        raise ValueError(f"no kinematic {track} condition holds the robot {robot!r}; training robots: {ROBOTS}")
+    return groups
+
+
+class EpisodeSampler:
+    """`sampler(rng)` -> one episode's reset options for a robot: a condition uniformly, then one of its tasks
+    uniformly (the `episode_sampler` of `mobman_env.vector.WheeledPumaVectorEnv`). `last` is the latest draw."""
+
+    def __init__(self, robot: str):
+        self.robot = robot
+        self.groups = robot_draws(robot)
+        self.last: Draw | None = None
+
+    def draw(self, rng: np.random.Generator) -> Draw:
+        group = self.groups[int(rng.integers(len(self.groups)))]
+        self.last = group[int(rng.integers(len(group)))]
+        return self.last
+
+    def __call__(self, rng: np.random.Generator) -> dict:
+        return {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in self.draw(rng).options.items()}
+
+
+def _check_kwargs(kwargs: Mapping[str, Any]) -> dict:
+    given = sorted(k for k in kwargs if k in DRAWN)
+    if given:
+        raise ValueError(
+            f"{DEV_TRACK_ID} draws {given} per episode from the dev track; pass the other env arguments only "
+            f"(e.g. error_bound, reward_weights), or train on a fixed id such as WheeledPuma-Circle-v0 with them"
+        )
+    dynamics = kwargs.get("dynamics", "kinematic")
+    if dynamics != "kinematic":
+        raise ValueError(f"{DEV_TRACK_ID} is kinematic, got dynamics={dynamics!r}; leave dynamics unset")
+    return {k: v for k, v in kwargs.items() if k not in ("dynamics", "max_episode_steps", "render_mode")}
+
+
+def _stack(parts: Sequence[Mapping[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    return {k: np.concatenate([p[k] for p in parts], axis=0) for k in interface.AGENT_OBS_KEYS}
+
+
+class DevTrackVectorEnv(gym.vector.VectorEnv):
+    """N robots of the training distribution (module docstring): one native vector env per robot, an equal block
+    of rows each, in the agent's interface. `info` holds `tracking_error` (N,) and, in `AutoresetMode.SAME_STEP`,
+    `final_obs` (the agent's view) for the rows whose episode ended."""
+
+    def __init__(self, num_envs: int = 3, autoreset_mode: Any = AutoresetMode.NEXT_STEP, **kwargs: Any):
+        n = int(num_envs)
+        if n < len(ROBOTS):
+            raise ValueError(f"{DEV_TRACK_ID} needs num_envs >= {len(ROBOTS)} (one block per robot {ROBOTS}), got {n}")
+        kwargs = _check_kwargs(kwargs)
+        sizes = [n // len(ROBOTS) + (1 if k < n % len(ROBOTS) else 0) for k in range(len(ROBOTS))]
+        self.samplers = [EpisodeSampler(r) for r in ROBOTS]
+        self.parts = [
+            gym.make_vec(
+                C.env_id(robot, "circle"),
+                num_envs=size,
+                vectorization_mode="vector_entry_point",
+                dynamics="kinematic",
+                autoreset_mode=autoreset_mode,
+                episode_sampler=sampler,
+                **kwargs,
+            )
+            for robot, size, sampler in zip(ROBOTS, sizes, self.samplers, strict=True)
+        ]
+        self._bounds = np.cumsum([0, *sizes])
+        self._m = [int(p.single_action_space.shape[0]) for p in self.parts]
+        self.num_envs = n
+        self.metadata = {"autoreset_mode": self.parts[0].metadata["autoreset_mode"], "render_modes": []}
+        self.render_mode = None
+        self.single_observation_space = interface.observation_space()
+        self.single_action_space = interface.action_space()
+        self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
+        self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
+        #: the robot of each row (an index into `ROBOTS`)
+        self.robot_index = np.repeat(np.arange(len(ROBOTS)), sizes)
+
+    @property
+    def dt(self) -> float:
+        """The control period, s (one for every robot)."""
+        return float(self.parts[0].dt)
+
+    def _seeds(self, seed: Any) -> list[Any]:
+        if seed is None:
+            return [None] * len(self.parts)
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            return [int(seed) + int(a) for a in self._bounds[:-1]]
+        seeds = list(seed)
+        if len(seeds) != self.num_envs:
+            raise ValueError(f"reset(seed=...) got {len(seeds)} seeds for {self.num_envs} robots")
+        return [seeds[a:b] for a, b in zip(self._bounds[:-1], self._bounds[1:], strict=True)]
+
+    def reset(self, *, seed: Any = None, options: dict | None = None):
+        if options:
+            raise ValueError(f"{DEV_TRACK_ID} draws every episode's options itself; reset(options=...) is refused")
+        out = [p.reset(seed=s) for p, s in zip(self.parts, self._seeds(seed), strict=True)]
+        return _stack([interface.agent_observation(o) for o, _ in out]), self._info([i for _, i in out])
+
+    def step(self, actions: Any):
+        a = np.asarray(actions, dtype=np.float32)
+        if a.shape != (self.num_envs, interface.N_ACTIONS):
+            raise ValueError(f"actions must have shape ({self.num_envs}, {interface.N_ACTIONS}), got {a.shape}")
+        results = []
+        for p, m, lo, hi in zip(self.parts, self._m, self._bounds[:-1], self._bounds[1:], strict=True):
+            results.append(p.step(interface.env_action(a[lo:hi], m)))
+        obs = _stack([interface.agent_observation(r[0]) for r in results])
+        rewards, terminated, truncated = (np.concatenate([r[k] for r in results]) for k in (1, 2, 3))
+        return obs, rewards, terminated, truncated, self._info([r[4] for r in results])
+
+    def _info(self, infos: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+        sizes = np.diff(self._bounds)
+        err = np.concatenate([np.asarray(i.get("tracking_error", np.zeros(s)), float) for i, s in zip(infos, sizes)])
+        out: dict[str, Any] = {"tracking_error": err, "_tracking_error": np.ones(self.num_envs, bool)}
+        if not any("final_obs" in i for i in infos):
+            return out
+        final = np.full(self.num_envs, None, dtype=object)
+        for info, lo in zip(infos, self._bounds[:-1], strict=False):
+            if "final_obs" in info:
+                for j in np.flatnonzero(info["_final_obs"]):
+                    final[lo + j] = interface.agent_observation(info["final_obs"][j])
+        out["final_obs"], out["_final_obs"] = final, np.array([f is not None for f in final])
+        return out
+
+    def close_extras(self, **kwargs: Any) -> None:
+        for p in self.parts:
+            p.close()
+
+
+class DevTrackEnv(gym.Env):
+    """One robot of the training distribution: each reset draws a robot, then its condition and task (module
+    docstring); observation and action in the agent's interface. `info` of a reset has `robot`, `condition`,
+    `task_name` beside the env's own keys."""
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+
+    def __init__(self, **kwargs: Any):
+        self._kwargs = _check_kwargs(kwargs)
+        self.samplers = [EpisodeSampler(r) for r in ROBOTS]
+        self._envs: dict[str, Any] = {}
+        self._env: Any = None
+        self._m = interface.N_ACTIONS
+        self.observation_space = interface.observation_space()
+        self.action_space = interface.action_space()
+
+    def _robot_env(self, robot: str) -> Any:
+        if robot not in self._envs:
+            self._envs[robot] = gym.make(C.env_id(robot, "circle"), dynamics="kinematic", **self._kwargs).unwrapped
+        return self._envs[robot]
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if options:
+            raise ValueError(f"{DEV_TRACK_ID} draws every episode's options itself; reset(options=...) is refused")
+        super().reset(seed=seed)
+        rng = self.np_random
+        k = int(rng.integers(len(ROBOTS)))
+        draw = self.samplers[k].draw(rng)
+        self._env = env = self._robot_env(ROBOTS[k])
+        self._m = int(env.action_space.shape[0])
+        options = {key: (dict(v) if isinstance(v, Mapping) else v) for key, v in draw.options.items()}
+        obs, info = env.reset(seed=int(rng.integers(2**31)), options=options)
+        info = {**info, "robot": ROBOTS[k], "condition": draw.condition, "task_name": draw.task}
+        return interface.agent_observation(obs), info
+
+    def step(self, action: Any):
+        if self._env is None:
+            raise RuntimeError("call reset() before step()")
+        obs, reward, terminated, truncated, info = self._env.step(interface.env_action(action, self._m))
+        return interface.agent_observation(obs), reward, terminated, truncated, info
+
+    def close(self) -> None:
+        for env in self._envs.values():
+            env.close()
+        self._envs.clear()
+
+
+def register_dev_track() -> None:
+    """Register `DEV_TRACK_ID` (silent when it is registered already)."""
+    if DEV_TRACK_ID not in registry:
+        register(
+            id=DEV_TRACK_ID,
+            entry_point="train.dev_env:DevTrackEnv",
+            vector_entry_point="train.dev_env:DevTrackVectorEnv",
+            max_episode_steps=None,
+        )
+
+
+register_dev_track()
