@@ -48,18 +48,31 @@ MAX_ARM_JOINTS = 7
 N_ACTIONS = MAX_ARM_JOINTS + 2
 AGENT_OBS_KEYS = ("pos_error", "vel_error", "target_vel", "arm_pos", "joint_vel", "heading", "mask")
 _SIZES = {"pos_error": 3, "vel_error": 3, "target_vel": 3, "arm_pos": MAX_ARM_JOINTS, "joint_vel": N_ACTIONS}
-_SIZES.update(heading=2, mask=N_ACTIONS)
+_SIZES.update(heading=2, mask=N_ACTIONS, base_action=N_ACTIONS)
 #: the training env whose observation is already this interface's (`train.dev_env`); an agent trained on it runs
 #: on every registered id (no "trained on another id" warning)
 DEV_TRACK_ID = "MobMan-DevTrack-v0"
+#: a residual agent's extra observation key: its base controller's action this step, in the 9 slots
+BASE_ACTION = "base_action"
+#: the env arguments of a residual training run (`train.dev_env`), recorded in the run's config.json, which
+#: `policies.sb3.SB3Policy` reads to rebuild the base: a built-in spec, and the residual's share of the limits
+RESIDUAL_BASE, RESIDUAL_SCALE = "residual_base", "residual_scale"
+DEFAULT_RESIDUAL_SCALE = 0.05
 #: the raw env observation keys the agent's observation is computed from
 ENV_KEYS = ("ee_pos", "ee_vel", "target_pos", "target_vel", "joint_pos", "joint_vel", "base_yaw")
 
 
-def observation_space() -> spaces.Dict:
-    """The agent's observation space (the same for every robot)."""
+def observation_space(residual: bool = False) -> spaces.Dict:
+    """The agent's observation space (the same for every robot); a residual agent's has `BASE_ACTION` too."""
     big = np.float32(1e4)
-    return spaces.Dict({k: spaces.Box(-big, big, (_SIZES[k],), np.float32) for k in AGENT_OBS_KEYS})
+    keys = (*AGENT_OBS_KEYS, BASE_ACTION) if residual else AGENT_OBS_KEYS
+    return spaces.Dict({k: spaces.Box(-big, big, (_SIZES[k],), np.float32) for k in keys})
+
+
+def residual_action(base: Any, residual: Any, scale: float) -> np.ndarray:
+    """A residual agent's command in the 9 slots: its base's action plus `scale` x its own (the env clips the sum
+    to the limits); the one formula of training (`train.dev_env`) and inference (`policies.sb3`)."""
+    return (np.asarray(base, np.float32) + np.float32(scale) * np.asarray(residual, np.float32)).astype(np.float32)
 
 
 def action_space() -> spaces.Box:
@@ -87,7 +100,7 @@ def agent_observation(obs: dict[str, Any]) -> dict[str, np.ndarray]:
     """The agent's observation (`AGENT_OBS_KEYS`) from the env's raw observation dict, batched (N, k) or not; an
     observation that is the agent's already (`DEV_TRACK_ID` hands it out) is returned as it is (float32)."""
     if "mask" in obs and "ee_pos" not in obs:
-        return {k: np.asarray(obs[k], dtype=np.float32) for k in AGENT_OBS_KEYS}
+        return {k: np.asarray(v, dtype=np.float32) for k, v in obs.items()}
     missing = [k for k in ENV_KEYS if k not in obs]
     if missing:
         raise KeyError(f"the agent's observation needs the env keys {missing}; the observation has {sorted(obs)}")
@@ -104,7 +117,7 @@ def agent_observation(obs: dict[str, Any]) -> dict[str, np.ndarray]:
     mask = np.zeros((*lead, N_ACTIONS), np.float32)
     mask[..., :n] = 1.0
     mask[..., MAX_ARM_JOINTS:] = 1.0
-    return {
+    out = {
         "pos_error": _heading_frame(o["target_pos"] - o["ee_pos"], c, s),
         "vel_error": _heading_frame(o["target_vel"] - o["ee_vel"], c, s),
         "target_vel": _heading_frame(o["target_vel"], c, s),
@@ -113,6 +126,9 @@ def agent_observation(obs: dict[str, Any]) -> dict[str, np.ndarray]:
         "heading": np.concatenate([c, s], axis=-1),
         "mask": mask,
     }
+    if BASE_ACTION in obs:  # a residual agent's base action, already in the slots
+        out[BASE_ACTION] = np.asarray(obs[BASE_ACTION], dtype=np.float32)
+    return out
 
 
 def env_action(action: Any, n_actuators: int) -> np.ndarray:

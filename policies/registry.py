@@ -346,6 +346,8 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
 
         policy = SB3Policy(spec[4:])
         policy.check_compatible(EnvFacts.from_env(env), env)
+        if policy.residual_base is not None:  # a residual agent: its base controller, built for this env
+            policy.base = make(policy.residual_base, env, seed)
         return policy
     name, _, rest = spec.partition(":")
     if name in _REGISTRY:

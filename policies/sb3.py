@@ -332,11 +332,38 @@ class SB3Policy:
         self.model = self._load_model(device)
         self.wrappers = _wrapper_names(self.config.get("wrappers"), self._config_file)
         self.obs_keys = self._observation_keys()
+        self._residual_settings()
         self._load_normalisation()
         loaded = [self.path, self.stats_path, *self._config_files(run)]
         self.artefacts = [{"path": str(p), "sha256": file_sha256(p)} for p in loaded if p is not None]
 
     # --- loading ---------------------------------------------------------------------------------------
+    def _residual_settings(self) -> None:
+        """A residual agent (config.json's env_kwargs name `residual_base`: `train.dev_env`): its base spec, a
+        built-in controller (a file names no code), and the residual's scale; its knowledge class is the base's.
+        `policies.make` builds the base for the env (`base`)."""
+        kwargs = self.config.get("env_kwargs") or {}
+        base = kwargs.get(agent_interface.RESIDUAL_BASE) if isinstance(kwargs, dict) else None
+        self.residual_base: str | None = None
+        self.base: Any = None
+        self._base_slots: np.ndarray | None = None
+        if base is None:
+            return
+        from policies.registry import KNOWN_POLICIES
+
+        if not isinstance(base, str) or base.partition(":")[0] not in KNOWN_POLICIES:
+            raise ValueError(
+                f"{self._config_file}: {agent_interface.RESIDUAL_BASE}={base!r} is not a built-in controller "
+                f"(accepted: {', '.join(KNOWN_POLICIES)}); a residual agent's base must be one"
+            )
+        scale = kwargs.get(agent_interface.RESIDUAL_SCALE, agent_interface.DEFAULT_RESIDUAL_SCALE)
+        if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
+            raise ValueError(f"{self._config_file}: {agent_interface.RESIDUAL_SCALE}={scale!r} must be a number > 0")
+        from policies.knowledge import knowledge_of
+
+        self.residual_base, self.residual_scale = base, float(scale)
+        self.knowledge = knowledge_of(base)  # the agent reads what its base reads (e.g. the catalogue: nominal)
+
     def _config_files(self, run: RunFiles) -> list[Path]:
         """The configuration files read: config.json, or rl-zoo's config.yml and args.yml."""
         if run.zoo_dir is not None:
@@ -448,6 +475,7 @@ class SB3Policy:
     def required_keys(self) -> list[str]:
         """The raw observation keys the agent needs (before its wrappers add derived keys)."""
         derived = {key for name in self.wrappers for key in _WRAPPER_KEYS.get(name, (name,))}
+        derived.add(agent_interface.BASE_ACTION)  # a residual agent's base computes it
         needed = [k for k in (self.obs_keys or ()) if k not in derived]
         for name in self.wrappers:
             needed += [k for k in OBS_WRAPPERS[name][1] if k not in needed]
@@ -544,7 +572,9 @@ class SB3Policy:
 
     # --- the Policy contract ---------------------------------------------------------------------------
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
-        """Nothing to re-initialise: the agent is stateless between steps."""
+        """The agent is stateless between steps; a residual agent resets its base."""
+        if self.base is not None:
+            self.base.reset(obs, info, seed=seed)
 
     def _view(self, observation: Any) -> Any:
         """The observation through the agent's wrappers and keys (and flattened for a Box model), unnormalised."""
@@ -553,6 +583,10 @@ class SB3Policy:
             return obs
         for name in self.wrappers:
             obs = OBS_WRAPPERS[name][0](obs)
+        if self.residual_base is not None:  # the base's action of this step (zeros before any: the space check)
+            lead = np.shape(obs["pos_error"])[:-1]
+            slots = self._base_slots
+            obs = {**obs, agent_interface.BASE_ACTION: np.zeros((*lead, 9), np.float32) if slots is None else slots}
         keys = self.obs_keys if self.obs_keys is not None else tuple(obs)
         space = self.model.observation_space
         if self.flattens:
@@ -590,9 +624,23 @@ class SB3Policy:
         return AGENT_WRAPPER in self.wrappers
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        if self.residual_base is not None:
+            return self._predict_residual(observation, episode_start, deterministic), state
         action, state = self.model.predict(
             self.transform(observation), state=state, episode_start=episode_start, deterministic=deterministic
         )
         if self.padded:
             action = agent_interface.env_action(action, np.shape(observation["joint_pos"])[-1])
         return action, state
+
+    def _predict_residual(self, observation: dict, episode_start: Any, deterministic: bool) -> np.ndarray:
+        """The base's action plus the agent's scaled residual (`agent_interface.residual_action`, as in training)."""
+        if self.base is None:
+            raise RuntimeError(
+                f"the residual agent {self.path} has no base controller: build it with policies.make('sb3:...', env)"
+            )
+        base_action, _ = self.base.predict(observation, None, episode_start, True)
+        self._base_slots = agent_interface.agent_action(base_action)
+        residual, _ = self.model.predict(self.transform(observation), deterministic=deterministic)
+        combined = agent_interface.residual_action(self._base_slots, residual, self.residual_scale)
+        return agent_interface.env_action(combined, np.shape(observation["joint_pos"])[-1])

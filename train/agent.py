@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.agent_interface import env_action
+from policies.agent_interface import BASE_ACTION, agent_action, env_action, residual_action
 from policies.sb3 import AGENT_WRAPPER
 from train.wrappers import transform_observation
 
@@ -21,16 +21,41 @@ from train.wrappers import transform_observation
 class Agent:
     """Policy protocol over an SB3 model. `normalizer`: a VecNormalize (its `normalize_obs` is used) or None."""
 
-    def __init__(self, model: Any, normalizer: Any, wrappers: Sequence[str], obs_keys: Sequence[str]):
+    def __init__(
+        self,
+        model: Any,
+        normalizer: Any,
+        wrappers: Sequence[str],
+        obs_keys: Sequence[str],
+        residual: tuple[str, float] | None = None,
+    ):
         self.model = model
         self.normalizer = normalizer
         self.wrappers = tuple(wrappers)
         self.obs_keys = tuple(obs_keys)
+        #: a residual agent's (base spec, scale) (`train.dev_env`); `bind(env)` builds the base for an env
+        self.residual = residual
+        self.base: Any = None
+
+    def bind(self, env: Any) -> None:
+        """Build a residual agent's base controller for `env` (`train.evaluation.evaluate` calls it)."""
+        if self.residual is not None:
+            import policies
+
+            self.base = policies.make(self.residual[0], env)
 
     def reset(self, obs: dict, info: dict | None = None, *, seed: int | None = None) -> None:
-        """Stateless agent (MLP policies): nothing to re-initialise."""
+        """Stateless agent (MLP policies); a residual agent resets its base."""
+        if self.base is not None:
+            self.base.reset(obs, info, seed=seed)
 
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        base_slots = None
+        if self.residual is not None:
+            if self.base is None:
+                raise RuntimeError("a residual agent needs bind(env) before predict (its base controller)")
+            base_slots = agent_action(self.base.predict(observation, None, episode_start, True)[0])
+            observation = {**observation, BASE_ACTION: base_slots}
         obs = transform_observation(observation, self.wrappers, self.obs_keys)
         batched = np.asarray(obs[self.obs_keys[0]]).ndim == 2
         obs = {k: np.asarray(v, dtype=np.float32) for k, v in obs.items()}
@@ -40,6 +65,8 @@ class Agent:
         action = np.asarray(action, dtype=np.float32)
         if batched and action.ndim == 1:
             action = action[None]
+        if base_slots is not None and self.residual is not None:
+            action = residual_action(base_slots, action, self.residual[1])
         if AGENT_WRAPPER in self.wrappers:  # the interface's 9 slots -> the robot's n + 2 actuators
             action = env_action(action, np.shape(observation["joint_pos"])[-1])
         return action, state

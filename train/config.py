@@ -29,6 +29,9 @@ LEARNING_ONLY_KEYS = ("reward_weights", "error_bound")
 #: the dev-track training env (`train.dev_env`) and the fixed id its runs' periodic and final evaluations use
 DEV_TRACK_ID = agent_interface.DEV_TRACK_ID
 DEV_TRACK_EVAL_ID = "WheeledPuma-Circle-v0"
+#: env arguments of a residual agent (`train.dev_env`): recorded in config.json for `sb3:`, never passed to
+#: the evaluation envs
+RESIDUAL_KEYS = (agent_interface.RESIDUAL_BASE, agent_interface.RESIDUAL_SCALE)
 #: Observation the agent sees: every key of the robot-independent, clock-free interface of
 #: `policies.agent_interface` (the "agent" wrapper): position and velocity errors and the desired velocity in
 #: the heading frame, the joint state padded to the Panda's 7 joints with a mask, the heading. No `time`: a
@@ -152,7 +155,7 @@ class TrainConfig:
         _check_env_id(self.env_id)
         if not isinstance(self.env_kwargs, dict):
             raise ValueError(f"env_kwargs must be a dict (JSON object), got {self.env_kwargs!r}")
-        _check_env_kwargs(self.env_kwargs)
+        _check_env_kwargs(self.env_kwargs, self.env_id)
         if not isinstance(self.hyperparams, dict):
             raise ValueError(f"hyperparams must be a dict, got {self.hyperparams!r}")
         algos.resolve(self.algo, self.hyperparams)
@@ -162,6 +165,9 @@ class TrainConfig:
         number("log_every_s", self.log_every_s, low=0, open_low=True, hint="s, e.g. 10")
         object.__setattr__(self, "wrappers", tuple(self.wrappers))
         object.__setattr__(self, "obs_keys", tuple(self.obs_keys))
+        if agent_interface.RESIDUAL_BASE in self.env_kwargs and agent_interface.BASE_ACTION not in self.obs_keys:
+            # a residual agent sees its base's action (recorded in config.json's obs_keys)
+            object.__setattr__(self, "obs_keys", (*self.obs_keys, agent_interface.BASE_ACTION))
         check_wrappers(self.wrappers)
         if not self.obs_keys:
             raise ValueError("obs_keys is empty; the agent must see at least one observation key")
@@ -188,9 +194,19 @@ class TrainConfig:
         return DEV_TRACK_EVAL_ID if self.env_id == DEV_TRACK_ID else self.env_id
 
     @property
+    def residual(self) -> tuple[str, float] | None:
+        """A residual agent's (base spec, scale) from `env_kwargs` (`train.dev_env`), else None."""
+        base = self.env_kwargs.get(agent_interface.RESIDUAL_BASE)
+        if base is None:
+            return None
+        return str(base), float(
+            self.env_kwargs.get(agent_interface.RESIDUAL_SCALE, agent_interface.DEFAULT_RESIDUAL_SCALE)
+        )
+
+    @property
     def eval_env_kwargs(self) -> dict:
         """Constructor arguments of the evaluation envs: the training ones minus the learning-only keys."""
-        kw = {k: v for k, v in self.env_kwargs.items() if k not in LEARNING_ONLY_KEYS}
+        kw = {k: v for k, v in self.env_kwargs.items() if k not in (*LEARNING_ONLY_KEYS, *RESIDUAL_KEYS)}
         return {**kw, "dynamics": self.dynamics}
 
     @property
@@ -238,13 +254,16 @@ def _check_env_id(env_id: str) -> None:
         raise ValueError(f"unknown env id {env_id!r}; known: {', '.join(mobman_env.ENV_IDS)}")
 
 
-def _check_env_kwargs(kwargs: dict) -> None:
+def _check_env_kwargs(kwargs: dict, env_id: str) -> None:
     from mobman_env.env import WheeledPumaEnv
 
     for key, why in _ENV_ARGS_NOT_ALLOWED.items():
         if key in kwargs:
             raise ValueError(f"env_kwargs may not contain {key!r}: {why}")
-    accepted = [p for p in inspect.signature(WheeledPumaEnv.__init__).parameters if p != "self"]
+    residual = [k for k in RESIDUAL_KEYS if k in kwargs]
+    if residual and env_id != DEV_TRACK_ID:
+        raise ValueError(f"env_kwargs {residual} (a residual agent) are taken by --env {DEV_TRACK_ID} only")
+    accepted = [p for p in inspect.signature(WheeledPumaEnv.__init__).parameters if p != "self"] + residual
     unknown = sorted(set(kwargs) - set(accepted))
     if unknown:
         raise ValueError(

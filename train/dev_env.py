@@ -45,6 +45,7 @@ import numpy as np
 from gymnasium.envs.registration import register, registry
 from gymnasium.vector import AutoresetMode
 
+import policies
 from eval import conditions as C
 from mobman_env.paths import TASK_SPECS
 from policies import agent_interface as interface
@@ -109,6 +110,22 @@ class EpisodeSampler:
         return {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in self.draw(rng).options.items()}
 
 
+def residual_settings(kwargs: dict) -> tuple[str | None, float]:
+    """Pop (`residual_base`, `residual_scale`) from the env arguments, checked: the base is a built-in spec
+    (`policies.KNOWN_POLICIES`, with options), the scale > 0 (the residual's share of the speed limits)."""
+    from policies import KNOWN_POLICIES
+
+    base = kwargs.pop(interface.RESIDUAL_BASE, None)
+    scale = float(kwargs.pop(interface.RESIDUAL_SCALE, interface.DEFAULT_RESIDUAL_SCALE))
+    if base is not None and (not isinstance(base, str) or base.partition(":")[0] not in KNOWN_POLICIES):
+        raise ValueError(
+            f"{interface.RESIDUAL_BASE}={base!r} is not a built-in controller; accepted: {', '.join(KNOWN_POLICIES)}"
+        )
+    if not scale > 0:
+        raise ValueError(f"{interface.RESIDUAL_SCALE} must be > 0 (e.g. 0.05), got {scale!r}")
+    return base, scale
+
+
 def _check_kwargs(kwargs: Mapping[str, Any]) -> dict:
     given = sorted(k for k in kwargs if k in DRAWN)
     if given:
@@ -135,6 +152,8 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
         n = int(num_envs)
         if n < len(ROBOTS):
             raise ValueError(f"{DEV_TRACK_ID} needs num_envs >= {len(ROBOTS)} (one block per robot {ROBOTS}), got {n}")
+        kwargs = dict(kwargs)
+        self.residual_base, self.residual_scale = residual_settings(kwargs)
         kwargs = _check_kwargs(kwargs)
         sizes = [n // len(ROBOTS) + (1 if k < n % len(ROBOTS) else 0) for k in range(len(ROBOTS))]
         self.samplers = [EpisodeSampler(r) for r in ROBOTS]
@@ -155,9 +174,11 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
         self.num_envs = n
         self.metadata = {"autoreset_mode": self.parts[0].metadata["autoreset_mode"], "render_modes": []}
         self.render_mode = None
-        self.single_observation_space = interface.observation_space()
+        self.single_observation_space = interface.observation_space(residual=self.residual_base is not None)
         self.single_action_space = interface.action_space()
         self.observation_space = gym.vector.utils.batch_space(self.single_observation_space, n)
+        self.bases = [] if self.residual_base is None else [policies.make(self.residual_base, p) for p in self.parts]
+        self._base_actions: list[np.ndarray] = []  # each part's base action for the coming step (agent slots)
         self.action_space = gym.vector.utils.batch_space(self.single_action_space, n)
         #: the robot of each row (an index into `ROBOTS`)
         self.robot_index = np.repeat(np.arange(len(ROBOTS)), sizes)
@@ -180,31 +201,55 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
     def reset(self, *, seed: Any = None, options: dict | None = None):
         if options:
             raise ValueError(f"{DEV_TRACK_ID} draws every episode's options itself; reset(options=...) is refused")
-        out = [p.reset(seed=s) for p, s in zip(self.parts, self._seeds(seed), strict=True)]
-        return _stack([interface.agent_observation(o) for o, _ in out]), self._info([i for _, i in out])
+        seeds = self._seeds(seed)
+        out = [p.reset(seed=s) for p, s in zip(self.parts, seeds, strict=True)]
+        for base, (o, info), s in zip(self.bases, out, seeds, strict=False):
+            base.reset(o, info, seed=s)
+        starts = [np.ones(p.num_envs, bool) for p in self.parts]
+        return self._observe([o for o, _ in out], starts), self._info([i for _, i in out])
+
+    def _observe(self, raw: Sequence[Mapping[str, np.ndarray]], starts: Sequence[np.ndarray]) -> dict:
+        """The agent's observation of every row; with a residual base, the base's next action joins it."""
+        obs = _stack([interface.agent_observation(o) for o in raw])
+        if self.bases:
+            self._base_actions = [
+                interface.agent_action(base.predict(o, episode_start=s)[0])
+                for base, o, s in zip(self.bases, raw, starts, strict=True)
+            ]
+            obs[interface.BASE_ACTION] = np.concatenate(self._base_actions, axis=0)
+        return obs
 
     def step(self, actions: Any):
         a = np.asarray(actions, dtype=np.float32)
         if a.shape != (self.num_envs, interface.N_ACTIONS):
             raise ValueError(f"actions must have shape ({self.num_envs}, {interface.N_ACTIONS}), got {a.shape}")
         results = []
-        for p, m, lo, hi in zip(self.parts, self._m, self._bounds[:-1], self._bounds[1:], strict=True):
-            results.append(p.step(interface.env_action(a[lo:hi], m)))
-        obs = _stack([interface.agent_observation(r[0]) for r in results])
+        for k, (p, m, lo, hi) in enumerate(zip(self.parts, self._m, self._bounds[:-1], self._bounds[1:], strict=True)):
+            act = a[lo:hi]
+            if self.bases:
+                act = interface.residual_action(self._base_actions[k], act, self.residual_scale)
+            results.append(p.step(interface.env_action(act, m)))
+        starts = [r[2] | r[3] if self.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP else None for r in results]
+        applied = self._base_actions
+        obs = self._observe([r[0] for r in results], starts)
         rewards, terminated, truncated = (np.concatenate([r[k] for r in results]) for k in (1, 2, 3))
-        return obs, rewards, terminated, truncated, self._info([r[4] for r in results])
+        return obs, rewards, terminated, truncated, self._info([r[4] for r in results], applied)
 
-    def _info(self, infos: Sequence[Mapping[str, Any]]) -> dict[str, Any]:
+    def _info(self, infos: Sequence[Mapping[str, Any]], applied: Sequence[np.ndarray] = ()) -> dict[str, Any]:
+        """The merged info; a final observation of a residual agent carries the base action of the step that
+        ended the episode (`applied`: the base is not asked about a state it will not act in)."""
         sizes = np.diff(self._bounds)
         err = np.concatenate([np.asarray(i.get("tracking_error", np.zeros(s)), float) for i, s in zip(infos, sizes)])
         out: dict[str, Any] = {"tracking_error": err, "_tracking_error": np.ones(self.num_envs, bool)}
         if not any("final_obs" in i for i in infos):
             return out
         final = np.full(self.num_envs, None, dtype=object)
-        for info, lo in zip(infos, self._bounds[:-1], strict=False):
+        for k, (info, lo) in enumerate(zip(infos, self._bounds[:-1], strict=False)):
             if "final_obs" in info:
                 for j in np.flatnonzero(info["_final_obs"]):
-                    final[lo + j] = interface.agent_observation(info["final_obs"][j])
+                    final[lo + j] = view = interface.agent_observation(info["final_obs"][j])
+                    if applied:
+                        view[interface.BASE_ACTION] = applied[k][j].copy()
         out["final_obs"], out["_final_obs"] = final, np.array([f is not None for f in final])
         return out
 
@@ -221,18 +266,33 @@ class DevTrackEnv(gym.Env):
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
 
     def __init__(self, **kwargs: Any):
+        kwargs = dict(kwargs)
+        self.residual_base, self.residual_scale = residual_settings(kwargs)
         self._kwargs = _check_kwargs(kwargs)
         self.samplers = [EpisodeSampler(r) for r in ROBOTS]
         self._envs: dict[str, Any] = {}
+        self._bases: dict[str, Any] = {}
         self._env: Any = None
+        self._base: Any = None
+        self._base_slots = np.zeros(interface.N_ACTIONS, np.float32)
         self._m = interface.N_ACTIONS
-        self.observation_space = interface.observation_space()
+        self.observation_space = interface.observation_space(residual=self.residual_base is not None)
         self.action_space = interface.action_space()
 
     def _robot_env(self, robot: str) -> Any:
         if robot not in self._envs:
-            self._envs[robot] = gym.make(C.env_id(robot, "circle"), dynamics="kinematic", **self._kwargs).unwrapped
+            env = gym.make(C.env_id(robot, "circle"), dynamics="kinematic", **self._kwargs).unwrapped
+            self._envs[robot] = env
+            if self.residual_base is not None:
+                self._bases[robot] = policies.make(self.residual_base, env)
         return self._envs[robot]
+
+    def _observe(self, obs: Any, start: bool) -> dict:
+        view = interface.agent_observation(obs)
+        if self._base is not None:
+            self._base_slots = interface.agent_action(self._base.predict(obs, None, np.array([start]), True)[0])
+            view[interface.BASE_ACTION] = self._base_slots
+        return view
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         if options:
@@ -242,17 +302,23 @@ class DevTrackEnv(gym.Env):
         k = int(rng.integers(len(ROBOTS)))
         draw = self.samplers[k].draw(rng)
         self._env = env = self._robot_env(ROBOTS[k])
+        self._base = self._bases.get(ROBOTS[k])
         self._m = int(env.action_space.shape[0])
         options = {key: (dict(v) if isinstance(v, Mapping) else v) for key, v in draw.options.items()}
-        obs, info = env.reset(seed=int(rng.integers(2**31)), options=options)
+        episode_seed = int(rng.integers(2**31))
+        obs, info = env.reset(seed=episode_seed, options=options)
+        if self._base is not None:
+            self._base.reset(obs, info, seed=episode_seed)
         info = {**info, "robot": ROBOTS[k], "condition": draw.condition, "task_name": draw.task}
-        return interface.agent_observation(obs), info
+        return self._observe(obs, True), info
 
     def step(self, action: Any):
         if self._env is None:
             raise RuntimeError("call reset() before step()")
+        if self._base is not None:
+            action = interface.residual_action(self._base_slots, action, self.residual_scale)
         obs, reward, terminated, truncated, info = self._env.step(interface.env_action(action, self._m))
-        return interface.agent_observation(obs), reward, terminated, truncated, info
+        return self._observe(obs, False), reward, terminated, truncated, info
 
     def close(self) -> None:
         for env in self._envs.values():

@@ -48,6 +48,9 @@ def evaluate(
     from eval.rollout import make_env, rollout
 
     env = make_env(env_id, env_kwargs=env_kwargs)
+    bind = getattr(policy, "bind", None)
+    if bind is not None:  # a residual agent builds its base controller for this env
+        bind(env)
     try:
         records = [
             rollout(env, policy, first_seed + k, tolerance=tolerance, meta={"policy": name})[0] for k in range(episodes)

@@ -32,6 +32,7 @@ from typing import Any
 
 import gymnasium as gym
 
+from policies.agent_interface import BASE_ACTION
 from train import algos
 from train.callbacks import (
     CheckpointSaver,
@@ -119,9 +120,14 @@ def make_vec_env(config: TrainConfig, seed_offset: int = 0):
 def probe_envs(config: TrainConfig, build_model: bool = True) -> None:
     """Build the training and evaluation envs once and reset them, and build the model once on the training
     env, so bad env arguments and hyperparameters fail before anything is written."""
-    for env_id, kwargs in ((config.env_id, config.train_env_kwargs), (config.eval_env_id, config.eval_env_kwargs)):
+    # the evaluation env has no base controller: a residual agent's base action is added at inference
+    eval_keys = tuple(k for k in config.obs_keys if k != BASE_ACTION)
+    for env_id, kwargs, keys in (
+        (config.env_id, config.train_env_kwargs, config.obs_keys),
+        (config.eval_env_id, config.eval_env_kwargs, eval_keys),
+    ):
         try:
-            env = AgentObservation(_make_env(env_id, kwargs, False), config.wrappers, config.obs_keys)
+            env = AgentObservation(_make_env(env_id, kwargs, False), config.wrappers, keys)
         except (TypeError, ValueError, KeyError) as exc:
             raise ValueError(f"bad env arguments {kwargs}: {exc}") from None
         try:
@@ -150,7 +156,7 @@ def _periodic_evaluator(config: TrainConfig):
     from train.evaluation import evaluate
 
     def _evaluate(model: Any) -> dict:
-        agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys)
+        agent = Agent(model, model.get_vec_normalize_env(), config.wrappers, config.obs_keys, config.residual)
         return evaluate(
             config.eval_env_id,
             config.eval_env_kwargs,

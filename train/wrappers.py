@@ -46,7 +46,11 @@ def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
 #: definition that `SB3Policy` also applies at test time.
 OBS_WRAPPERS: dict[str, tuple[Callable[[dict], dict], Callable[[spaces.Dict], spaces.Dict]]] = {
     "pos_error": (AGENT_OBS_TRANSFORMS["pos_error"][0], _pos_error_space),
-    AGENT_WRAPPER: (AGENT_OBS_TRANSFORMS[AGENT_WRAPPER][0], lambda space: agent_interface.observation_space()),
+    # (the dev-track env's space is the agent's already, with a residual agent's base action)
+    AGENT_WRAPPER: (
+        AGENT_OBS_TRANSFORMS[AGENT_WRAPPER][0],
+        lambda space: space if "mask" in space.spaces else agent_interface.observation_space(),
+    ),
 }
 
 
