@@ -191,6 +191,32 @@ class BatchedPolicy:
         return starts if starts.any() else None
 
 
+class BatchedAgent(BatchedPolicy):
+    """One `sb3:` agent for the N robots of the native vector env: one `predict` for N rows. Built only for an
+    agent whose deterministic action is computed row by row (`policies.sb3_actor`: the same bits for any N), so
+    its episodes equal the single path's; a residual agent's base is the base's vectorised law. `rows` are the
+    agent itself N times (its knowledge class and artefacts, for the records)."""
+
+    def __init__(self, spec: str, agent: Any, n: int):
+        super().__init__(spec, [agent] * n)
+        self.agent = agent
+
+    @property
+    def knowledge(self) -> str:
+        """The agent's knowledge class (a residual agent's is its base's)."""
+        return str(self.agent.knowledge)
+
+    def reset(self, obs: dict, info: dict | None = None, *, seed: int | Sequence[int | None] | None = None) -> None:
+        self._check(obs, "reset")
+        self.agent.reset(obs, info, seed=seed)
+
+    def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
+        self._check(observation)
+        starts = self._starts(episode_start)
+        action, _ = self.agent.predict(observation, None, starts, deterministic)
+        return np.asarray(action, dtype=np.float32).reshape(self.num_envs, -1), state
+
+
 class BatchedController(BatchedPolicy):
     """Base of the vectorised laws: N rows whose state is (N, ...) arrays, advanced by one call per step.
 

@@ -39,7 +39,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from policies.base import EnvFacts, unwrap_env
-from policies.batched import BatchedPolicy, _RobotView, check_vector_env, is_native_vector_env, is_vector_env
+from policies.batched import (
+    BatchedAgent,
+    BatchedPolicy,
+    _RobotView,
+    check_vector_env,
+    is_native_vector_env,
+    is_vector_env,
+)
 from policies.user_specs import make_user
 from policies.views import KnowledgeView
 
@@ -340,6 +347,12 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         native = is_native_vector_env(env)
         if native and name in _REGISTRY and hasattr(_load_entry(name, _REGISTRY[name])[0], "batched"):
             return _make_builtin_batched(spec, env, seed)
+        if native and name == "sb3":
+            agent = make(spec, _RobotView(env, 0), seed)  # checked against robot 0 (the robots share spaces)
+            if getattr(agent, "_actor", None) is not None:  # row-by-row actions: batch it (policies.sb3_actor)
+                if agent.residual_base is not None:
+                    agent.base = make(agent.residual_base, env, seed)  # the base's vectorised law
+                return BatchedAgent(spec, agent, env.num_envs)
         return BatchedPolicy.for_vector_env(spec, env, lambda s, robot: make(s, robot, seed))
     if spec.startswith("sb3:"):
         from policies.sb3 import SB3Policy

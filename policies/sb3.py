@@ -330,6 +330,9 @@ class SB3Policy:
 
             torch.set_num_threads(int(torch_threads))
         self.model = self._load_model(device)
+        from policies.sb3_actor import numpy_actor
+
+        self._actor = numpy_actor(self.model)  # deterministic actions, the same bits for any batch size
         self.wrappers = _wrapper_names(self.config.get("wrappers"), self._config_file)
         self.obs_keys = self._observation_keys()
         self._residual_settings()
@@ -626,12 +629,17 @@ class SB3Policy:
     def predict(self, observation: dict, state: Any = None, episode_start: Any = None, deterministic: bool = True):
         if self.residual_base is not None:
             return self._predict_residual(observation, episode_start, deterministic), state
-        action, state = self.model.predict(
-            self.transform(observation), state=state, episode_start=episode_start, deterministic=deterministic
-        )
+        action, state = self._act(self.transform(observation), state, episode_start, deterministic)
         if self.padded:
             action = agent_interface.env_action(action, np.shape(observation["joint_pos"])[-1])
         return action, state
+
+    def _act(self, obs: Any, state: Any, episode_start: Any, deterministic: bool) -> tuple[Any, Any]:
+        """The model's action for the transformed observation: `policies.sb3_actor` where it serves (deterministic
+        actor-critic MLPs: row i's bits do not depend on the batch), else SB3's `predict`."""
+        if deterministic and self._actor is not None:
+            return self._actor(obs), state
+        return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)
 
     def _predict_residual(self, observation: dict, episode_start: Any, deterministic: bool) -> np.ndarray:
         """The base's action plus the agent's scaled residual (`agent_interface.residual_action`, as in training)."""
@@ -641,6 +649,6 @@ class SB3Policy:
             )
         base_action, _ = self.base.predict(observation, None, episode_start, True)
         self._base_slots = agent_interface.agent_action(base_action)
-        residual, _ = self.model.predict(self.transform(observation), deterministic=deterministic)
+        residual, _ = self._act(self.transform(observation), None, None, deterministic)
         combined = agent_interface.residual_action(self._base_slots, residual, self.residual_scale)
         return agent_interface.env_action(combined, np.shape(observation["joint_pos"])[-1])

@@ -13,8 +13,10 @@ one rollout loop of `eval.rollout`).
 * a built-in policy spec: a name of `policies.KNOWN_POLICIES`, with or without options (`nnbc:gamma=20`).
   The user's policy objects (`eval.run(..., policies={...})`) and `module:attr` specs stay single: a batched
   policy would build one object per robot from a view of the vector env (a factory may expect the real env,
-  or hand back one shared object) and would not pass a recurrent `state` back. `sb3:` agents stay single too:
-  their batched policy loops the agent per robot, so there is nothing to gain.
+  or hand back one shared object) and would not pass a recurrent `state` back. `sb3:` agents batch: one
+  predict for the N rows where the agent's deterministic action is computed row by row
+  (`policies.batched.BatchedAgent`, `policies.sb3_actor`: PPO and A2C MLPs), else a loop of the agent per
+  robot (SAC, TD3: the single path's bits, at its cost).
 * an env whose vector env is native: ids whose `gym.make_vec(..., vectorization_mode="vector_entry_point")` is
   not a `WheeledPumaVectorEnv` (`robot="random"`, which falls back to a `SyncVectorEnv`, or another package's
   env) or cannot be built run single; that is found out once per condition, when its first batch is built.
@@ -77,7 +79,8 @@ def batch_key(config: EvalConfig, user: dict, task: Task) -> tuple | None:
         return None
     from policies import KNOWN_POLICIES
 
-    if task.policy.partition(":")[0] not in KNOWN_POLICIES:  # sb3:PATH, module:attr
+    name = task.policy.partition(":")[0]
+    if name not in KNOWN_POLICIES and name != "sb3":  # module:attr
         return None
     return task.env_key()
 
