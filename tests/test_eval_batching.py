@@ -108,7 +108,7 @@ def test_a_batch_of_several_controllers_equals_single_episodes(small_batches):
     assert us["nnbc-plus"] != us["clik"]  # each part timed on its own
 
 
-def test_plan_units_batches_kinematic_builtin_specs_only(monkeypatch):
+def test_plan_units_batches_kinematic_builtin_and_agent_specs_only(monkeypatch):
     tasks = []
     for dyn in ("kinematic", "physics"):
         for pol in ("nnbc", "sb3:sac-circle", "mine", "test_eval_helpers:SlowMarked"):
@@ -116,12 +116,17 @@ def test_plan_units_batches_kinematic_builtin_specs_only(monkeypatch):
                 tasks.append(Task(len(tasks), CIRCLE, dyn, pol, k, 10_000 + k, None, None))
     user = {"mine": object()}
     units = plan_units(EvalConfig(batch_size=5), user, tasks)
-    # kinematic nnbc: the fewest batches of at most batch_size, balanced, in order; the rest single
-    assert [[t.index for t in u] for u in units[:2]] == [[0, 1, 2, 3], [4, 5, 6, 7, 8]]
-    assert all(len(u) == 1 for u in units[2:]) and len(units) == 2 + 63
+    # kinematic nnbc and sb3: the fewest batches of at most batch_size, balanced, in order; the rest single
+    assert [[t.index for t in u] for u in units[:4]] == [
+        [0, 1, 2, 3],
+        [4, 5, 6, 7, 8],
+        [9, 10, 11, 12],
+        [13, 14, 15, 16, 17],
+    ]
+    assert all(len(u) == 1 for u in units[4:]) and len(units) == 4 + 54
     assert sorted(t.index for u in units for t in u) == list(range(72))
-    # two workers: the 9 batchable episodes are cut so that both get a batch
-    assert [len(u) for u in plan_units(EvalConfig(batch_size=64, workers=2), user, tasks)[:2]] == [4, 5]
+    # two workers: the 18 batchable episodes are cut so that both get a batch of each group
+    assert [len(u) for u in plan_units(EvalConfig(batch_size=64, workers=2), user, tasks)[:2]] == [9, 9]
     assert all(len(u) == 1 for u in plan_units(EvalConfig(batch_size=1), user, tasks))
     # below the speed floor (4 episodes) a group runs as single episodes
     assert [len(u) for u in plan_units(EvalConfig(batch_size=64), user, tasks[:3])] == [1, 1, 1]
@@ -270,3 +275,18 @@ def test_a_bad_batch_size_is_refused_before_any_rollout(tmp_path, capsys, comman
     err = capsys.readouterr().err
     assert "batch_size" in err and "0" in err and "--batch-size 64" in err, err
     assert not (tmp_path / "x").exists()
+
+
+def test_sb3_agent_batches_with_the_single_paths_records():
+    """A PPO agent (`sb3:ppo-circle`, acting through `policies.sb3_actor`) runs as one batch of rows with the
+    same records as one episode at a time, its knowledge class and artefacts included."""
+    tasks = [Task(k, CIRCLE, "kinematic", "sb3:ppo-circle", k, 10_000 + k, None, None) for k in range(5)]
+    out = {}
+    for name, batch_size in (("single", 1), ("batched", 64)):
+        config = EvalConfig(save_arrays="none", plots=False, batch_size=batch_size)
+        records, _ = execute(config, {}, tasks)
+        out[name] = [records[i] for i in range(len(tasks))]
+    assert _fields({"episodes": out["batched"]}) == _fields({"episodes": out["single"]})
+    assert len({r["wall_s"] for r in out["batched"]}) == 1  # one batch
+    assert {r["knowledge"] for r in out["batched"]} == {"none"}
+    assert out["batched"][0]["artefacts"] == out["single"][0]["artefacts"]

@@ -1,0 +1,210 @@
+"""MobMan-DevTrack-v0 (`train.dev_env`): the dev track's kinematic cells as one training env in the agent's
+interface; the native vector env's `episode_sampler`; residual agents (training env, `sb3:` loading, batching);
+the numpy actor of `policies.sb3_actor`."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import mobman_env  # noqa: F401  (registers the robot ids)
+import train  # noqa: F401  (registers MobMan-DevTrack-v0)
+from eval import conditions as C
+from mobman_env.paths import TASK_SPECS
+from policies import agent_interface as interface
+from train import dev_env as D
+
+
+def _vec(n=6, **kwargs):
+    return gym.make_vec(D.DEV_TRACK_ID, num_envs=n, autoreset_mode="SameStep", **kwargs)
+
+
+def test_the_draws_are_the_dev_tracks_kinematic_cells_of_each_robot():
+    for robot in D.ROBOTS:
+        names = {group[0].condition for group in D.robot_draws(robot)}
+        expected = {
+            n
+            for n in C.on_track("dev")
+            if C.get(n).env_kwargs.get("dynamics") == "kinematic"
+            and robot in C.get(n).robots
+            and "control_freq" not in C.get(n).env_kwargs
+        }
+        assert names == expected and "default" in names and "lag100" in names and "rate50" not in names
+    ladder = next(g for g in D.robot_draws("puma") if g[0].condition == "ladder-2.5s")
+    assert [d.task for d in ladder] == ["random"] and ladder[0].options["path"]["duration"] == 2.5
+    default = next(g for g in D.robot_draws("ur5") if g[0].condition == "default")
+    assert [d.task for d in default] == list(TASK_SPECS) and default[0].options["model_error"] == 0.05
+
+
+def test_vector_env_speaks_the_agent_interface_and_draws_per_episode():
+    venv = _vec(6)
+    assert isinstance(venv, D.DevTrackVectorEnv)
+    assert venv.single_observation_space == interface.observation_space()
+    assert venv.single_action_space.shape == (interface.N_ACTIONS,)
+    assert venv.robot_index.tolist() == [0, 0, 1, 1, 2, 2]  # PUMA, UR5, Panda blocks
+    obs, info = venv.reset(seed=3)
+    assert set(obs) == set(interface.AGENT_OBS_KEYS) and obs["mask"].shape == (6, 9)
+    assert obs["mask"][:, 6].tolist() == [0, 0, 0, 0, 1, 1]  # only the Panda has a 7th joint
+    # every episode is drawn: over a few resets the robots' last draws cover several conditions and tasks
+    draws = set()
+    for seed in range(6):
+        venv.reset(seed=seed)
+        draws |= {(venv.samplers[k].last.condition, venv.samplers[k].last.task) for k in range(3)}
+    assert len({c for c, _ in draws}) >= 4 and len({t for _, t in draws}) >= 2
+    obs2, *_ = _vec(6).reset(seed=3)  # same seed, same episodes
+    for k in obs:
+        np.testing.assert_array_equal(obs[k], obs2[k])
+    _, rewards, term, trunc, info = venv.step(np.zeros((6, 9), np.float32))
+    assert rewards.shape == (6,) and info["tracking_error"].shape == (6,)
+    with pytest.raises(ValueError, match=r"shape \(6, 9\)"):
+        venv.step(np.zeros((6, 8), np.float32))
+    venv.close()
+
+
+def test_a_finished_episode_gives_its_final_observation_in_the_agents_view():
+    # a 0.05 m error bound ends every robot's episode within a few steps of zero speed on a moving path
+    venv = _vec(3, error_bound=0.01)
+    venv.reset(seed=0)
+    for _ in range(400):
+        *_, term, trunc, info = venv.step(np.zeros((3, 9), np.float32))
+        if (term | trunc).any():
+            break
+    done = np.flatnonzero(term | trunc)
+    assert done.size and info["_final_obs"][done].all()
+    assert set(info["final_obs"][done[0]]) == set(interface.AGENT_OBS_KEYS)
+
+
+def test_refusals_name_the_value_and_the_fix():
+    with pytest.raises(ValueError, match=r"draws \['model_error'\] per episode"):
+        _vec(3, model_error=0.1)
+    with pytest.raises(ValueError, match=r"num_envs >= 3"):
+        _vec(2)
+    with pytest.raises(ValueError, match="kinematic"):
+        gym.make(D.DEV_TRACK_ID, dynamics="physics")
+    with pytest.raises(ValueError, match="reset\\(options=...\\) is refused"):
+        _vec(3).reset(options={"path": {"type": "circle"}})
+    with pytest.raises(ValueError, match="not a built-in controller"):
+        _vec(3, residual_base="os:system")
+    with pytest.raises(ValueError, match="residual_scale must be > 0"):
+        _vec(3, residual_base="qp", residual_scale=0.0)
+
+
+def test_single_env_draws_a_robot_condition_and_task_and_passes_check_env():
+    from gymnasium.utils.env_checker import check_env
+
+    env = gym.make(D.DEV_TRACK_ID)
+    seen = set()
+    for seed in range(12):
+        obs, info = env.reset(seed=seed)
+        seen.add(info["robot"])
+        assert info["condition"] in C.on_track("dev") and info["task_name"] in TASK_SPECS
+        assert set(obs) == set(interface.AGENT_OBS_KEYS)
+    assert seen == set(D.ROBOTS)
+    check_env(env.unwrapped, skip_render_check=True)
+
+
+def test_episode_sampler_gives_each_row_the_drawn_options():
+    """A sampler that draws nothing gives every row exactly the episode that reset(options=...) gives."""
+    options = {"path": dict(TASK_SPECS["line"]), "model_error": 0.2, "actuator_tau": 0.05}
+    kw = {"num_envs": 4, "vectorization_mode": "vector_entry_point", "dynamics": "kinematic"}
+    sampled = gym.make_vec("WheeledUR5-Circle-v0", episode_sampler=lambda rng: dict(options), **kw)
+    plain = gym.make_vec("WheeledUR5-Circle-v0", **kw)
+    a, _ = sampled.reset(seed=5)
+    b, _ = plain.reset(seed=5, options=options)
+    for _ in range(30):
+        act = np.full((4, 8), 0.1, np.float32)
+        a, *_ = sampled.step(act)
+        b, *_ = plain.step(act)
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k])
+    with pytest.raises(ValueError, match="episode_sampler must be a callable"):
+        gym.make_vec("WheeledUR5-Circle-v0", episode_sampler=3, **kw)
+
+
+def test_a_residual_env_shows_the_base_action_and_a_zero_residual_tracks_as_the_base():
+    venv = _vec(6, residual_base="qp")
+    assert interface.BASE_ACTION in venv.single_observation_space.spaces
+    obs, _ = venv.reset(seed=11)
+    errors = []
+    for _ in range(300):
+        obs, _, term, trunc, info = venv.step(np.zeros((6, 9), np.float32))
+        errors.append(info["tracking_error"])
+    assert np.abs(obs[interface.BASE_ACTION]).max() > 0
+    # qp tracks every drawn cell of these rows within a few mm; the still robot of the plain env does not
+    assert np.median(np.max(errors, axis=0)) < 0.006
+    still = _vec(6)
+    still.reset(seed=11)
+    for _ in range(300):
+        *_, info = still.step(np.zeros((6, 9), np.float32))
+    assert np.median(info["tracking_error"]) > 0.05
+
+
+@pytest.fixture(scope="module")
+def residual_run(tmp_path_factory):
+    """A residual agent over qp trained for one tiny rollout (6 robots x 8 steps): an untrained residual."""
+    from train.run import run
+
+    out = tmp_path_factory.mktemp("residual") / "run"
+    config = train.TrainConfig(
+        env_id=D.DEV_TRACK_ID,
+        env_kwargs={"residual_base": "qp", "error_bound": 0.1},
+        timesteps=48,
+        n_envs=6,
+        hyperparams={"n_steps": 8, "batch_size": 48, "n_epochs": 1},
+        eval_freq=0,
+        final_eval_episodes=1,
+        out=str(out),
+        progress_bar=False,
+    )
+    assert config.obs_keys[-1] == interface.BASE_ACTION and config.eval_env_id == "WheeledPuma-Circle-v0"
+    assert "residual_base" not in config.eval_env_kwargs
+    run(config)
+    return out
+
+
+def test_a_residual_agent_loads_with_its_base_and_batches_as_it_runs_single(residual_run):
+    import policies
+    from eval.rollout import make_env, rollout, rollout_batch
+
+    env_id = "WheeledPanda-Lemniscate-v0"
+    venv = gym.make_vec(env_id, num_envs=4, vectorization_mode="vector_entry_point", dynamics="kinematic")
+    batched = policies.make(f"sb3:{residual_run}", venv)
+    assert type(batched).__name__ == "BatchedAgent" and policies.knowledge_of(batched) == "nominal"
+    recs = rollout_batch(venv, batched, 10_000)
+    env = make_env(env_id, env_kwargs={"dynamics": "kinematic"})
+    for i in range(2):
+        single = rollout(env, policies.make(f"sb3:{residual_run}", env), 10_000 + i)[0]
+        assert recs[i][0]["max_error_m"] == single["max_error_m"]
+        assert single["knowledge"] == "nominal" and single["max_error_m"] < 0.006  # the base tracks
+    env.close()
+
+
+def test_a_residual_base_from_a_file_must_be_a_built_in(residual_run, tmp_path):
+    import json
+    import shutil
+
+    import policies
+
+    crafted = shutil.copytree(residual_run, tmp_path / "crafted")
+    cfg = json.loads((crafted / "config.json").read_text())
+    cfg["env_kwargs"]["residual_base"] = "os:system"
+    (crafted / "config.json").write_text(json.dumps(cfg))
+    with pytest.raises(ValueError, match="not a built-in controller"):
+        policies.SB3Policy(crafted)
+
+
+def test_numpy_actor_equals_torch_and_does_not_depend_on_the_batch():
+    from policies.sb3 import SB3Policy
+    from policies.sb3_actor import numpy_actor
+
+    agent = SB3Policy("ppo-circle")
+    assert agent._actor is not None and numpy_actor(SB3Policy("sac-circle").model) is None
+    rng = np.random.default_rng(0)
+    space = agent.model.observation_space
+    obs = {k: rng.standard_normal((64, *sp.shape)).astype(np.float32) for k, sp in space.spaces.items()}
+    mine = agent._actor(obs)
+    torch_action, _ = agent.model.predict(obs, deterministic=True)
+    np.testing.assert_allclose(mine, torch_action, rtol=0, atol=1e-6)
+    rows = np.stack([agent._actor({k: v[i] for k, v in obs.items()}) for i in range(64)])
+    np.testing.assert_array_equal(mine, rows)  # bit for bit, row by row
