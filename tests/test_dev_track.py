@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import mobman_env  # noqa: F401  (registers the robot ids)
-import train  # noqa: F401  (registers MobMan-DevTrack-v0)
+import train  # (registers MobMan-DevTrack-v0)
 from eval import conditions as C
 from mobman_env.paths import TASK_SPECS
 from policies import agent_interface as interface
