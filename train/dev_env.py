@@ -38,7 +38,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -157,7 +157,7 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
         kwargs = _check_kwargs(kwargs)
         sizes = [n // len(ROBOTS) + (1 if k < n % len(ROBOTS) else 0) for k in range(len(ROBOTS))]
         self.samplers = [EpisodeSampler(r) for r in ROBOTS]
-        self.parts = [
+        self.parts: list[Any] = [
             gym.make_vec(
                 C.env_id(robot, "circle"),
                 num_envs=size,
@@ -208,7 +208,7 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
         starts = [np.ones(p.num_envs, bool) for p in self.parts]
         return self._observe([o for o, _ in out], starts), self._info([i for _, i in out])
 
-    def _observe(self, raw: Sequence[Mapping[str, np.ndarray]], starts: Sequence[np.ndarray]) -> dict:
+    def _observe(self, raw: Sequence[dict[str, np.ndarray]], starts: Sequence[np.ndarray | None]) -> dict:
         """The agent's observation of every row; with a residual base, the base's next action joins it."""
         obs = _stack([interface.agent_observation(o) for o in raw])
         if self.bases:
@@ -263,7 +263,7 @@ class DevTrackEnv(gym.Env):
     docstring); observation and action in the agent's interface. `info` of a reset has `robot`, `condition`,
     `task_name` beside the env's own keys."""
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    metadata = {"render_modes": []}  # noqa: RUF012  (gymnasium's attribute)
 
     def __init__(self, **kwargs: Any):
         kwargs = dict(kwargs)
