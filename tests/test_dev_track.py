@@ -208,3 +208,17 @@ def test_numpy_actor_equals_torch_and_does_not_depend_on_the_batch():
     np.testing.assert_allclose(mine, torch_action, rtol=0, atol=1e-6)
     rows = np.stack([agent._actor({k: v[i] for k, v in obs.items()}) for i in range(64)])
     np.testing.assert_array_equal(mine, rows)  # bit for bit, row by row
+
+
+def test_train_speed_races_the_recipe_and_reacher_and_writes_its_table(tmp_path):
+    from train.cli import main
+
+    assert main(["speed", "--steps", "1", "--repeats", "1", "--out", str(tmp_path)]) == 0
+    import json
+
+    res = json.loads((tmp_path / "train-speed.json").read_text())
+    assert set(res["results"]) == {"mobman", "dev-track", "Reacher-v5"}
+    assert res["results"]["Reacher-v5"]["ratio_to_reacher"] == 1.0
+    assert all(r["steps"] == 16_384 for r in res["results"].values())  # one rollout of 256 envs x 64 steps
+    assert "| Reacher-v5 |" in (tmp_path / "train-speed.md").read_text()
+    assert main(["speed", "--steps", "0", "--out", str(tmp_path)]) == 2

@@ -16,6 +16,7 @@ import json
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from eval.cli.options import Opt, add_options, build, field_default, flags, given, json_object
 from mobman_env import __version__
@@ -95,8 +96,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     add_options(p, TrainConfig, OPTIONS)
     add_options(p, Resume, RESUME)
-    sub = p.add_subparsers(title="commands", dest="command", metavar="{report}")
+    sub = p.add_subparsers(title="commands", dest="command", metavar="{report,speed}")
     report_cli.add_parser(sub)
+    speed = sub.add_parser(
+        "speed",
+        help="time the default PPO recipe's training (learner included) beside the same settings on Reacher-v5",
+        description="Time model.learn of mobman-train's default PPO recipe on the native vector env and on "
+        "MobMan-DevTrack-v0, interleaved with the same SB3 settings on Gymnasium's MuJoCo Reacher-v5 (the [bench] "
+        "extra); writes train-speed.json and train-speed.md (see train.speed).",
+    )
+    speed.add_argument("--steps", type=int, default=81_920, metavar="N", help="env steps per timed learn (81920)")
+    speed.add_argument("--repeats", type=int, default=3, metavar="N", help="timed repeats per env (3)")
+    speed.add_argument("--out", default="runs/train-speed", metavar="DIR", help="output folder (runs/train-speed)")
     return p
 
 
@@ -173,10 +184,29 @@ def require_rl() -> None:
         ) from None
 
 
+def _speed(args: Any) -> int:
+    from train import speed
+
+    if args.steps < 1 or args.repeats < 1:
+        print(f"mobman-train speed: error: --steps and --repeats must be >= 1, got {args.steps}, {args.repeats}")
+        return 2
+    try:
+        require_rl()
+    except ValueError as exc:
+        print(f"mobman-train: error: {exc}", file=sys.stderr)
+        return 2
+    res = speed.measure(speed.SpeedConfig(steps=args.steps, repeats=args.repeats, out=args.out))
+    folder = speed.write(res, args.out)
+    print(speed.markdown(res) + f"written to {folder}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
     args = parser.parse_args(argv)
+    if getattr(args, "command", None) == "speed":
+        return _speed(args)
     if getattr(args, "command", None) == "report":
         if argv[:1] != ["report"]:
             parser.error("report takes no training options: mobman-train report RUN_DIR... [report options]")
