@@ -222,3 +222,32 @@ def test_train_speed_races_the_recipe_and_reacher_and_writes_its_table(tmp_path)
     assert all(r["steps"] == 16_384 for r in res["results"].values())  # one rollout of 256 envs x 64 steps
     assert "| Reacher-v5 |" in (tmp_path / "train-speed.md").read_text()
     assert main(["speed", "--steps", "0", "--out", str(tmp_path)]) == 2
+
+
+def test_families_score_seeds_over_the_same_episodes_and_pick_the_median_seed():
+    from train.families import families, markdown, parse_family
+
+    def rec(spec, cond, seed, err):
+        return {
+            "policy": spec,
+            "condition": cond,
+            "env": "E",
+            "seed": seed,
+            "status": "ok",
+            "max_error_m": err,
+            "success": err <= 0.006,
+        }
+
+    errs = {"a": [0.001, 0.002, 0.0055], "b": [0.003, 0.004, 0.005], "c": [0.020, 0.030, 0.040]}
+    records = [rec(s, c, 10_000, e) for s, es in errs.items() for c, e in zip(("x", "y", "z"), es)]
+    fams = families(records, {"fam": ["a", "b", "c"]})["fam"]
+    assert fams["n_seeds"] == 3 and fams["n_episodes"] == 9
+    assert fams["per_seed_success_rate"] == pytest.approx([1.0, 1.0, 0.0])
+    assert fams["median_seed_member"] == "b"  # per-seed IQMs (of 3 values: their means) 0.0028 / 0.004 / 0.030
+    lo, hi = fams["success_rate_ci95"]
+    assert lo < fams["success_rate"] < hi
+    assert "| fam | 3 x 3 | 0 | 67%" in markdown({"fam": fams})
+    with pytest.raises(ValueError, match="ran no episode"):
+        families(records, {"fam": ["a", "missing"]})
+    with pytest.raises(ValueError, match="NAME=SPEC"):
+        parse_family("fam")

@@ -96,7 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     add_options(p, TrainConfig, OPTIONS)
     add_options(p, Resume, RESUME)
-    sub = p.add_subparsers(title="commands", dest="command", metavar="{report,speed}")
+    sub = p.add_subparsers(title="commands", dest="command", metavar="{report,speed,families}")
     report_cli.add_parser(sub)
     speed = sub.add_parser(
         "speed",
@@ -108,6 +108,18 @@ def build_parser() -> argparse.ArgumentParser:
     speed.add_argument("--steps", type=int, default=81_920, metavar="N", help="env steps per timed learn (81920)")
     speed.add_argument("--repeats", type=int, default=3, metavar="N", help="timed repeats per env (3)")
     speed.add_argument("--out", default="runs/train-speed", metavar="DIR", help="output folder (runs/train-speed)")
+    fam = sub.add_parser(
+        "families",
+        help="score agents trained with several seeds as families over one bench folder's episodes",
+        description="Read a mobman-eval bench folder's results.json in which every seed of each family ran the "
+        "same cells and seeds; write families.json and families.md (IQM and success with intervals over training "
+        "seeds, the median-seed member to ship; see train.families).",
+    )
+    fam.add_argument("bench_dir", metavar="BENCH_DIR", help="a mobman-eval bench output folder")
+    fam.add_argument(
+        "--family", action="append", required=True, metavar="NAME=SPEC,...", help="a family and its seeds' specs"
+    )
+    fam.add_argument("--out", required=True, metavar="DIR", help="output folder")
     return p
 
 
@@ -207,6 +219,14 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "command", None) == "speed":
         return _speed(args)
+    if getattr(args, "command", None) == "families":
+        from train import families
+
+        try:
+            return families.main(args.bench_dir, args.family, args.out)
+        except (ValueError, OSError) as exc:
+            print(f"mobman-train families: error: {exc}", file=sys.stderr)
+            return 2
     if getattr(args, "command", None) == "report":
         if argv[:1] != ["report"]:
             parser.error("report takes no training options: mobman-train report RUN_DIR... [report options]")
