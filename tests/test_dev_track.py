@@ -251,3 +251,26 @@ def test_families_score_seeds_over_the_same_episodes_and_pick_the_median_seed():
         families(records, {"fam": ["a", "missing"]})
     with pytest.raises(ValueError, match="NAME=SPEC"):
         parse_family("fam")
+
+
+def test_every_shipped_model_card_equals_its_sources(monkeypatch):
+    """The cards `mobman-train ship` wrote (folders with a card.json) regenerate equal from the committed files."""
+    from pathlib import Path
+
+    from train.model_card import write_card
+
+    root = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(root)  # card.json names its sources relative to the repository root
+    folders = sorted(p for p in (root / "policies" / "models").iterdir() if (p / "card.json").is_file())
+    assert {f.name for f in folders} >= {"ppo-dev", "residual-qp"}
+    for folder in folders:
+        assert write_card(folder, write=False) == (folder / "README.md").read_text(encoding="utf-8"), folder.name
+
+
+def test_ship_refuses_an_unfinished_run(tmp_path):
+    from train.model_card import ship
+
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "model.zip").write_bytes(b"")
+    with pytest.raises(ValueError, match=r"not a finished mobman-train run folder: \['vecnormalize.pkl'"):
+        ship(tmp_path / "run", "x", tmp_path / "models", None, [], "abc")

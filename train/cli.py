@@ -96,7 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     add_options(p, TrainConfig, OPTIONS)
     add_options(p, Resume, RESUME)
-    sub = p.add_subparsers(title="commands", dest="command", metavar="{report,speed,families}")
+    sub = p.add_subparsers(title="commands", dest="command", metavar="{report,speed,families,ship}")
     report_cli.add_parser(sub)
     speed = sub.add_parser(
         "speed",
@@ -120,6 +120,18 @@ def build_parser() -> argparse.ArgumentParser:
         "--family", action="append", required=True, metavar="NAME=SPEC,...", help="a family and its seeds' specs"
     )
     fam.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    ship = sub.add_parser(
+        "ship",
+        help="ship a trained run as sb3:NAME with its model card",
+        description="Copy a finished run's model.zip, vecnormalize.pkl and config.json into MODELS_DIR/NAME and "
+        "write its model card from committed results (see train.model_card).",
+    )
+    ship.add_argument("run_dir", metavar="RUN_DIR", help="a finished mobman-train run folder")
+    ship.add_argument("--name", required=True, help="the shipped name (sb3:NAME)")
+    ship.add_argument("--train-commit", required=True, metavar="SHA", help="the commit of the training code")
+    ship.add_argument("--families", metavar="DIR", help="a mobman-train families folder of its family")
+    ship.add_argument("--scorecard", action="append", default=[], metavar="DIR", help="a bench folder it is on")
+    ship.add_argument("--models-dir", default="policies/models", metavar="DIR", help="(policies/models)")
     return p
 
 
@@ -219,6 +231,18 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if getattr(args, "command", None) == "speed":
         return _speed(args)
+    if getattr(args, "command", None) == "ship":
+        from train import model_card
+
+        try:
+            folder = model_card.ship(
+                args.run_dir, args.name, args.models_dir, args.families, args.scorecard, args.train_commit
+            )
+        except (ValueError, OSError) as exc:
+            print(f"mobman-train ship: error: {exc}", file=sys.stderr)
+            return 2
+        print(f"shipped {args.run_dir} as sb3:{args.name} in {folder}")
+        return 0
     if getattr(args, "command", None) == "families":
         from train import families
 
