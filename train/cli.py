@@ -115,7 +115,7 @@ def build_parser() -> argparse.ArgumentParser:
         "same cells and seeds; write families.json and families.md (IQM and success with intervals over training "
         "seeds, the median-seed member to ship; see train.families).",
     )
-    fam.add_argument("bench_dir", metavar="BENCH_DIR", help="a mobman-eval bench output folder")
+    fam.add_argument("bench_dirs", nargs="+", metavar="BENCH_DIR", help="mobman-eval bench output folders")
     fam.add_argument(
         "--family", action="append", required=True, metavar="NAME=SPEC,...", help="a family and its seeds' specs"
     )
@@ -247,7 +247,7 @@ def main(argv: list[str] | None = None) -> int:
         from train import families
 
         try:
-            return families.main(args.bench_dir, args.family, args.out)
+            return families.main(args.bench_dirs, args.family, args.out)
         except (ValueError, OSError) as exc:
             print(f"mobman-train families: error: {exc}", file=sys.stderr)
             return 2

@@ -1,11 +1,11 @@
 """`mobman-train families`: agents trained with several seeds, scored as families over one bench's episodes.
 
 ```
-mobman-train families runs/seeds-bench --family ppo-dev=sb3:R/ppo-dev-s0,sb3:R/ppo-dev-s1,sb3:R/ppo-dev-s2 \
+mobman-train families runs/bench-s0 runs/bench-s1 runs/bench-s2 --family ppo-dev=sb3:R/ppo-dev-s0,sb3:R/ppo-dev-s1,sb3:R/ppo-dev-s2 \
     --out docs/results/rl-v3
 ```
 
-Reads the episode records of a `mobman-eval bench` folder (`results.json`) in which every member of a family ran
+Reads the episode records of `mobman-eval bench` folders (`results.json`) in which every member of a family ran
 on the same cells and seeds, and writes `families.json` and `families.md`: per family the final-table row of
 `train.report_stats.family_row` over (training seeds x episodes), i.e. the IQM of the max error with rliable's
 stratified bootstrap interval over training seeds (episodes as strata) and the success rate with the same
@@ -73,16 +73,17 @@ def markdown(fams: Mapping[str, Any]) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write(bench_dir: str | Path, members: Mapping[str, Sequence[str]], out: str | Path) -> dict[str, Any]:
-    """Read `bench_dir/results.json`, write `families.json` and `families.md` into `out`; the families."""
+def write(bench_dirs: Sequence[str | Path], members: Mapping[str, Sequence[str]], out: str | Path) -> dict[str, Any]:
+    """Read each `bench_dir/results.json` (one bench per seed is fine: the same cells and seeds), write
+    `families.json` and `families.md` into `out`; the families."""
     from eval.output.files import atomic_write_json
     from eval.output.results import load_results
 
-    records = load_results(Path(bench_dir) / "results.json")["episodes"]
+    records = [e for d in bench_dirs for e in load_results(Path(d) / "results.json")["episodes"]]
     fams = families(records, members)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    source = {"bench": str(bench_dir), "members": {k: list(v) for k, v in members.items()}}
+    source = {"benches": [str(d) for d in bench_dirs], "members": {k: list(v) for k, v in members.items()}}
     atomic_write_json(folder / "families.json", {"source": source, "families": fams})
     (folder / "families.md").write_text(markdown(fams), encoding="utf-8")
     return fams
@@ -97,9 +98,9 @@ def parse_family(text: str) -> tuple[str, list[str]]:
     return name, members
 
 
-def main(bench_dir: str, family_texts: Sequence[str], out: str) -> int:
+def main(bench_dirs: Sequence[str], family_texts: Sequence[str], out: str) -> int:
     members = dict(parse_family(t) for t in family_texts)
-    fams = write(bench_dir, members, out)
+    fams = write(bench_dirs, members, out)
     print(markdown(fams) + f"written to {out}")
     print(json.dumps({k: v["median_seed_member"] for k, v in fams.items()}))
     return 0
