@@ -6,10 +6,12 @@ from __future__ import annotations
 import io
 import json
 import os
+import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from eval.cli import main
 from eval.errors import EvalError
@@ -34,6 +36,24 @@ def test_the_folders_are_every_committed_folder_with_plots_but_the_training_repo
     with_plots = {p.parent.relative_to(RESULTS).parts[0] for p in RESULTS.rglob("*.png")}
     assert {f.split("/")[0] for f in FOLDERS} == with_plots - {"rl-v2"}
     assert {"bench-v1", "bench-v3-dev", "paper", "robots-v1/kinematic"} <= set(FOLDERS)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", FOLDERS)
+def test_each_committed_plot_is_drawn_again_from_the_committed_results(name, tmp_path):
+    """The folder's results files alone (its plots left behind) give back every committed plot: the same files,
+    each a palette PNG of the same size, pixel for pixel the same image (up to 1% of pixels, for another
+    FreeType's glyphs)."""
+    src, out = RESULTS / name, tmp_path / "folder"
+    shutil.copytree(src, out, ignore=shutil.ignore_patterns("*.png"))
+    assert _pngs(out) == []
+    assert main(["plots", str(out)]) == 0
+    assert _pngs(out) == _pngs(src)
+    for rel in _pngs(src):
+        with Image.open(src / rel) as committed, Image.open(out / rel) as drawn:
+            assert drawn.mode == committed.mode == "P" and drawn.size == committed.size, rel
+            a, b = (np.asarray(i.convert("RGB")) for i in (committed, drawn))
+        assert (a != b).any(axis=2).mean() <= 0.01, rel
 
 
 def test_a_folder_without_results_is_refused_naming_it(tmp_path, capsys):

@@ -230,6 +230,30 @@ def test_report_cli_errors(tmp_path, capsys):
     assert "reported seeds start at 10000" in capsys.readouterr().err
 
 
+def test_redraw_draws_the_committed_curves_again_from_the_committed_report(tmp_path, capsys):
+    """`mobman-train report --redraw --out DIR`: curves.png of docs/results/rl-v2 again from its results.json and
+    curves.csv alone (nothing evaluated): the same palette PNG (up to 1% of pixels, for another FreeType); other
+    report options and a folder that is not a report's are refused."""
+    from PIL import Image
+
+    from train.cli import main
+
+    committed = Path(__file__).resolve().parents[1] / "docs" / "results" / "rl-v2"
+    for name in ("results.json", "curves.csv"):
+        (tmp_path / name).write_bytes((committed / name).read_bytes())
+    assert main(["report", "--redraw", "--out", str(tmp_path)]) == 0
+    assert "curves.png drawn again" in capsys.readouterr().out
+    with Image.open(committed / "curves.png") as old, Image.open(tmp_path / "curves.png") as new:
+        assert new.mode == old.mode == "P" and new.size == old.size
+        a, b = (np.asarray(i.convert("RGB")) for i in (old, new))
+    assert (a != b).any(axis=2).mean() <= 0.01
+    assert main(["report", "--redraw", "--out", str(tmp_path), "--seeds", "3"]) == 2
+    assert "--redraw takes only --out DIR, not episodes" in capsys.readouterr().err
+    (tmp_path / "results.json").write_text(json.dumps({"schema": 4}))
+    assert main(["report", "--redraw", "--out", str(tmp_path)]) == 2
+    assert "not a report's" in capsys.readouterr().err
+
+
 # --- end to end: two tiny trained agents, real evaluations, cache -------------------------------------------
 @pytest.mark.slow
 def test_report_end_to_end_with_cache(tmp_path, monkeypatch):

@@ -117,10 +117,10 @@ def png_bytes(fig, dpi: int = 110) -> bytes:
     """The PNG of `fig` at `dpi` as an indexed-colour image: matplotlib's render quantised to a palette of
     `PNG_COLOURS` colours (Pillow's maximum-coverage quantiser, no dithering), written with `optimize=True`.
 
-    Measured on the 110 committed plots of docs/results (lines, markers, text and the bands' translucent fills on
-    white): 13.2 MB as matplotlib's RGBA PNGs, 4.0 MB so (3.8 with the fast-octree quantiser, which moved pixels by
-    up to 59 of 255 in a channel and turned line colours; 3.8 with 64 colours, which tinted the grey grid and the
-    bands); every pixel stays within 19 of 255 per channel of the render, white stays white, the text is drawn as
+    Measured on the 109 committed plots of docs/results (lines, markers, text and the bands' translucent fills on
+    white): 13.23 MB as matplotlib's RGBA PNGs, 3.84 MB so (Pillow's fast-octree quantiser: 3.88 MB, but pixels
+    moved by up to 59 of 255 in a channel and line colours turned; 64 colours: 3.77 MB, the grey grid and the bands
+    tinted); every pixel stays within 19 of 255 per channel of the render, white stays white, the text is drawn as
     before. A figure with transparent pixels keeps matplotlib's RGBA (quantising would drop the transparency)."""
     from PIL import Image
 
