@@ -13,6 +13,7 @@ import pytest
 from matplotlib.colors import to_hex, to_rgb
 
 from eval.output import plots, stat_plots, styles
+from eval.output.compact import stored_bytes
 from eval.sweep import plots as sweep_plots
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,7 +163,7 @@ def test_one_task_is_one_panel(plot):
 
 
 def test_several_robots_give_one_figure_per_robot():
-    sc = json.loads((ROOT / "docs/results/robots-v1/kinematic/scorecard.json").read_text())
+    sc = json.loads(stored_bytes(ROOT / "docs/results/robots-v1/kinematic/scorecard.json"))
     prefix = {"WheeledPuma": "puma", "WheeledUR5": "ur5", "WheeledPanda": "panda", "WheeledRandomArm": "random-arm"}
     rows = sc["rows"] + sc["pooled"] + sc["by_robot"]
     figs = stat_plots.success_figures_by_robot(

@@ -15,6 +15,7 @@ from PIL import Image
 
 from eval.cli import main
 from eval.errors import EvalError
+from eval.output.compact import stored_bytes
 from eval.output.results import load_arrays
 from eval.redraw import redraw
 
@@ -64,7 +65,7 @@ def test_a_folder_without_results_is_refused_naming_it(tmp_path, capsys):
 
 
 def test_a_protocol_v1_scorecard_of_the_wrong_shape_is_refused_naming_the_field(tmp_path):
-    sc = json.loads((RESULTS / "robots-v1" / "physics" / "scorecard.json").read_text())
+    sc = json.loads(stored_bytes(RESULTS / "robots-v1" / "physics" / "scorecard.json"))
     sc["protocol"]["tolerance"] = "6 mm"
     (tmp_path / "scorecard.json").write_text(json.dumps(sc))
     with pytest.raises(EvalError, match=r"protocol\.tolerance"):

@@ -46,6 +46,7 @@ from eval.metrics import DEFAULT_TOLERANCE
 from eval.output.provenance import code_hash
 from mobman_env.validation import folder_name, integer
 from policies.untrusted import file_sha256
+from policies.untrusted_json import stored_path
 from train.curve import read_curve
 from train.evaluation import eval_command
 from train.report_archive import read_json as _json
@@ -340,7 +341,7 @@ def cached_evaluation(cfg, extra: dict) -> list[dict]:
     out = Path(cfg.out)
     inputs = _inputs(cfg, extra)
     same = (out / "inputs.json").is_file() and _json(out / "inputs.json") == json.loads(json.dumps(inputs))
-    if same and (out / "results.json").is_file():
+    if same and stored_path(out / "results.json").is_file():  # results.json or its compacted twin
         return list(_json(out / "results.json")["episodes"])
     print(f"mobman-train report: evaluating {', '.join(cfg.policies)} ({cfg.dynamics[0]}) -> {out}", file=sys.stderr)
     result = eval_run(cfg)

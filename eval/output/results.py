@@ -346,6 +346,7 @@ RUN_OUTPUTS = (
     "config.json",
     "episodes.jsonl",
     "results.json",
+    "results.json.xz",  # an earlier results.json compacted (`mobman-eval compact`): stale beside a new one
     "results.csv",
     "summary.md",
     "episodes.npz",
