@@ -11,14 +11,15 @@ committed folders through a command, never by editing an image.
 
 A run draws its plots from the per-step arrays in memory (float64); episodes.npz keeps them as float32, so a
 line drawn again from the file may move by a fraction of a pixel: on the committed paper folder 13,626 of the
-1.6 million pixels of its largest plot differ from the first drawing (anti-aliasing), none visibly. A plot whose
-file is drawn by a newer version of `eval.output.styles` takes its colours and line styles. A `mobman-train
-report` folder's curves.png is drawn again by `mobman-train report --redraw` (eval never imports train).
+1.6 million pixels of its largest plot differ from the first drawing (anti-aliasing), none visibly. Plots are
+drawn by today's code: protocol v1's take today's colours and line styles (`eval.output.styles`). A
+`mobman-train report` folder's curves.png is drawn again by `mobman-train report --redraw` (eval never imports
+train).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +53,7 @@ def redraw(folder: str | Path) -> list[Path]:
     )
 
 
-def _write(plot_dir: Path, figures: Iterator[tuple[str, Any]] | list[tuple[str, Any]]) -> list[Path]:
+def _write(plot_dir: Path, figures: Iterable[tuple[str, Any]]) -> list[Path]:
     import matplotlib.pyplot as plt
 
     written = []
@@ -107,7 +108,8 @@ def _redraw_run(folder: Path) -> list[Path]:
     """A run's (or the paper's) plots from its results.json and episodes.npz."""
     results = load_results(folder / "results.json")
     arrays = load_arrays(folder / "episodes.npz")
-    kept = {rec["index"]: arrays[rec["arrays_key"]] for rec in results["episodes"] if rec.get("arrays_key") in arrays}
+    keys = [(rec.get("index"), rec.get("arrays_key")) for rec in results["episodes"]]
+    kept = {index: arrays[key] for index, key in keys if isinstance(key, str) and key in arrays}
     result = RunResult(out=folder, results=results, arrays=kept)
     written = write_plots(result, folder / "plots", results["config"].get("tolerance", DEFAULT_TOLERANCE))
     if results["config"].get("command") == "paper":
