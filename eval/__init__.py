@@ -10,8 +10,8 @@ res = eval.load_results("runs/first")   # a results.json or its folder (schema 1
 res.to_dataframe()                      # pandas: one row per episode (pip install "mobman[pandas]")
 ```
 
-Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme|timings|compact` (`eval.cli.main(argv)`); eval/README.md is
-the manual.
+Command line: `mobman-eval run|sweep|bench|paper|speed|picture|readme|timings|compact|plots` (`eval.cli.main(argv)`);
+eval/README.md is the manual.
 
 ## Layout and dependency rule
 
@@ -34,7 +34,8 @@ every module and fails on a cycle or an upward import):
 7. `runner` (`run`), `sweep` (`config`, `report`, `plots` <- `run`: resumable grids)
 8. `paper` (section IV of the paper), `bench` (the benchmark protocol v2: `config` <- `chaos`, `scorecard` <-
    `against` <- `run`)
-9. `speed` (the speed benchmark; `--paper` times `paper`), `timings` (the README's steps timed)
+9. `speed` (the speed benchmark; `--paper` times `paper`), `timings` (the README's steps timed), `redraw` (a
+   folder's plots drawn again from its results files)
 10. `cli` (one module per subcommand, `common`, `options`: the options generated from the config dataclasses;
     nothing in eval imports it but `__main__`; train's command lines use `options`)
 

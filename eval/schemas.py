@@ -108,6 +108,25 @@ SCORECARD: Schema = Obj(
     },
 )
 
+#: scorecard.json of protocol v1 (schema 2, release 0.2): read only to draw its plots again (`eval.redraw`).
+SCORECARD_V1: Schema = Obj(
+    {
+        "schema": Int,
+        "kind": Str,
+        "protocol": Obj(
+            {
+                "tolerance": Num,
+                "conditions": MapOf(
+                    Obj({"dynamics": Str, "model_error": Num, "obs_noise": Num, "env_kwargs": MapOf(AnyJSON)})
+                ),
+            }
+        ),
+        "statistics": Obj({"success_curve_tolerances_m": ListOf(Num)}),
+        "rows": ListOf(Obj({"condition": Str, "policy": Str}, _ROW_OPTIONAL)),
+        "pooled": ListOf(Obj({"condition": Str, "policy": Str}, _ROW_OPTIONAL)),
+    }
+)
+
 #: results.json (schemas 1 to 4; `eval.output.results`): its episodes and aggregate rows.
 RESULTS: Schema = Obj(
     {

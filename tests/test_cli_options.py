@@ -59,6 +59,7 @@ def test_every_command_is_covered():
         "mobman-eval readme",
         "mobman-eval timings",
         "mobman-eval compact",
+        "mobman-eval plots",
         "mobman-train",
         "mobman-train report",
     }

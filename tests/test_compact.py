@@ -12,10 +12,13 @@ from pathlib import Path
 
 import pytest
 
+import eval
+from eval.bench.scorecard import READABLE_SCHEMAS as SCORECARD_SCHEMAS
 from eval.bench.scorecard import load_scorecard
 from eval.cli import main
 from eval.errors import EvalError
 from eval.output.compact import compact, git_blob_id, stored_bytes
+from eval.output.results import READABLE_SCHEMAS, load_results
 from policies.untrusted import FileRefused
 from policies.untrusted_json import read_json
 
@@ -112,6 +115,26 @@ def test_each_committed_compacted_file_holds_the_bytes_it_replaced(name):
     if name.startswith("bench-v2"):  # protocol v2 on (bench-v1 is a schema `load_scorecard` no longer reads)
         assert load_scorecard(RESULTS / name)["rows"]
         assert load_scorecard(RESULTS / name) == load_scorecard((RESULTS / name).parent / "scorecard.json.xz")
+
+
+@pytest.mark.parametrize("name", sorted(MANIFEST))
+def test_a_compacted_file_reads_as_its_original(name, tmp_path):
+    """Every reader gives the same from the compacted file as from the original bytes (the old form, written back):
+    the JSON reader for every file, `load_results` and `eval.load_results` (of the file and of its folder) for a
+    results file, `load_scorecard` for a scorecard it reads (schema 3 or 4): no value moved in the conversion."""
+    old = tmp_path / "old" / Path(name).name
+    old.parent.mkdir()
+    old.write_bytes(stored_bytes(RESULTS / name))
+    assert hashlib.sha256(old.read_bytes()).hexdigest() == MANIFEST[name]["sha256"]
+    new = RESULTS / name
+    value = read_json(new, 1 << 30, "file")
+    assert value == read_json(old, 1 << 30, "file") == read_json(RESULTS / f"{name}.xz", 1 << 30, "file")
+    if old.name == "results.json" and value.get("schema") in READABLE_SCHEMAS:
+        assert load_results(new) == load_results(old)
+        folder, plain = eval.load_results(new.parent), eval.load_results(old.parent)
+        assert folder.episodes == plain.episodes and folder.aggregate == plain.aggregate
+    if old.name == "scorecard.json" and value.get("schema") in SCORECARD_SCHEMAS:
+        assert load_scorecard(new) == load_scorecard(old)
 
 
 def test_the_committed_originals_are_in_the_history():

@@ -37,6 +37,7 @@ EVAL_LAYERS = {
     "eval.bench": 8,
     "eval.speed": 9,
     "eval.timings": 9,
+    "eval.redraw": 9,
     "eval.cli": 10,
     "eval.__main__": 11,
     "eval": 11,

@@ -13,6 +13,7 @@ import pytest
 from matplotlib.colors import to_hex, to_rgb
 
 from eval.output import plots, stat_plots, styles
+from eval.output.compact import stored_bytes
 from eval.sweep import plots as sweep_plots
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -162,7 +163,7 @@ def test_one_task_is_one_panel(plot):
 
 
 def test_several_robots_give_one_figure_per_robot():
-    sc = json.loads((ROOT / "docs/results/robots-v1/kinematic/scorecard.json").read_text())
+    sc = json.loads(stored_bytes(ROOT / "docs/results/robots-v1/kinematic/scorecard.json"))
     prefix = {"WheeledPuma": "puma", "WheeledUR5": "ur5", "WheeledPanda": "panda", "WheeledRandomArm": "random-arm"}
     rows = sc["rows"] + sc["pooled"] + sc["by_robot"]
     figs = stat_plots.success_figures_by_robot(
@@ -182,3 +183,41 @@ def test_several_robots_give_one_figure_per_robot():
     one += [{k: v for k, v in r.items() if k != "robot"} for r in sc["by_robot"] if r["robot"] == "puma"]
     figs = stat_plots.success_figures_by_robot(one, sc["statistics"]["success_curve_tolerances_m"])
     assert list(figs) == ["WheeledPuma"] and len([ax for ax in figs["WheeledPuma"].axes if ax.get_visible()]) == 5
+
+
+@pytest.mark.parametrize("name", ["paths_3d", "error_vs_wear"])
+def test_a_saved_plot_is_a_palette_png_that_draws_what_matplotlib_drew(name):
+    """`eval.output.files.png_bytes`: a palette PNG of the figure's size, every pixel within 19 of 255 per channel of
+    matplotlib's own render (the bound measured on the committed plots), white kept white, and smaller."""
+    import io
+
+    from PIL import Image
+
+    from eval.output.files import PNG_COLOURS, png_bytes
+
+    fig = _figures(SPECS)[name]
+    fig.savefig(io.BytesIO(), format="png", dpi=110, bbox_inches="tight")  # a constrained layout settles in one draw
+    data = png_bytes(fig)
+    raw = io.BytesIO()
+    fig.savefig(raw, format="png", dpi=110, bbox_inches="tight")
+    with Image.open(io.BytesIO(data)) as img, Image.open(raw) as ref:
+        assert img.format == "PNG" and img.mode == "P" and len(img.getcolors(PNG_COLOURS) or ()) <= PNG_COLOURS
+        drawn, rendered = (np.asarray(i.convert("RGB"), dtype=int) for i in (img, ref))
+    assert drawn.shape == rendered.shape
+    assert np.abs(drawn - rendered).max() <= 19
+    white = (rendered == 255).all(axis=2)
+    assert white.mean() > 0.5 and (drawn[white] == 255).all()
+    assert len(data) < len(raw.getvalue()) / 2
+
+
+def test_a_figure_with_transparent_pixels_keeps_them():
+    import io
+
+    from PIL import Image
+
+    from eval.output.files import png_bytes
+
+    fig = _figures(SPECS)["error_norm"]
+    fig.patch.set_alpha(0.0)
+    with Image.open(io.BytesIO(png_bytes(fig))) as img:
+        assert img.mode == "RGBA" and img.getchannel("A").getextrema()[0] < 255

@@ -15,6 +15,7 @@ from eval.errors import EvalError
 from eval.output.blocks import escape_copied, replace_blocks
 from eval.output.compact import stored_bytes
 from eval.output.readme import render_generated
+from policies.untrusted_json import stored_path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
@@ -28,8 +29,8 @@ def test_readme_blocks_equal_the_committed_results():
     rendered, used = render(text, ROOT)
     for rel in used:
         results = (ROOT / rel).with_name("results.json")
-        if results.is_file():  # a generated Markdown file beside the results.json it was written from
-            seeds = [r["seed"] for r in json.loads(results.read_text())["episodes"]]
+        if stored_path(results).is_file():  # a generated Markdown file beside the results.json it was written from
+            seeds = [r["seed"] for r in json.loads(stored_bytes(results))["episodes"]]
             assert min(seeds) >= 10_000, f"{rel}: README figures come from reported seeds only"
     assert rendered == text, (
         "README.md's result blocks differ from the committed results; run `mobman-eval readme README.md`"

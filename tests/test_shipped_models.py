@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 import policies
+from eval.output.compact import stored_bytes
 from policies import sb3
 
 pytest.importorskip("stable_baselines3")
@@ -21,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "policies" / "models"
 REPORT = ROOT / "docs" / "results" / "rl-v2" / "results.json"
 #: alias -> family of the models the committed report shipped (`mobman-train report --ship ALIAS=FAMILY`)
-REPORTED = dict(json.loads(REPORT.read_text())["config"]["ship"])
+REPORTED = dict(json.loads(stored_bytes(REPORT))["config"]["ship"])
 
 
 def test_every_model_folder_is_an_alias_with_a_readme():
@@ -61,7 +62,7 @@ def test_shipped_ppo_is_the_reports_median_seed_model(alias):
     from train.report_text import model_readme
 
     family = REPORTED[alias]
-    results = json.loads(REPORT.read_text())
+    results = json.loads(stored_bytes(REPORT))
     median = results["median_seed_models"][family]
     run = next(r for r in results["runs"] if r["name"] == median["run"])
     assert run["family"] == family

@@ -230,6 +230,32 @@ def test_report_cli_errors(tmp_path, capsys):
     assert "reported seeds start at 10000" in capsys.readouterr().err
 
 
+def test_redraw_draws_the_committed_curves_again_from_the_committed_report(tmp_path, capsys):
+    """`mobman-train report --redraw --out DIR`: curves.png of docs/results/rl-v2 again from its results.json and
+    curves.csv alone (nothing evaluated): the same palette PNG (up to 1% of pixels, for another FreeType); other
+    report options and a folder that is not a report's are refused."""
+    from PIL import Image
+
+    from policies.untrusted_json import stored_path
+    from train.cli import main
+
+    committed = Path(__file__).resolve().parents[1] / "docs" / "results" / "rl-v2"
+    for name in ("results.json", "curves.csv"):  # results.json is stored compacted: results.json.xz
+        stored = stored_path(committed / name)
+        (tmp_path / stored.name).write_bytes(stored.read_bytes())
+    assert main(["report", "--redraw", "--out", str(tmp_path)]) == 0
+    assert "curves.png drawn again" in capsys.readouterr().out
+    with Image.open(committed / "curves.png") as old, Image.open(tmp_path / "curves.png") as new:
+        assert new.mode == old.mode == "P" and new.size == old.size
+        a, b = (np.asarray(i.convert("RGB")) for i in (old, new))
+    assert (a != b).any(axis=2).mean() <= 0.01
+    assert main(["report", "--redraw", "--out", str(tmp_path), "--seeds", "3"]) == 2
+    assert "--redraw takes only --out DIR, not episodes" in capsys.readouterr().err
+    (tmp_path / "results.json").write_text(json.dumps({"schema": 4}))
+    assert main(["report", "--redraw", "--out", str(tmp_path)]) == 2
+    assert "not a report's" in capsys.readouterr().err
+
+
 # --- end to end: two tiny trained agents, real evaluations, cache -------------------------------------------
 @pytest.mark.slow
 def test_report_end_to_end_with_cache(tmp_path, monkeypatch):
@@ -297,7 +323,10 @@ def _caching_evaluation(calls):
     return run
 
 
-def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch):
+@pytest.mark.parametrize("compacted", [False, True], ids=["plain", "compacted"])
+def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch, compacted):
+    """An earlier report's finished runs are carried over as measured, also from a report whose results files are
+    stored compacted (`mobman-eval compact`, as docs/results/rl-v2 keeps them)."""
     import shutil
 
     calls: list = []
@@ -311,6 +340,11 @@ def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch):
     )
     assert first["median_seed_models"]["ppo-kinematic"]["run"] == "ppo-kin-s1"
     shutil.rmtree(tmp_path / "machine1")  # the old machine is gone: only the committed report is left
+    if compacted:
+        from eval.output.compact import compact
+
+        for path in sorted((tmp_path / "a").rglob("results.json")):
+            compact(path)
     new = _run_folder(tmp_path / "machine2", "ppo-kin-s3", "ppo", 3)
     calls.clear()
     cfg = R.ReportConfig(
@@ -339,6 +373,8 @@ def test_report_carries_over_an_earlier_reports_runs(tmp_path, monkeypatch):
     }
     assert [c["timesteps"] for c in archived_curves(tmp_path / "b")["ppo-kin-s0"]] == [0.0, 1000.0, 2000.0]
     assert (tmp_path / "b" / "evals" / "ppo-kin-s0" / "inputs.json").is_file()  # the evidence moves with them
+    copied = tmp_path / "b" / "evals" / "ppo-kin-s0" / ("results.json.xz" if compacted else "results.json")
+    assert copied.is_file()  # as it was stored
     assert second["train_commits"] == {
         "not recorded": ["ppo-kin-s0", "ppo-kin-s1", "ppo-kin-s2"],
         "abc1234": ["ppo-kin-s3"],

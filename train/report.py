@@ -39,13 +39,14 @@ import csv
 import io
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, Field, asdict, dataclass, field, fields
 from pathlib import Path
 
 from eval.metrics import DEFAULT_TOLERANCE
 from eval.output.provenance import code_hash
 from mobman_env.validation import folder_name, integer
 from policies.untrusted import file_sha256
+from policies.untrusted_json import stored_path
 from train.curve import read_curve
 from train.evaluation import eval_command
 from train.report_archive import read_json as _json
@@ -107,6 +108,9 @@ class ReportConfig:
     """Folders of earlier reports whose finished runs are carried over as they were measured (`train.report_archive`:
     their curves, budgets and cached final evaluations; their models need not be on disk). A run folder in `runs`
     wins over an archived run of the same name."""
+    redraw: bool = False
+    """Instead of a report: draw curves.png of the report in `out` again from its results.json and curves.csv
+    (`redraw_curves`), evaluating nothing; no other option may be given."""
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "runs", tuple(str(r) for r in self.runs))
@@ -121,6 +125,11 @@ class ReportConfig:
         integer("episodes", self.episodes, low=1, hint="the number of seeds, e.g. --seeds 20")
         integer("seed", self.seed, low=10_000, hint="reported seeds start at 10000; tune on 0-999")
         integer("workers", self.workers, low=1, hint="e.g. --workers 1")
+        if self.redraw:
+            others = [f.name for f in fields(self) if f.name not in ("out", "redraw") and _given(self, f)]
+            if others:
+                raise ValueError(f"--redraw takes only --out DIR, not {', '.join(others)}")
+            return
         if not self.runs and not self.include:
             raise ValueError(
                 "no run folder given; e.g. mobman-train report runs/ppo-s0 runs/ppo-s1 --out DIR "
@@ -129,11 +138,17 @@ class ReportConfig:
 
     def to_dict(self) -> dict:
         d = asdict(self)
+        del d["redraw"]  # a report's config.json: redrawing writes none
         d["runs"] = list(self.runs)
         d["controllers"] = list(self.controllers)
         d["ship"] = [list(pair) for pair in self.ship]
         d["include"] = list(self.include)
         return json.loads(json.dumps(d))
+
+
+def _given(config: ReportConfig, f: Field) -> bool:
+    """Whether `config`'s field `f` differs from its default."""
+    return getattr(config, f.name) != (f.default_factory() if f.default_factory is not MISSING else f.default)
 
 
 # --- reading run folders ---------------------------------------------------------------------------------
@@ -326,7 +341,7 @@ def cached_evaluation(cfg, extra: dict) -> list[dict]:
     out = Path(cfg.out)
     inputs = _inputs(cfg, extra)
     same = (out / "inputs.json").is_file() and _json(out / "inputs.json") == json.loads(json.dumps(inputs))
-    if same and (out / "results.json").is_file():
+    if same and stored_path(out / "results.json").is_file():  # results.json or its compacted twin
         return list(_json(out / "results.json")["episodes"])
     print(f"mobman-train report: evaluating {', '.join(cfg.policies)} ({cfg.dynamics[0]}) -> {out}", file=sys.stderr)
     result = eval_run(cfg)
@@ -417,6 +432,25 @@ def _write(config: ReportConfig, out: Path, results: dict, runs: list[dict]) -> 
         from eval.output.files import atomic_save_figure
 
         atomic_save_figure(curves_figure(results, {r["name"]: r["curve"] for r in runs}), out / "curves.png")
+
+
+def redraw_curves(folder: str | Path) -> Path:
+    """Draw curves.png of the report in `folder` again from its results.json and curves.csv (read as `--include`
+    reads them: `train.report_archive`), evaluating and writing nothing else, so that a change in how plots are
+    written reaches a committed report through a command; returns the file written. ValueError naming the folder
+    when it is not a report's."""
+    from eval.output.files import atomic_save_figure
+    from train.report_archive import REPORT_SCHEMA, archived_curves
+    from train.report_text import curves_figure
+
+    folder = Path(folder)
+    results = _json(folder / "results.json")
+    if results.get("schema") != REPORT_SCHEMA:
+        raise ValueError(
+            f"{folder}/results.json has schema {results.get('schema')!r}, not a report's ({REPORT_SCHEMA!r})"
+        )
+    atomic_save_figure(curves_figure(results, archived_curves(folder)), folder / "curves.png")
+    return folder / "curves.png"
 
 
 def build_report(config: ReportConfig) -> dict:

@@ -39,6 +39,7 @@ from typing import Any, NamedTuple
 from mobman_env.validation import folder_name
 from policies.untrusted import FileRefused
 from policies.untrusted_json import read_json as read_json_checked
+from policies.untrusted_json import stored_path
 from train.curve import read_curve
 
 #: The schema of the report results this module reads (`train.report.build_report` writes it).
@@ -98,7 +99,7 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
 
     folder = Path(folder)
     res_path = folder / "results.json"
-    if not res_path.is_file():
+    if not stored_path(res_path).is_file():  # results.json, or its compacted twin (`mobman-eval compact`)
         raise ValueError(f"--include {folder}: no results.json; give a folder written by mobman-train report")
     old = read_json(res_path)
     if old.get("schema") != REPORT_SCHEMA:
@@ -116,7 +117,7 @@ def archived_runs(folder: str | Path, config: Any, evaluation: Evaluation) -> li
             hint="a report names each run by its folder's name, and writes evals/<name>/; restore the file",
         )
         cached = folder / "evals" / name
-        if not (cached / "inputs.json").is_file() or not (cached / "results.json").is_file():
+        if not (cached / "inputs.json").is_file() or not stored_path(cached / "results.json").is_file():
             raise ValueError(f"--include {folder}: run {name} has no cached evaluation in {cached}")
         policy = f"sb3:{entry['path']}/model.zip"
         cfg = _eval_config(config, entry["config"]["env_id"], (policy,), entry["config"]["dynamics"], cached)
@@ -157,5 +158,6 @@ def copy_cached_eval(run: dict, out: Path) -> None:
         return
     dest.mkdir(parents=True, exist_ok=True)
     for name in ("inputs.json", "results.json", "results.csv", "summary.md", "config.json"):
-        if (src / name).is_file():
-            shutil.copyfile(src / name, dest / name)
+        stored = stored_path(src / name)  # the file, or its compacted twin (NAME.xz), copied as it is
+        if stored.is_file():
+            shutil.copyfile(stored, dest / stored.name)

@@ -42,6 +42,7 @@ OPTIONS = (
     Opt("ship", metavar="ALIAS=FAMILY", parse=_pair),
     Opt("models_dir", metavar="DIR"),
     Opt("plots", flag="--no-plots"),
+    "redraw",
 )
 
 
@@ -69,10 +70,13 @@ def build_parser() -> argparse.ArgumentParser:
 def run(args: argparse.Namespace) -> int:
     """Build the report the parsed command line asks for; 2 with the message on a bad argument or run folder."""
     from eval.errors import EvalError
-    from train.report import build_report
+    from train.report import build_report, redraw_curves
 
     try:
         config = build(ReportConfig, args, OPTIONS)
+        if config.redraw:
+            print(f"mobman-train report: {redraw_curves(config.out)} drawn again")
+            return 0
         results = build_report(config)
     except (ValueError, EvalError) as exc:
         print(f"mobman-train report: error: {exc}", file=sys.stderr)

@@ -12,11 +12,12 @@ mobman-eval speed                # env steps/s, predict microseconds, episodes/s
 mobman-eval picture              # docs/assets/robot.png: nnbc-plus tracking the Line, physics mode
 mobman-eval timings              # how long the README's steps take here (wall and CPU, with the load)
 mobman-eval compact scorecard.json  # store a large result as scorecard.json.xz (every reader takes it)
+mobman-eval plots docs/results/bench-v3-dev  # draw a folder's plots again from its results, no episode run
 ```
 
-One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`, `timings`, `compact`) builds its
-parser from the fields of the library's frozen config dataclasses (`eval.cli.options`: one option per field, its help the
-field's docstring, its default the field's default) and calls one function; `main(argv=None)`, so tests call it
+One module per subcommand (`run`, `sweep`, `bench`, `paper`, `speed`, `picture`, `readme`, `timings`, `compact`,
+`plots`) builds its parser from the fields of the library's frozen config dataclasses (`eval.cli.options`: one
+option per field, its help the field's docstring, its default the field's default) and calls one function; `main(argv=None)`, so tests call it
 in-process. The same concept has the same option everywhere: `--policy SPEC` (repeatable, comma lists; one spec
 in `picture`, which renders one episode), `--env ID`, `--dynamics MODE`, `--seed S` (the first seed), `--seeds N`
 (how many), `--out DIR`, `--workers N`, `--env-kwargs JSON`; earlier spellings (`--episodes`, `--policies`,
@@ -35,14 +36,14 @@ from mobman_env import __version__
 from mobman_env.packages import shadowing_message
 
 #: the subcommands, each a module of this package with add_parser(sub) and main(args)
-SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme", "timings", "compact")
+SUBCOMMANDS = ("run", "sweep", "bench", "paper", "speed", "picture", "readme", "timings", "compact", "plots")
 
 
 def _subcommands() -> dict:
     """The subcommand modules, imported only after the shadowing check (they import policies)."""
-    from eval.cli import bench, compact, paper, picture, readme, run, speed, sweep, timings
+    from eval.cli import bench, compact, paper, picture, plots, readme, run, speed, sweep, timings
 
-    modules = (run, sweep, bench, paper, speed, picture, readme, timings, compact)
+    modules = (run, sweep, bench, paper, speed, picture, readme, timings, compact, plots)
     return dict(zip(SUBCOMMANDS, modules, strict=True))
 
 

@@ -4,7 +4,7 @@ DataFrames.
 
 ```python
 import eval
-res = eval.load_results("runs/first")          # a run or sweep folder, or its results.json
+res = eval.load_results("runs/first")          # a run or sweep folder, or its results.json (or results.json.xz)
 df = res.to_dataframe()                         # one row per episode
 df.groupby("policy")["max_error_m"].median()
 res.aggregate_dataframe()                       # one row per (env, policy, dynamics, model_error, obs_noise)
@@ -28,6 +28,7 @@ from typing import Any
 from eval.errors import EvalError
 from eval.output.results import ResultsView
 from eval.output.results import load_results as load_results_dict
+from policies.untrusted_json import stored_path
 
 #: List-valued keys split into one column per component: key -> component names.
 COMPONENTS: dict[str, tuple[str, ...]] = {"start": ("x", "y", "z"), "axis_max_error_m": ("x", "y", "z")}
@@ -74,7 +75,8 @@ def load_results(path: str | Path) -> Results:
     path = Path(path)
     if path.is_dir():
         folder, path = path, path / "results.json"
-        if not path.exists() and not path.is_symlink():  # a FIFO or a device there is refused by the reader
+        stored = stored_path(path)  # results.json, or its compacted twin results.json.xz
+        if not stored.exists() and not stored.is_symlink():  # a FIFO or a device there is refused by the reader
             bench = sorted(str(p.relative_to(folder)) for p in folder.glob("conditions/*/results.json"))
             hint = (
                 f"it is a bench: load a condition's file, one of {', '.join(bench)}"

@@ -4,9 +4,11 @@ A scorecard of a full bench holds about 2,000 aggregate rows of float statistics
 one to about 14% of that. `compact(path)` writes the twin (deterministic: the same bytes give the same file),
 unpacks it again and compares the bytes before it removes the original, and returns a record of both (sizes,
 the original's SHA-256 and git blob id). `policies.untrusted_json.read_json` reads `NAME.json` from its twin
-when only the twin exists, so `load_scorecard`, `load_results`, `bench --against DIR` and `mobman-eval readme`
-take either form, and a compacted file's bytes are the original's: nothing is rounded. docs/results/compacted.json
-records the committed files compacted so (`tests/test_compact.py` checks each against its record).
+when only the twin exists, so `load_scorecard`, `load_results` (a file or its folder), `bench --against DIR`,
+`mobman-eval readme`, `mobman-eval plots` and `mobman-train report --include` take either form, and a compacted
+file's bytes are the original's: nothing is rounded. docs/results/compacted.json records the committed files
+compacted so (`tests/test_compact.py` checks each against its record, and that every reader gives the same from
+it as from the original).
 
 Command line: `mobman-eval compact FILE... [--manifest FILE]`.
 """

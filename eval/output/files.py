@@ -109,10 +109,37 @@ def atomic_write_json(path: Path, data: Any) -> None:
     atomic_write_text(path, json_text(data))
 
 
-def atomic_save_figure(fig, path: Path, dpi: int = 110) -> None:
+#: Colours of a saved figure's palette (`png_bytes`): the most a palette PNG holds.
+PNG_COLOURS = 256
+
+
+def png_bytes(fig, dpi: int = 110) -> bytes:
+    """The PNG of `fig` at `dpi` as an indexed-colour image: matplotlib's render quantised to a palette of
+    `PNG_COLOURS` colours (Pillow's maximum-coverage quantiser, no dithering), written with `optimize=True`.
+
+    Measured on the 109 committed plots of docs/results (lines, markers, text and the bands' translucent fills on
+    white): 13.23 MB as matplotlib's RGBA PNGs, 3.84 MB so (Pillow's fast-octree quantiser: 3.88 MB, but pixels
+    moved by up to 59 of 255 in a channel and line colours turned; 64 colours: 3.77 MB, the grey grid and the bands
+    tinted); every pixel stays within 19 of 255 per channel of the render, white stays white, the text is drawn as
+    before. A figure with transparent pixels keeps matplotlib's RGBA (quantising would drop the transparency)."""
+    from PIL import Image
+
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
-    atomic_write_bytes(path, buf.getvalue())
+    buf.seek(0)
+    with Image.open(buf) as img:
+        rgba = img.convert("RGBA")
+    if rgba.getchannel("A").getextrema() != (255, 255):
+        return buf.getvalue()
+    indexed = rgba.convert("RGB").quantize(PNG_COLOURS, method=Image.Quantize.MAXCOVERAGE, dither=Image.Dither.NONE)
+    out = io.BytesIO()
+    indexed.save(out, format="PNG", optimize=True)
+    return out.getvalue()
+
+
+def atomic_save_figure(fig, path: Path, dpi: int = 110) -> None:
+    """Write `fig` to `path` as a palette PNG (`png_bytes`), atomically."""
+    atomic_write_bytes(path, png_bytes(fig, dpi))
 
 
 def atomic_savez(path: Path, arrays: dict[str, np.ndarray]) -> None:

@@ -225,6 +225,37 @@ def arrays_key(index: int) -> str:
     return f"ep{index:05d}"
 
 
+#: The largest episodes.npz `load_arrays` reads, packed and inflated (the paper's 14 first episodes: 2.9 MB).
+MAX_ARRAYS_BYTES = 1024 * 2**20
+
+
+def load_arrays(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
+    """The per-step arrays of an episodes.npz (`write_run`'s "KEY__NAME" entries) as {arrays_key: {name: array}}:
+    a regular file of at most `MAX_ARRAYS_BYTES` whose entries inflate to at most that, arrays only (no pickle is
+    loaded); EvalError naming the file and the entry otherwise."""
+    import zipfile
+
+    from policies.untrusted import FileRefused, check_zip_sizes, read_regular
+
+    path = Path(path)
+    out: dict[str, dict[str, np.ndarray]] = {}
+    try:
+        data = io.BytesIO(read_regular(path, MAX_ARRAYS_BYTES, "arrays file"))
+        with zipfile.ZipFile(data) as zf:
+            check_zip_sizes(zf, path, {}, MAX_ARRAYS_BYTES)
+        with np.load(data, allow_pickle=False) as npz:
+            for name in npz.files:
+                key, sep, field = name.partition("__")
+                if not sep or not key or not field:
+                    raise ValueError(
+                        f"{path}: entry {name!r} is not KEY__NAME, as every entry of mobman's episodes.npz"
+                    )
+                out.setdefault(key, {})[field] = npz[name]
+    except (FileRefused, OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise EvalError(f"cannot read the arrays file: {exc}") from None
+    return out
+
+
 CSV_COLUMNS = (
     "index",
     "env",
@@ -315,6 +346,7 @@ RUN_OUTPUTS = (
     "config.json",
     "episodes.jsonl",
     "results.json",
+    "results.json.xz",  # an earlier results.json compacted (`mobman-eval compact`): stale beside a new one
     "results.csv",
     "summary.md",
     "episodes.npz",

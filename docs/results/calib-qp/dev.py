@@ -160,7 +160,7 @@ def cmd_yaw_rate(seeds: int = 5) -> None:
                 rows.append(
                     {"obs_noise_yaw": yaw_noise, "seed": seed, "way": way, "rel_error": d / true.mount_offset - 1}
                 )
-    data = json.loads(JSON.read_text()) if JSON.exists() else {"experiments": {}}
+    data = _read() or {"experiments": {}}
     data["yaw_rate"] = {"git": _git(), "rows": rows}
     _write(data)
 
@@ -173,7 +173,7 @@ def _git() -> str:
 
 
 def cmd_run(only: list[str] | None, workers: int) -> None:
-    data = json.loads(JSON.read_text()) if JSON.exists() else {"experiments": {}}
+    data = _read() or {"experiments": {}}
     git = _git()  # the code imported at the start runs every experiment
     for name in only or list(EXPERIMENTS):
         robot, dynamics, seeds, pols, conds = EXPERIMENTS[name]
@@ -198,12 +198,25 @@ def _rows(columns: dict[str, list]) -> list[dict]:
     return [dict(zip(columns, values)) for values in zip(*columns.values())]
 
 
+def _read() -> dict | None:
+    """dev.json's content, read from dev.json or its compacted twin dev.json.xz (`mobman-eval compact`); None if
+    neither exists."""
+    from eval.output.compact import stored_bytes
+
+    try:
+        return json.loads(stored_bytes(JSON))
+    except FileNotFoundError:
+        return None
+
+
 def _write(data: dict) -> None:
-    """dev.json, compact (max errors kept to 7 significant digits: 1e-7 relative, far below their spread)."""
+    """dev.json, compact (max errors kept to 7 significant digits: 1e-7 relative, far below their spread); a
+    compacted dev.json.xz it replaces is removed (compact the new file again with `mobman-eval compact`)."""
     for exp in data["experiments"].values():
         errs = exp["episodes"]["max_error_m"]
         exp["episodes"]["max_error_m"] = [None if e is None else float(f"{e:.7g}") for e in errs]
     JSON.write_text(json.dumps(data, separators=(",", ":")) + "\n")
+    JSON.with_name(JSON.name + ".xz").unlink(missing_ok=True)
 
 
 def _cell(errors: list[float | None]) -> str:
@@ -217,7 +230,9 @@ def _cell(errors: list[float | None]) -> str:
 
 
 def cmd_summary() -> None:
-    data = json.loads(JSON.read_text())
+    data = _read()
+    if data is None:
+        raise SystemExit(f"{JSON} does not exist (nor its .xz twin): run `dev.py run` first")
     lines = [
         "# calib-qp: development measurements",
         "",

@@ -277,7 +277,9 @@ def main(argv: list[str] | None = None) -> None:
         progress.unlink(missing_ok=True)
         print(table(recs))
     else:
-        data = json.loads(Path(a.results).read_text())
+        from eval.output.compact import stored_bytes
+
+        data = json.loads(stored_bytes(a.results))  # the file, or its compacted twin (`mobman-eval compact`)
         text = markdown(data, a.title, Path(a.results).name)
         if a.out:
             Path(a.out).write_text(text)
