@@ -55,6 +55,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -75,31 +76,62 @@ BOOTSTRAP_SEED = 20211206  # the day rliable's paper was presented at NeurIPS 20
 #: z of a two-sided 95% normal interval, for the Wilson score interval.
 Z95 = 1.959963984540054
 
-#: Episode fields that identify an experimental condition; `aggregate` groups by them.
-GROUP_KEYS = ("env", "policy", "condition", "dynamics", "model_error", "obs_noise")
 
-#: Scalar episode metrics that `aggregate` summarises with median / mean / std / min / max / p90 (over successful rollouts,
-#: i.e. status "ok"; failed episodes only count in `n_failed` and lower the success rate).
-SUMMARY_METRICS = (
-    "max_error_m",
-    "rms_error_m",
-    "final_error_m",
-    "steady_max_error_m",
-    "steady_rms_error_m",
-    "effort",
-    "peak_joint_speed",
-    "peak_wheel_speed",
-    "cmd_accel_rms",
-    "cmd_jerk_rms",
-    "limit_margin_min",
-    "converge_time_s",
-    "predict_us_median",
-    "predict_us_p99",
+@dataclass(frozen=True)
+class Field:
+    """One field of an episode record and what the aggregation does with it: `group` (it identifies an
+    experimental condition: `aggregate` groups by it), `summary` (a scalar metric `aggregate` summarises with
+    median / mean / std / min / max / p90 over the episodes that ran), `iqm` (a summary metric that also gets an
+    IQM with its bootstrap CI)."""
+
+    name: str
+    group: bool = False
+    summary: bool = False
+    iqm: bool = False
+
+
+def _fields(*names: str, **flags: bool) -> tuple[Field, ...]:
+    return tuple(Field(n, **flags) for n in names)
+
+
+#: Per-episode Jacobian-estimate fields of a record (`jacobian_quality`); None for a policy without an estimate.
+JACOBIAN_KEYS = (
+    "jacobian_kind",
+    "jacobian_rel_error_median",
+    "jacobian_rel_error_max",
+    "jacobian_angle_median_rad",
+    "jacobian_angle_max_rad",
 )
 
+#: Every field of an episode record, in order, with its flags: the one schema of a record (`eval.rollout` fills
+#: it; eval/README.md, "results.json", says what each holds). Failed episodes only count in `n_failed` and lower
+#: the success rate of `aggregate`.
+RECORD_FIELDS: tuple[Field, ...] = (
+    *_fields("env", "policy", "condition", group=True),
+    *_fields("episode", "seed", "robot", "knowledge", "artefacts"),
+    *_fields("dynamics", "model_error", "obs_noise", group=True),
+    *_fields("control_freq", "path", "start", "true_params_hash", "feasible", "feasibility_peak", "status", "error"),
+    Field("max_error_m", summary=True, iqm=True),
+    *_fields("rms_error_m", "final_error_m", summary=True),
+    *_fields("steady_max_error_m", "steady_rms_error_m", summary=True, iqm=True),
+    Field("axis_max_error_m"),
+    *_fields("effort", "peak_joint_speed", "peak_wheel_speed", "cmd_accel_rms", "cmd_jerk_rms", summary=True),
+    *_fields("limit_margin_min", "converge_time_s", summary=True),
+    *_fields("success", "clean_success", "n_steps", "joint_limit_hits", "n_clipped", "tipped_over", "terminated"),
+    *_fields("predict_us_median", "predict_us_p99", summary=True),
+    *_fields(*JACOBIAN_KEYS),
+    *_fields("wall_s", "pid"),
+)
+RECORD_KEYS = tuple(f.name for f in RECORD_FIELDS)
+
+#: Episode fields that identify an experimental condition; `aggregate` groups by them.
+GROUP_KEYS = tuple(f.name for f in RECORD_FIELDS if f.group)
+
+#: Scalar episode metrics that `aggregate` summarises (see `Field`).
+SUMMARY_METRICS = tuple(f.name for f in RECORD_FIELDS if f.summary)
 
 #: Summary metrics that `aggregate` also gives an IQM with its bootstrap CI (`iqm`, `iqm_ci95`).
-IQM_METRICS = ("max_error_m", "steady_max_error_m", "steady_rms_error_m")
+IQM_METRICS = tuple(f.name for f in RECORD_FIELDS if f.iqm)
 
 
 def error_norm(r_d: np.ndarray, r_a: np.ndarray) -> np.ndarray:

@@ -71,62 +71,10 @@ ARRAY_KEYS = ("t", "r_d", "r_a", "p_c", "error", "action", "predict_us", "q")
 #: Per-step arrays recorded only for policies that expose `jacobian_estimate` (see the module docstring).
 JACOBIAN_ARRAY_KEYS = ("jacobian_rel_error", "jacobian_angle_rad")
 
-#: Per-episode Jacobian-estimate fields of a record (`eval.metrics.jacobian_quality`); None without an estimate.
-JACOBIAN_KEYS = (
-    "jacobian_kind",
-    "jacobian_rel_error_median",
-    "jacobian_rel_error_max",
-    "jacobian_angle_median_rad",
-    "jacobian_angle_max_rad",
-)
-
-#: Every field of an episode record, in order (see eval/README.md, "results.json").
-RECORD_KEYS = (
-    "env",
-    "policy",
-    "condition",
-    "episode",
-    "seed",
-    "robot",
-    "knowledge",
-    "artefacts",
-    "dynamics",
-    "model_error",
-    "obs_noise",
-    "control_freq",
-    "path",
-    "start",
-    "true_params_hash",
-    "feasible",
-    "feasibility_peak",
-    "status",
-    "error",
-    "max_error_m",
-    "rms_error_m",
-    "final_error_m",
-    "steady_max_error_m",
-    "steady_rms_error_m",
-    "axis_max_error_m",
-    "effort",
-    "peak_joint_speed",
-    "peak_wheel_speed",
-    "cmd_accel_rms",
-    "cmd_jerk_rms",
-    "limit_margin_min",
-    "converge_time_s",
-    "success",
-    "clean_success",
-    "n_steps",
-    "joint_limit_hits",
-    "n_clipped",
-    "tipped_over",
-    "terminated",
-    "predict_us_median",
-    "predict_us_p99",
-    *JACOBIAN_KEYS,
-    "wall_s",
-    "pid",
-)
+#: Per-episode Jacobian-estimate fields and every field of an episode record, in order: one table with per-field
+#: flags, `eval.metrics.RECORD_FIELDS` (see eval/README.md, "results.json").
+JACOBIAN_KEYS = M.JACOBIAN_KEYS
+RECORD_KEYS = M.RECORD_KEYS
 
 #: Env constructor arguments that the eval flags set (--dynamics, --model-error, --obs-noise); --env-kwargs may
 #: not set them too.
