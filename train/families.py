@@ -52,6 +52,8 @@ def _pct(x: float) -> str:
 def markdown(fams: Mapping[str, Any]) -> str:
     """The families as a Markdown table, then each family's seeds."""
     lines = [
+        "## Families",
+        "",
         "| family | seeds x episodes | failed | success [95% CI over seeds] | max err IQM [95% CI over seeds] (mm) | "
         "shipped (median seed) |",
         "|---|---|---|---|---|---|",
@@ -66,7 +68,7 @@ def markdown(fams: Mapping[str, Any]) -> str:
         lines.append(
             f"| {name} | {f['n_seeds']} x {n_eps} | {f['n_failed']} | {rate} | {iqm} | `{f['median_seed_member']}` |"
         )
-    lines += ["", "Per seed (success, max err IQM in mm):", ""]
+    lines += ["", "## Seeds", "", "Per seed (success, max err IQM in mm):", ""]
     for name, f in fams.items():
         per = zip(f["seeds"], f["per_seed_success_rate"], f["max_error_m"]["per_seed_iqm"], strict=True)
         lines.append(f"* {name}: " + "; ".join(f"`{s}` {_pct(r)}, {i * 1e3:.2f}" for s, r, i in per))

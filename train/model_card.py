@@ -114,7 +114,8 @@ def card_markdown(name: str, folder: Path, families: Path | None, scorecards: Se
         "",
     ]
     if families is not None:
-        lines += ["## Its family (training seeds)", "", (families / "families.md").read_text(encoding="utf-8"), ""]
+        text = (families / "families.md").read_text(encoding="utf-8").replace("## ", "### ")
+        lines += ["## Its family (training seeds)", "", text, ""]
     if scorecards:
         lines += ["## On the scorecards (reported seeds from 10,000)", ""]
         for path in scorecards:
