@@ -360,7 +360,14 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
         policy = SB3Policy(spec[4:])
         policy.check_compatible(EnvFacts.from_env(env), env)
         if policy.residual_base is not None:  # a residual agent: its base controller, built for this env
+            base_name = policy.residual_base.partition(":")[0]
+            if base_name not in _REGISTRY:  # a file names a built-in, never code (make_user is not reached)
+                raise ValueError(
+                    f"{spec}: its residual_base {policy.residual_base!r} is not a built-in controller; accepted: "
+                    f"{_known_text()}"
+                )
             policy.base = make(policy.residual_base, env, seed)
+            policy.knowledge = policy.base.knowledge  # the agent reads what its base reads
         return policy
     name, _, rest = spec.partition(":")
     if name in _REGISTRY:

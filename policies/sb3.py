@@ -68,6 +68,7 @@ is fastest for these small networks and kindest to a shared 2-core machine.
 
 from __future__ import annotations
 
+import re
 import warnings
 from pathlib import Path
 from typing import Any
@@ -343,8 +344,8 @@ class SB3Policy:
     # --- loading ---------------------------------------------------------------------------------------
     def _residual_settings(self) -> None:
         """A residual agent (config.json's env_kwargs name `residual_base`: `train.dev_env`): its base spec, a
-        built-in controller (a file names no code), and the residual's scale; its knowledge class is the base's.
-        `policies.make` builds the base for the env (`base`)."""
+        built-in controller (a file names no code), and the residual's scale. `policies.make` builds the base for
+        the env (`base`) and gives the agent the base's knowledge class."""
         kwargs = self.config.get("env_kwargs") or {}
         base = kwargs.get(agent_interface.RESIDUAL_BASE) if isinstance(kwargs, dict) else None
         self.residual_base: str | None = None
@@ -352,20 +353,18 @@ class SB3Policy:
         self._base_slots: np.ndarray | None = None
         if base is None:
             return
-        from policies.registry import KNOWN_POLICIES
-
-        if not isinstance(base, str) or base.partition(":")[0] not in KNOWN_POLICIES:
+        name, _, options = base.partition(":") if isinstance(base, str) else ("", "", "")
+        if not re.fullmatch(r"[a-z][a-z0-9-]*", name) or (options and "=" not in options):
             raise ValueError(
                 f"{self._config_file}: {agent_interface.RESIDUAL_BASE}={base!r} is not a built-in controller "
-                f"(accepted: {', '.join(KNOWN_POLICIES)}); a residual agent's base must be one"
+                "spec (a name such as 'qp', with options 'qp:key=value'); a residual agent's base must be one"
             )
         scale = kwargs.get(agent_interface.RESIDUAL_SCALE, agent_interface.DEFAULT_RESIDUAL_SCALE)
         if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not scale > 0:
             raise ValueError(f"{self._config_file}: {agent_interface.RESIDUAL_SCALE}={scale!r} must be a number > 0")
-        from policies.knowledge import knowledge_of
-
+        # `policies.make` checks the name against the built-ins, builds the base for the env and sets `knowledge`
+        # to the base's (the agent reads what its base reads, e.g. the catalogue: nominal)
         self.residual_base, self.residual_scale = base, float(scale)
-        self.knowledge = knowledge_of(base)  # the agent reads what its base reads (e.g. the catalogue: nominal)
 
     def _config_files(self, run: RunFiles) -> list[Path]:
         """The configuration files read: config.json, or rl-zoo's config.yml and args.yml."""

@@ -188,10 +188,16 @@ def test_a_residual_base_from_a_file_must_be_a_built_in(residual_run, tmp_path):
 
     crafted = shutil.copytree(residual_run, tmp_path / "crafted")
     cfg = json.loads((crafted / "config.json").read_text())
-    cfg["env_kwargs"]["residual_base"] = "os:system"
+    for bad in ("os:system", "../x", "qp:os.system"):
+        cfg["env_kwargs"]["residual_base"] = bad
+        (crafted / "config.json").write_text(json.dumps(cfg))
+        with pytest.raises(ValueError, match="not a built-in controller"):
+            policies.SB3Policy(crafted)
+    cfg["env_kwargs"]["residual_base"] = "nosuchlaw"  # the right shape, no such controller: make refuses it
     (crafted / "config.json").write_text(json.dumps(cfg))
-    with pytest.raises(ValueError, match="not a built-in controller"):
-        policies.SB3Policy(crafted)
+    env = gym.make("WheeledPuma-Circle-v0", dynamics="kinematic")
+    with pytest.raises(ValueError, match="'nosuchlaw' is not a built-in controller"):
+        policies.make(f"sb3:{crafted}", env)
 
 
 def test_numpy_actor_equals_torch_and_does_not_depend_on_the_batch():
