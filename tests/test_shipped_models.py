@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import policies
-from policies import sb3
+from policies.agents import sb3
 
 pytest.importorskip("stable_baselines3")
 
