@@ -30,6 +30,13 @@ Every closed-loop law defaults to the task-space gain gamma = 20 1/s; the paper-
 gamma = mu = 10 (for the paper's oracle use `oracle:gamma=10`). Eval seeds a policy with
 `policies.base.policy_seed(episode_seed)`, never with the env's own seed.
 
+The parts: the interface at the top level (`base`: the contract; `registry`: specs to policies; `batched`,
+`stacked`: one policy for a vector env's N robots; `views`, `knowledge`: knowledge classes; `user_specs`: your own
+controllers; `warm`: the numba warm-up that `python -m policies` runs) and three sub-packages, `policies.laws`
+(the built-in controllers, one module per family), `policies.kernels` (their numba kernels over N rows, which the
+laws import) and `policies.agents` (the `sb3:` agents, their interface and the checked readers of their files and
+of every JSON mobman loads). The registry names each law by its module and imports it when a spec is built.
+
 Importing this package loads neither torch nor Stable-Baselines3 (`SB3Policy` imports them when built), nor
 qpsolvers (`QP` and `CalibQP` import it when built).
 """
