@@ -31,7 +31,7 @@ from eval.output.results import load_arrays, load_results, write_plots
 from eval.paper import write_figures
 from eval.runner import RunResult
 from eval.schemas import MAX_SCORECARD_BYTES, SCORECARD_V1, check_shape, read_eval_json
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted_json import stored_path
 
 #: The scorecard schema of protocol v1 (release 0.2), which `load_scorecard` no longer reads.
 V1_SCHEMA = 2

@@ -15,7 +15,7 @@ seeds)` runs it on a vector env with a batched policy (`policies.make(spec, venv
 kinematic episodes of built-in controllers. Both return per robot the same (record, arrays), the same code
 making them: the records of a batched episode equal the single path's, timing fields (`wall_s`,
 `predict_us_*`) and `pid` excepted (`tests/test_batch_rollout.py`), because robot i of the vector env is the single
-env and row i of a batched policy the single policy, by construction (`mobman_env.engine`, `policies.kernels`).
+env and row i of a batched policy the single policy, by construction (`mobman_env.engine`, `policies.kernels.shared`).
 
 Per step and robot it records (SI units, float64 unless noted):
 

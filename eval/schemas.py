@@ -1,4 +1,4 @@
-"""The JSON files eval reads, each through the one reader (`policies.untrusted_json.read_json`) with its shape.
+"""The JSON files eval reads, each through the one reader (`policies.agents.untrusted_json.read_json`) with its shape.
 
 A scorecard or a results file may come from a stranger (a leaderboard entry, a colleague's run). Each kind has
 a size cap and a schema that is checked before anything runs, so that a malformed file is refused naming the
@@ -11,7 +11,7 @@ and env ids already registered with gymnasium (never `module:attr`, never `modul
 `module`). A results file's specs and env ids are labels: no command builds or runs them.
 
 `read_eval_json` turns every refusal into `EvalError` (exit 2 on the command line, no traceback).
-Imports `policies.untrusted_json`, `policies.registry` and (to list the registered env ids) gymnasium and
+Imports `policies.agents.untrusted_json`, `policies.registry` and (to list the registered env ids) gymnasium and
 mobman_env.
 """
 
@@ -22,8 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from eval.errors import EvalError
-from policies.untrusted import FileRefused
-from policies.untrusted_json import (
+from policies.agents.untrusted import FileRefused
+from policies.agents.untrusted_json import (
     AnyJSON,
     Bool,
     Int,

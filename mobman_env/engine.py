@@ -118,7 +118,7 @@ class PrmColumns(NamedTuple):
 
 PRM = PrmColumns._make([*range(18), 18, 20])  # 1 wide each, then spare (2) and path (PATH_LEN)
 P_LEN = PRM.path + PATH_LEN
-# short names of the geometry columns that `policies.calib_qp` writes its estimates into
+# short names of the geometry columns that `policies.laws.calib_qp` writes its estimates into
 A_A, A_D = ARM.dh_a, ARM.dh_d
 P_TOOL, P_R, P_B, P_MNT, P_H = PRM.tool, PRM.wheel_radius, PRM.half_track, PRM.mount_offset, PRM.base_height
 

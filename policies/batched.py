@@ -17,10 +17,10 @@ Two kinds behind one interface (`BatchedPolicy`):
   `oracle-full`, `nnbc`, `nnbc-full`, `qp`, `qp-oracle`, `calib-qp`, `mpc`, `mpc-oracle` (batched up to the QP,
   which is solved row by row; `calib-qp`'s calibration is one per-row kernel; `mpc`'s QP is assembled per row by
   one kernel), and the model-free `nnbc-plus`, `nnbc-plus-wb`, `broyden`,
-  `rls` (one per-row numba kernel, `policies.model_free_kernels`: each row draws its dither signs from its own
+  `rls` (one per-row numba kernel, `policies.kernels.model_free`: each row draws its dither signs from its own
   Generator as the single controller does). The
   law's state is (N, ...) arrays and one `predict` advances every row with whole-array numpy operations
-  (`policies.kernels`: the damped pseudo-inverse of N Jacobians, the nominal or true robots' Jacobians batched by
+  (`policies.kernels.shared`: the damped pseudo-inverse of N Jacobians, the nominal or true robots' Jacobians batched by
   `mobman_env.vector_kinematics`). The single-env class of the spec (`NNBC`, `CLIK`, `Oracle`, ...) is a `LawView`:
   the same law with N = 1 (STYLE 14: one implementation per law). So robot i's actions are those of a single policy
   reset with `policy_seed(S + i)` on the same observations; bit for bit on our machines (products are numpy stacked
@@ -54,7 +54,7 @@ from typing import Any
 import numpy as np
 
 from policies.base import ControllerPolicy, EnvFacts, first_flag, policy_seed, unbatch
-from policies.kernels import obs_rows
+from policies.kernels.shared import obs_rows
 
 
 def is_vector_env(env: Any) -> bool:
@@ -193,7 +193,7 @@ class BatchedPolicy:
 
 class BatchedAgent(BatchedPolicy):
     """One `sb3:` agent for the N robots of the native vector env: one `predict` for N rows. Built only for an
-    agent whose deterministic action is computed row by row (`policies.sb3_actor`: the same bits for any N), so
+    agent whose deterministic action is computed row by row (`policies.agents.sb3_actor`: the same bits for any N), so
     its episodes equal the single path's; a residual agent's base is the base's vectorised law. `rows` are the
     agent itself N times (its knowledge class and artefacts, for the records)."""
 
@@ -420,7 +420,7 @@ def check_vector_env(venv: Any) -> None:
 def info_rows(info: Any, rows: slice) -> dict | None:
     """The rows `rows` of a vector env's info (Gymnasium's dict of per-row arrays and `_key` masks, nested dicts
     included), as the info of a vector env of those rows; None for no info. `StackedPolicy` hands each part its
-    rows' reset info (the path a controller with preview reads, `policies.mpc`)."""
+    rows' reset info (the path a controller with preview reads, `policies.laws.mpc`)."""
     if not isinstance(info, dict):
         return None
     out: dict[str, Any] = {}

@@ -21,7 +21,7 @@ policies.knowledge_of("nnbc-plus-wb")                     # "none" (formulation=
 policies.knowledge_of(policies.make("qp-oracle", env))     # "true"
 ```
 
-Imports `policies.registry` (which class a spec builds) and, for `sb3:` specs, `policies.sb3` (which imports
+Imports `policies.registry` (which class a spec builds) and, for `sb3:` specs, `policies.agents.sb3` (which imports
 neither torch nor Stable-Baselines3 until an agent is built).
 """
 
@@ -83,7 +83,7 @@ def _checked(value: Any, owner: str) -> str:
 def _of_spec(spec: str) -> str:
     spec = spec.strip()
     if spec.startswith("sb3:"):
-        from policies.sb3 import SB3Policy
+        from policies.agents.sb3 import SB3Policy
 
         return _checked(inspect.getattr_static(SB3Policy, "knowledge"), "SB3Policy")
     name, _, rest = spec.partition(":")

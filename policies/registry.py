@@ -64,7 +64,7 @@ class _Entry:
 _REGISTRY: dict[str, _Entry] = {
     "nnbc": _Entry(
         "the paper's model-free NNBC, eqs. (7)-(15) (J_hat of r_a_dot - [p_c_dot; 0])",
-        "policies.nnbc",
+        "policies.laws.nnbc",
         "NNBC",
         "NNBCConfig",
         {},
@@ -72,15 +72,15 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "nnbc-full": _Entry(
         "NNBC with J_hat of the whole r_a_dot (the platform can drive)",
-        "policies.nnbc",
+        "policies.laws.nnbc",
         "NNBC",
         "NNBCConfig",
         {"full": True},
         "none",
     ),
     "nnbc-plus": _Entry(
-        "NNBC improved: no kinematic parameter, but the structured estimate knows the chain's kind (class structure; see policies.nnbc_plus)",
-        "policies.nnbc_plus",
+        "NNBC improved: no kinematic parameter, but the structured estimate knows the chain's kind (class structure; see policies.laws.nnbc_plus)",
+        "policies.laws.nnbc_plus",
         "NNBCPlus",
         "NNBCPlusConfig",
         {},
@@ -88,7 +88,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "nnbc-plus-wb": _Entry(
         "nnbc-plus with its whole-body estimate instead of the structured one: knows no structure (class none)",
-        "policies.nnbc_plus",
+        "policies.laws.nnbc_plus",
         "NNBCPlus",
         "NNBCPlusConfig",
         {"formulation": "whole_body"},
@@ -96,7 +96,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "broyden": _Entry(
         "model-free: Broyden's secant Jacobian update in nnbc-plus's probe / excitation / control law",
-        "policies.broyden_rls",
+        "policies.laws.broyden_rls",
         "Broyden",
         "BroydenConfig",
         {},
@@ -104,7 +104,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "rls": _Entry(
         "model-free: recursive least squares with forgetting in nnbc-plus's probe / excitation / control law",
-        "policies.broyden_rls",
+        "policies.laws.broyden_rls",
         "RLS",
         "RLSConfig",
         {},
@@ -112,7 +112,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "jmpi": _Entry(
         "open-loop Jacobian pseudo-inverse on the nominal model (the paper's comparison)",
-        "policies.jmpi",
+        "policies.laws.jmpi",
         "JMPI",
         "JMPIConfig",
         {},
@@ -120,7 +120,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "jmpi-full": _Entry(
         "open-loop pseudo-inverse of the nominal whole-body Jacobian",
-        "policies.jmpi",
+        "policies.laws.jmpi",
         "JMPI",
         "JMPIConfig",
         {"full": True},
@@ -128,7 +128,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "clik": _Entry(
         "closed-loop eq. (10) on the nominal model (resolved rate, paper's J): the practitioner's baseline",
-        "policies.jmpi",
+        "policies.laws.jmpi",
         "CLIK",
         "CLIKConfig",
         {},
@@ -136,7 +136,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "clik-full": _Entry(
         "closed-loop eq. (10) on the nominal whole-body Jacobian",
-        "policies.jmpi",
+        "policies.laws.jmpi",
         "CLIK",
         "CLIKConfig",
         {"full": True},
@@ -144,18 +144,23 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "oracle": _Entry(
         "eq. (10) with the true robot's Jacobian: the known-model bound",
-        "policies.jmpi",
+        "policies.laws.jmpi",
         "Oracle",
         "OracleConfig",
         {},
         "true",
     ),
     "oracle-full": _Entry(
-        "eq. (10) with the true whole-body Jacobian", "policies.jmpi", "Oracle", "OracleConfig", {"full": True}, "true"
+        "eq. (10) with the true whole-body Jacobian",
+        "policies.laws.jmpi",
+        "Oracle",
+        "OracleConfig",
+        {"full": True},
+        "true",
     ),
     "qp": _Entry(
         "whole-body differential-IK QP on the nominal model: joint-limit dampers, speed bounds, posture term",
-        "policies.qp",
+        "policies.laws.qp",
         "QP",
         "QPConfig",
         {},
@@ -163,7 +168,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "qp-oracle": _Entry(
         "the whole-body QP on the true robot: the known-model ceiling (respects joint limits)",
-        "policies.qp",
+        "policies.laws.qp",
         "QP",
         "QPConfig",
         {},
@@ -171,7 +176,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "calib-qp": _Entry(
         "the whole-body QP on a model calibrated online: a Kalman filter on the worn lengths, from the catalogue",
-        "policies.calib_qp",
+        "policies.laws.calib_qp",
         "CalibQP",
         "CalibQPConfig",
         {},
@@ -179,7 +184,7 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "mpc": _Entry(
         "receding-horizon whole-body QP on the nominal model: path preview, actuator lag (identified online), speed limits",
-        "policies.mpc",
+        "policies.laws.mpc",
         "MPC",
         "MPCConfig",
         {},
@@ -187,15 +192,20 @@ _REGISTRY: dict[str, _Entry] = {
     ),
     "mpc-oracle": _Entry(
         "the receding-horizon QP on the true robot and the true actuator lag: the known-model reference",
-        "policies.mpc",
+        "policies.laws.mpc",
         "MPC",
         "MPCConfig",
         {},
         "true",
     ),
-    "zero": _Entry("zero speeds: the floor reference", "policies.simple", "Zero", "ZeroConfig", {}, "none"),
+    "zero": _Entry("zero speeds: the floor reference", "policies.laws.simple", "Zero", "ZeroConfig", {}, "none"),
     "random": _Entry(
-        "uniform random actions from the policy's own seed", "policies.simple", "Random", "RandomConfig", {}, "none"
+        "uniform random actions from the policy's own seed",
+        "policies.laws.simple",
+        "Random",
+        "RandomConfig",
+        {},
+        "none",
     ),
 }
 
@@ -218,7 +228,7 @@ def _known_text() -> str:
 def data_spec_problem(spec: object) -> str | None:
     """Why `spec`, read from a file someone else wrote (a scorecard, a results file), may not be built and run
     here, or None if it may: only a built-in name with options (`qp`, `oracle:gamma=10`) and an `sb3:` agent
-    (a path or an alias, read through `policies.untrusted`'s checks) are data. `module:attr` names code, which
+    (a path or an alias, read through `policies.agents.untrusted`'s checks) are data. `module:attr` names code, which
     only a spec you type may do (`policies.user_specs`)."""
     if not isinstance(spec, str) or not spec.strip():
         return f"{spec!r} is not a policy spec (a non-empty string)"
@@ -349,13 +359,13 @@ def make(spec: str, env: Any, seed: int | None = None) -> Any:
             return _make_builtin_batched(spec, env, seed)
         if native and name == "sb3":
             agent = make(spec, _RobotView(env, 0), seed)  # checked against robot 0 (the robots share spaces)
-            if getattr(agent, "_actor", None) is not None:  # row-by-row actions: batch it (policies.sb3_actor)
+            if getattr(agent, "_actor", None) is not None:  # row-by-row actions: batch it (policies.agents.sb3_actor)
                 if agent.residual_base is not None:
                     agent.base = make(agent.residual_base, env, seed)  # the base's vectorised law
                 return BatchedAgent(spec, agent, env.num_envs)
         return BatchedPolicy.for_vector_env(spec, env, lambda s, robot: make(s, robot, seed))
     if spec.startswith("sb3:"):
-        from policies.sb3 import SB3Policy
+        from policies.agents.sb3 import SB3Policy
 
         policy = SB3Policy(spec[4:])
         policy.check_compatible(EnvFacts.from_env(env), env)

@@ -15,7 +15,7 @@ A knowledge class (`policies.knowledge`) was a declaration: `calib-qp` read the 
 The class a spec is built with is the one `policies.knowledge_of(spec)` reports (a test checks both agree for
 every built-in), so a controller that reads more than its class fails when it is built or at its first episode
 start, not in a scorecard. Agents (`sb3:`) and the user's `module:attr` controllers are not built through a view:
-an agent reads only observations (its checks are in `policies.sb3`), and a user's class is the user's.
+an agent reads only observations (its checks are in `policies.agents.sb3`), and a user's class is the user's.
 
 Imports nothing.
 """

@@ -9,16 +9,17 @@ import time
 import numpy as np
 
 from mobman_env.params import RobotParams
-from policies import calib_qp, kernels, model_free_kernels, mpc_model, nnbc
 from policies.base import EnvFacts
-from policies.broyden_rls import RLS, Broyden
-from policies.estimators import BroydenEstimator
-from policies.kernels import damped_pinv_apply_rows
-from policies.mpc import MPC, MPCConfig
-from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
+from policies.kernels import model_free, mpc_model, shared
+from policies.kernels.shared import damped_pinv_apply_rows
+from policies.laws import calib_qp, nnbc
+from policies.laws.broyden_rls import RLS, Broyden
+from policies.laws.estimators import BroydenEstimator
+from policies.laws.mpc import MPC, MPCConfig
+from policies.laws.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 #: every module of `policies` with `@njit(cache=True)` kernels (a test checks the list is complete)
-KERNEL_MODULES = (kernels, nnbc, calib_qp, model_free_kernels, mpc_model)
+KERNEL_MODULES = (shared, nnbc, calib_qp, model_free, mpc_model)
 
 
 def warm() -> float:
@@ -36,7 +37,7 @@ def warm() -> float:
     calib_qp.calibrate_rows(
         three, ints, ints, ints, *obs, *est, 1.0, 1.0, 1.0, 0.0, np.zeros((1, 8, 8)), np.ones((1, 64))
     )
-    # the model-free law (policies.model_free_kernels): each estimator kind through the probe into the estimate
+    # the model-free law (policies.kernels.model_free): each estimator kind through the probe into the estimate
     facts = EnvFacts(dt=0.01, action_scale=(3.0,) * 6 + (10.0, 10.0), obs_keys=())
     sizes = {"ee_pos": 3, "ee_vel": 3, "arm_base_pos": 2, "arm_base_vel": 2, "joint_pos": 8, "joint_vel": 8}
     single = {k: np.full(m, 0.01) for k, m in {**sizes, "target_pos": 3, "target_vel": 3, "base_yaw": 1}.items()}

@@ -1,4 +1,5 @@
-"""The agent's interface (`policies.agent_interface`): no clock, one layout for every robot, padding that round-trips."""
+"""The agent's interface (`policies.agents.agent_interface`): no clock, one layout for every robot, padding that
+round-trips."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import pytest
 
 import mobman_env
 from mobman_env import TASKS
-from policies import agent_interface as I
+from policies.agents import agent_interface as I
 
 ROBOTS = {"puma560": 8, "ur5": 8, "panda": 9}
 IDS = {"puma560": "WheeledPuma-Circle-v0", "ur5": "WheeledUR5-Circle-v0", "panda": "WheeledPanda-Circle-v0"}

@@ -17,12 +17,12 @@ import policies
 from mobman_env import kinematics as K
 from mobman_env.params import RobotParams
 from policies.base import EnvFacts, policy_seed
-from policies.broyden_rls import BroydenConfig, RLSConfig
-from policies.estimators import BroydenEstimator, RLSEstimator
-from policies.jmpi import CLIKConfig, JMPIConfig, OracleConfig
-from policies.nnbc import damped_pinv_apply
-from policies.nnbc_plus import NNBCPlusConfig
-from policies.qp import QP, QPConfig, daqp_solve_qp
+from policies.laws.broyden_rls import BroydenConfig, RLSConfig
+from policies.laws.estimators import BroydenEstimator, RLSEstimator
+from policies.laws.jmpi import CLIKConfig, JMPIConfig, OracleConfig
+from policies.laws.nnbc import damped_pinv_apply
+from policies.laws.nnbc_plus import NNBCPlusConfig
+from policies.laws.qp import QP, QPConfig, daqp_solve_qp
 
 DEV_SEEDS = range(0, 3)
 DEV_SEEDS_20 = range(0, 20)
@@ -78,9 +78,9 @@ def test_clik_is_the_oracle_law_on_the_nominal_model():
         facts = EnvFacts.from_env(env)
         nominal = env.unwrapped.nominal_params
         for full in (False, True):
-            clik = policies.jmpi.CLIK(facts, CLIKConfig(full=full), nominal_params=nominal)
-            oracle = policies.jmpi.Oracle(facts, OracleConfig(full=full), params_provider=lambda: nominal)
-            jmpi = policies.jmpi.JMPI(facts, JMPIConfig(full=full, gamma=20.0), nominal_params=nominal)
+            clik = policies.laws.jmpi.CLIK(facts, CLIKConfig(full=full), nominal_params=nominal)
+            oracle = policies.laws.jmpi.Oracle(facts, OracleConfig(full=full), params_provider=lambda: nominal)
+            jmpi = policies.laws.jmpi.JMPI(facts, JMPIConfig(full=full, gamma=20.0), nominal_params=nominal)
             for pol in (clik, oracle, jmpi):
                 pol.reset(obs)
             u = clik.predict(obs)[0]

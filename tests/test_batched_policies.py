@@ -16,7 +16,7 @@ from mobman_env.params import RobotParams
 from mobman_env.vector import _row_info
 from policies.base import policy_seed
 from policies.batched import BatchedController, BatchedPolicy, _RobotView
-from policies.kernels import ModelJacobians, damped_pinv_apply_rows
+from policies.kernels.shared import ModelJacobians, damped_pinv_apply_rows
 
 SPECS = ("zero", "random", "jmpi", "clik", "clik-full", "oracle", "nnbc", "nnbc-plus", "broyden", "rls", "mpc-oracle")
 ENV_ID = "WheeledPuma-Lemniscate-v0"
@@ -88,7 +88,7 @@ def test_bad_batches_raise():
 VECTORISED = ("zero", "random", "qp", "qp-oracle", "calib-qp", "mpc", "mpc-oracle") + tuple(
     f"{law}{form}" for law in ("jmpi", "clik", "oracle", "nnbc") for form in ("", "-full")
 )
-#: the model-free laws of `policies.nnbc_plus.ModelFreeLaw` (one numba kernel over the rows)
+#: the model-free laws of `policies.laws.nnbc_plus.ModelFreeLaw` (one numba kernel over the rows)
 MODEL_FREE = ("nnbc-plus", "nnbc-plus-wb", "broyden", "rls", "nnbc-plus:formulation=paper,j0_noise=0.3")
 
 
@@ -186,7 +186,7 @@ def test_model_free_specs_are_vectorised_laws(spec):
 
 
 def test_model_jacobians_equal_the_single_kinematics():
-    """`policies.kernels.ModelJacobians` (batched `mobman_env.vector_kinematics`) equals `mobman_env.kinematics`
+    """`policies.kernels.shared.ModelJacobians` (batched `mobman_env.vector_kinematics`) equals `mobman_env.kinematics`
     bit for bit, per row of worn robots, for the paper's and the whole-body Jacobian (what lets the single-env
     laws evaluate their one row with `mobman_env.kinematics`)."""
     rng = np.random.default_rng(10_400)
@@ -385,7 +385,7 @@ def model_free_digests(steps: int = 300) -> list[str]:
 
 @pytest.mark.slow
 def test_the_model_free_law_as_plain_python_gives_the_compiled_bits():
-    """`policies.model_free_kernels` run as plain Python (`NUMBA_DISABLE_JIT=1`) issues the compiled kernel's
+    """`policies.kernels.model_free` run as plain Python (`NUMBA_DISABLE_JIT=1`) issues the compiled kernel's
     commands bit for bit (the kernels are plain float code: no fast-math, no reassociation)."""
     import json
     import os

@@ -1,4 +1,4 @@
-"""`calib-qp` (`policies.calib_qp`): the whole-body QP on a model calibrated online.
+"""`calib-qp` (`policies.laws.calib_qp`): the whole-body QP on a model calibrated online.
 
 Accuracy claims are assertions on development seeds (0-999): the controller's defaults were chosen on seeds 0-9,
 and the thresholds below are the measured values with a margin (each test says what it measured). The true
@@ -20,8 +20,8 @@ from mobman_env.params import RobotParams
 from mobman_env.robots.catalogue import PANDA, UR5
 from policies.base import EnvFacts, policy_seed
 from policies.batched import _RobotView
-from policies.calib_qp import CalibQP, CalibQPConfig, CalibQPLaw, unit_rows
-from policies.qp import QPConfig
+from policies.laws.calib_qp import CalibQP, CalibQPConfig, CalibQPLaw, unit_rows
+from policies.laws.qp import QPConfig
 
 TASKS = ("Circle", "Line", "Lemniscate", "Random")
 

@@ -1,4 +1,4 @@
-"""Compact storage (`eval.output.compact`, `policies.untrusted_json.read_json`): a JSON file stored as FILE.xz
+"""Compact storage (`eval.output.compact`, `policies.agents.untrusted_json.read_json`): a JSON file stored as FILE.xz
 reads back byte for byte, by every reader, with the same caps; the committed compacted scorecards hold the bytes
 of the files they replaced (their git blob ids are those in the history)."""
 
@@ -19,8 +19,8 @@ from eval.cli import main
 from eval.errors import EvalError
 from eval.output.compact import compact, git_blob_id, stored_bytes
 from eval.output.results import READABLE_SCHEMAS, load_results
-from policies.untrusted import FileRefused
-from policies.untrusted_json import read_json
+from policies.agents.untrusted import FileRefused
+from policies.agents.untrusted_json import read_json
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "docs" / "results"

@@ -1,6 +1,6 @@
 """MobMan-DevTrack-v0 (`train.dev_env`): the dev track's kinematic cells as one training env in the agent's
 interface; the native vector env's `episode_sampler`; residual agents (training env, `sb3:` loading, batching);
-the numpy actor of `policies.sb3_actor`."""
+the numpy actor of `policies.agents.sb3_actor`."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import mobman_env  # noqa: F401  (registers the robot ids)
 import train  # (registers MobMan-DevTrack-v0)
 from eval import conditions as C
 from mobman_env.paths import TASK_SPECS
-from policies import agent_interface as interface
+from policies.agents import agent_interface as interface
 from train import dev_env as D
 
 
@@ -201,8 +201,8 @@ def test_a_residual_base_from_a_file_must_be_a_built_in(residual_run, tmp_path):
 
 
 def test_numpy_actor_equals_torch_and_does_not_depend_on_the_batch():
-    from policies.sb3 import SB3Policy
-    from policies.sb3_actor import numpy_actor
+    from policies.agents.sb3 import SB3Policy
+    from policies.agents.sb3_actor import numpy_actor
 
     agent = SB3Policy("ppo-circle")
     assert agent._actor is not None and numpy_actor(SB3Policy("sac-circle").model) is None

@@ -11,7 +11,7 @@ import pytest
 from eval.bench.scorecard import load_scorecard
 from eval.cli.readme import render
 from eval.output.compact import stored_bytes
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted_json import stored_path
 
 ROOT = Path(__file__).resolve().parents[1]
 BLOCK = re.compile(r"<!-- (generated|bench):begin ")

@@ -278,7 +278,7 @@ def test_a_bad_batch_size_is_refused_before_any_rollout(tmp_path, capsys, comman
 
 
 def test_sb3_agent_batches_with_the_single_paths_records():
-    """A PPO agent (`sb3:ppo-circle`, acting through `policies.sb3_actor`) runs as one batch of rows with the
+    """A PPO agent (`sb3:ppo-circle`, acting through `policies.agents.sb3_actor`) runs as one batch of rows with the
     same records as one episode at a time, its knowledge class and artefacts included."""
     tasks = [Task(k, CIRCLE, "kinematic", "sb3:ppo-circle", k, 10_000 + k, None, None) for k in range(5)]
     out = {}

@@ -262,8 +262,8 @@ def test_paper_claims_follow_the_measurements(nnbc, jmpi, expect):
 
 
 def test_paper_keeps_the_papers_gains_and_takes_the_new_baselines_when_registered():
-    from policies.jmpi import OracleConfig
-    from policies.nnbc import NNBCConfig
+    from policies.laws.jmpi import OracleConfig
+    from policies.laws.nnbc import NNBCConfig
     from policies.registry import KNOWN_POLICIES
 
     specs, notes = paper.choose_policies("kinematic")

@@ -48,7 +48,7 @@ def test_policies_kernel_modules_are_all_listed():
     from numba.core.dispatcher import Dispatcher
 
     with_kernels = set()
-    for info in pkgutil.iter_modules(policies.__path__, "policies."):
+    for info in pkgutil.walk_packages(policies.__path__, "policies."):  # the sub-packages' modules too
         if info.name.endswith("__main__"):
             continue
         module = importlib.import_module(info.name)

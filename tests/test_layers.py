@@ -143,6 +143,31 @@ def test_eval_layers(graph):
     assert not bad, bad
 
 
+#: policies' sub-packages (their docstrings; policies/__init__.py): the other policies modules each may import
+#: (imports inside functions count); a module may import the modules of its own sub-package
+POLICIES_PARTS = {
+    "policies.kernels": {"policies.base"},
+    "policies.laws": {"policies.base", "policies.batched", "policies.kernels"},
+    "policies.agents": {"policies.base", "policies.registry", "policies.knowledge"},
+}
+
+
+def test_policies_subpackages_import_what_their_docstrings_state(graph):
+    """kernels <- laws: a kernel never reaches a law, a law never the registry or an agent; the agents reach the
+    registry and the knowledge classes only for a residual agent's base."""
+    bad = []
+    for m, deps in graph.items():
+        part = ".".join(m.split(".")[:2])
+        if part not in POLICIES_PARTS:
+            continue
+        for d in deps:
+            if d.split(".")[0] != "policies" or d.startswith(part + ".") or d == part:
+                continue
+            if not any(d == a or d.startswith(a + ".") for a in POLICIES_PARTS[part]):
+                bad.append(f"{m} imports {d}")
+    assert not bad, bad
+
+
 def test_the_checker_sees_imports_inside_functions(tmp_path):
     p = tmp_path / "mod.py"
     p.write_text("def f():\n    from eval.cli import main\n    import policies.registry\n")

@@ -19,7 +19,7 @@ Episodes: the PUMA's Circle-v0 in kinematic and physics mode, and its Lemniscate
 delay-settling phase and two blocks of dither signs; development seeds 0-2 (nothing here is a claim). The
 controllers were recorded when they multiplied small arrays with numpy (BLAS; `_blas` in the file names the
 OpenBLAS kernel, SkylakeX). Since the port of the model-free law to numba kernels without BLAS
-(`policies.model_free_kernels`: the commands moved by at most 4e-13 relative) they issue the recorded float32
+(`policies.kernels.model_free`: the commands moved by at most 4e-13 relative) they issue the recorded float32
 actions unchanged, so the file was kept.
 """
 

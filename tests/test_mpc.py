@@ -1,7 +1,7 @@
-"""`mpc`, `mpc-oracle` (policies.mpc): the prediction model against the env's own steps, the QP's bounds, the path
+"""`mpc`, `mpc-oracle` (policies.laws.mpc): the prediction model against the env's own steps, the QP's bounds, the path
 preview and the true lag reaching the law, the nominal law's lag fit, and what the law is for: tracking the fast
 rung of the difficulty ladder and tracking under actuator lag better than `qp-oracle`. Development seeds
-(< 1,000) for the accuracy tests, whose figures are quoted in `policies.mpc`'s docstring."""
+(< 1,000) for the accuracy tests, whose figures are quoted in `policies.laws.mpc`'s docstring."""
 
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ from mobman_env import WheeledPumaEnv
 from mobman_env.vector import _row_info
 from policies.base import EnvFacts, policy_seed
 from policies.batched import _RobotView
-from policies.kernels import ModelJacobians
-from policies.mpc import MPC, MPCConfig, MPCLaw
-from policies.mpc_model import block_lengths, lag_coefficients
+from policies.kernels.mpc_model import block_lengths, lag_coefficients
+from policies.kernels.shared import ModelJacobians
+from policies.laws.mpc import MPC, MPCConfig, MPCLaw
 from policies.stacked import StackedPolicy, VectorEnvRows
 
 #: the 2.5 s rung of the difficulty ladder: a 5-harmonic random path of 0.3 m in 2.5 s
@@ -114,7 +114,7 @@ def test_every_plan_respects_the_bounds():
 
 
 def law_bounds(law: MPCLaw, obs: dict) -> tuple[np.ndarray, np.ndarray]:
-    from policies.qp import damper_bounds
+    from policies.laws.qp import damper_bounds
 
     c = law.config
     q = np.asarray(obs["joint_pos"], float)[None, :6]

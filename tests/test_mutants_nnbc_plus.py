@@ -17,7 +17,7 @@ import pytest
 
 import mobman_env
 from policies.base import EnvFacts
-from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
+from policies.laws.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 #: a fast circle (0.1 m, 2 s: 0.31 m/s, 0.99 m/s^2), so half a step changes the target velocity by ~5 mm/s
 FAST_CIRCLE = {"type": "circle", "radius": 0.1, "duration": 2.0}

@@ -14,7 +14,7 @@ from mobman_env.batch import CONDITIONS, Conditions, StepResult
 from mobman_env.env import WheeledPumaEnv
 from mobman_env.sensors import SENSOR_KEYS
 from mobman_env.vector import WheeledPumaVectorEnv
-from policies import model_free_kernels as K
+from policies.kernels import model_free as K
 
 SHORT = {"type": "circle", "radius": 0.2, "duration": 0.5}
 

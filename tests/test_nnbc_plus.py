@@ -1,4 +1,4 @@
-"""`nnbc-plus` (policies/nnbc_plus.py): the model-free controller that fixes the paper's NNBC (issue 6).
+"""`nnbc-plus` (policies/laws/nnbc_plus.py): the model-free controller that fixes the paper's NNBC (issue 6).
 
 Kinematic mode, full 20 s episodes, a few reported seeds per claim (DESIGN "Seeds": the gains were tuned on seeds
 0-999 only). The claims asserted here are the issue's targets on a reduced seed set: every task tracked within
@@ -17,7 +17,7 @@ import pytest
 import mobman_env
 from mobman_env import kinematics as K
 from policies.base import EnvFacts
-from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
+from policies.laws.nnbc_plus import NNBCPlus, NNBCPlusConfig
 
 REPORTED_SEEDS = range(10_000, 10_005)
 TOLERANCE = 0.006  # m: the paper's maximum error, the success criterion of the issue
@@ -315,7 +315,7 @@ def test_the_manual_lists_every_option_with_its_default():
     import ast
     import re
 
-    from policies import nnbc_plus
+    from policies.laws import nnbc_plus
 
     rows = re.findall(r"^\| `(\w+)` \| ([^|]+) \|", nnbc_plus.__doc__ or "", re.M)
     assert [name for name, _ in rows] == [f.name for f in dataclasses.fields(NNBCPlusConfig)]
@@ -359,7 +359,7 @@ def test_a_lagging_actuator_is_neither_a_delay_nor_a_joint_stop():
     807-1470 mm median on the PUMA). v4 matches the speeds against lag models too: it finds the lag, compensates
     no delay, blocks nothing and tracks within the paper's 6 mm; the same env with a real 2-step delay is still
     read as a delay."""
-    from policies.nnbc_plus import LAG_TAUS
+    from policies.laws.nnbc_plus import LAG_TAUS
 
     results, models, blocked = [], [], []
     env = make_env("Lemniscate", actuator_tau=0.05)

@@ -1,4 +1,4 @@
-"""`nnbc-plus`'s structured estimate (`formulation="structured"`, `policies.structured`): a synthetic arm on a
+"""`nnbc-plus`'s structured estimate (`formulation="structured"`, `policies.laws.structured`): a synthetic arm on a
 platform that slips, the composition of J, the option's checks, and the physics 5 s circle it was built for
 (development seeds)."""
 
@@ -14,9 +14,9 @@ import pytest
 import mobman_env
 import policies
 from policies.base import EnvFacts
-from policies.estimators import KalmanEstimator
-from policies.nnbc_plus import NNBCPlus, NNBCPlusConfig
-from policies.structured import StructuredEstimator
+from policies.laws.estimators import KalmanEstimator
+from policies.laws.nnbc_plus import NNBCPlus, NNBCPlusConfig
+from policies.laws.structured import StructuredEstimator
 
 N, DT = 8, 0.01
 E = TypeVar("E")

@@ -92,7 +92,7 @@ def test_the_probe_residual_variance_is_the_noise_of_y():
     """`probe_residual_variance` from the probe's sums (A = sum x x^T, B = sum y x^T, sum |y|^2) and its fit J is
     the variance of one component of y's noise: 2,000 pairs of y = J x + noise (0.02 m/s) give 4e-4 within 5%;
     noiseless pairs give 0."""
-    from policies import model_free_kernels as K
+    from policies.kernels import model_free as K
 
     rng = np.random.default_rng(0)
     n, m = 8, 2000
@@ -125,7 +125,7 @@ def test_the_lag_bank_spans_the_dev_range_and_a_lag_between_v5s_models_is_tracke
     diverged on the PUMA (development seeds 0-3: Circle 1,545 mm on seed 3, Lemniscate 363 and 71 mm on seeds 1
     and 2). The bank is six time constants spaced evenly in log over the declared dev range 20-200 ms, with the
     dev track's 50 ms among them; 100 and 150 ms (between two models) are tracked within 6 mm."""
-    from policies.nnbc_plus import LAG_TAUS
+    from policies.laws.nnbc_plus import LAG_TAUS
 
     assert LAG_TAUS[0] == pytest.approx(0.02) and LAG_TAUS[-1] == pytest.approx(0.2) and len(LAG_TAUS) == 6
     assert np.allclose(np.diff(np.log(LAG_TAUS)), np.log(10) / 5)

@@ -59,7 +59,13 @@ def test_a_corrupt_cache_file_is_recompiled_and_said_once(tmp_path):
 
 @pytest.mark.parametrize(
     "module",
-    ["mobman_env.engine", "policies.kernels", "policies.model_free_kernels", "policies.calib_qp", "policies.nnbc"],
+    [
+        "mobman_env.engine",
+        "policies.kernels.shared",
+        "policies.kernels.model_free",
+        "policies.laws.calib_qp",
+        "policies.laws.nnbc",
+    ],
 )
 def test_every_cached_kernel_recovers_from_a_corrupt_file(module):
     from numba.core.dispatcher import Dispatcher

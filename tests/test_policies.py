@@ -22,7 +22,7 @@ from conftest import SHORT_CIRCLE
 
 import policies
 from policies.base import EnvFacts
-from policies.nnbc import NNBC, NNBCConfig, damped_pinv, damped_pinv_apply, sigma_min_3
+from policies.laws.nnbc import NNBC, NNBCConfig, damped_pinv, damped_pinv_apply, sigma_min_3
 
 REPORTED_SEEDS = range(10_000, 10_005)
 REPORTED_SEEDS_10 = range(10_000, 10_010)
@@ -477,7 +477,7 @@ def test_bad_specs_fail_naming_what_is_accepted(kin_env, spec, fragment):
 
 
 def test_sb3_paths_and_alias_fail_clearly(kin_env, monkeypatch, tmp_path):
-    from policies import sb3
+    from policies.agents import sb3
 
     env = kin_env(path=SHORT_CIRCLE)
     with pytest.raises(FileNotFoundError, match="no SB3 model at"):

@@ -285,7 +285,7 @@ def test_sb3_without_torch_names_the_extra(tmp_path):
 def _shipped_copy(tmp_path, name="sac-circle"):
     import shutil
 
-    return shutil.copytree(policies.sb3.MODELS_DIR / name, tmp_path / name)
+    return shutil.copytree(policies.agents.sb3.MODELS_DIR / name, tmp_path / name)
 
 
 class _NotStatistics:

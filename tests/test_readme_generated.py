@@ -15,7 +15,7 @@ from eval.errors import EvalError
 from eval.output.blocks import escape_copied, replace_blocks
 from eval.output.compact import stored_bytes
 from eval.output.readme import render_generated
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted_json import stored_path
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()

@@ -137,7 +137,7 @@ def _sb3_loop(model_file, stats_file, make_env, seed, steps=None):
 
 
 def _assert_acts_as_sb3(actions, expected):
-    """mobman's actions (a PPO actor in numpy, `policies.sb3_actor`) are SB3's torch actions to float32 rounding
+    """mobman's actions (a PPO actor in numpy, `policies.agents.sb3_actor`) are SB3's torch actions to float32 rounding
     (a few 1e-8 per step; the closed loop keeps them within 1e-6 over these short episodes)."""
     assert actions.shape == expected.shape
     np.testing.assert_allclose(actions, expected, rtol=0, atol=1e-6)
@@ -179,8 +179,8 @@ def test_eval_run_of_a_plain_sb3_agent_equals_sb3s_own_loop(plain_dir, tmp_path)
     for rec, seed in zip(episodes, seeds):
         errors, _ = _sb3_loop(plain_dir / "model.zip", plain_dir / "vec_normalize.pkl", _raw_env, seed)
         assert rec["seed"] == seed and len(errors) == 101
-        # eval acts through policies.sb3_actor (numpy, row by row: batch-size independent bits), SB3's loop through
-        # torch: the actions agree to float32 rounding, the errors to far below a micrometre
+        # eval acts through policies.agents.sb3_actor (numpy, row by row: batch-size independent bits), SB3's loop
+        # through torch: the actions agree to float32 rounding, the errors to far below a micrometre
         assert rec["max_error_m"] == pytest.approx(errors.max(), rel=1e-6, abs=1e-10)
         assert rec["rms_error_m"] == pytest.approx(np.sqrt(np.mean(errors**2)), rel=1e-6, abs=1e-10)
     # the statistics matter: unnormalised, the same agent tracks differently
@@ -368,7 +368,7 @@ def test_shipped_hyperparameter_files_are_zoo_format_with_algos_defaults():
     }
     assert eval(sac["policy_kwargs"], {"dict": dict}) == defaults["policy_kwargs"]
     for hp in (ppo, sac):  # the loader accepts what these files make rl-zoo save
-        assert policies.sb3._zoo_view(hp, folder) == {
-            "wrappers": ["agent"],  # the robot-independent agent interface (policies.agent_interface)
+        assert policies.agents.sb3._zoo_view(hp, folder) == {
+            "wrappers": ["agent"],  # the robot-independent agent interface (policies.agents.agent_interface)
             "obs_keys": list(ppo["env_wrapper"][0]["train.wrappers.AgentObservation"]["obs_keys"]),
         }

@@ -14,7 +14,7 @@ import pytest
 
 import policies
 from eval.output.compact import stored_bytes
-from policies import sb3
+from policies.agents import sb3
 
 pytest.importorskip("stable_baselines3")
 

@@ -13,7 +13,7 @@ import pytest
 
 pytest.importorskip("stable_baselines3")
 
-from policies.agent_interface import AGENT_OBS_KEYS, N_ACTIONS
+from policies.agents.agent_interface import AGENT_OBS_KEYS, N_ACTIONS
 from train.config import TrainConfig
 
 #: a 0.5 s version of the paper's circle (50 steps per episode)

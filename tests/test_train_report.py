@@ -236,7 +236,7 @@ def test_redraw_draws_the_committed_curves_again_from_the_committed_report(tmp_p
     report options and a folder that is not a report's are refused."""
     from PIL import Image
 
-    from policies.untrusted_json import stored_path
+    from policies.agents.untrusted_json import stored_path
     from train.cli import main
 
     committed = Path(__file__).resolve().parents[1] / "docs" / "results" / "rl-v2"
@@ -488,8 +488,8 @@ def test_report_refuses_run_files_it_cannot_read_safely(tmp_path, capsys, damage
 def test_a_model_zip_that_inflates_beyond_the_cap_is_refused_unread(tmp_path):
     import zipfile
 
-    from policies.sb3_files import read_zip_data
-    from policies.untrusted import MAX_MODEL_DATA_BYTES
+    from policies.agents.sb3_files import read_zip_data
+    from policies.agents.untrusted import MAX_MODEL_DATA_BYTES
 
     path = tmp_path / "model.zip"
     with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as zf:

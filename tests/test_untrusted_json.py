@@ -1,4 +1,4 @@
-"""The one JSON reader (`policies.untrusted_json.read_json`) on every entry point that reads a file someone else
+"""The one JSON reader (`policies.agents.untrusted_json.read_json`) on every entry point that reads a file someone else
 may have written: `bench --against`'s scorecard, `eval.load_results`, `mobman-train --resume`'s config.json.
 A FIFO must not hang, a symlink to /dev/zero must not grow memory, an oversize or 100,000-deep file must not
 raise a traceback, a malformed file is refused naming the field before anything runs, and a scorecard that
@@ -19,8 +19,8 @@ from eval.bench import config as BC
 from eval.bench.run import run_bench
 from eval.cli import main
 from eval.errors import EvalError
-from policies.untrusted import FileRefused
-from policies.untrusted_json import MAX_DEPTH, Int, ListOf, MapOf, Obj, Str, read_json
+from policies.agents.untrusted import FileRefused
+from policies.agents.untrusted_json import MAX_DEPTH, Int, ListOf, MapOf, Obj, Str, read_json
 
 DEEP = b"[" * 100_000 + b"]" * 100_000
 

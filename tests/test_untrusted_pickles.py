@@ -1,4 +1,4 @@
-"""The restricted unpickler (`policies.untrusted`): a family of crafted pickles is refused on every path that
+"""The restricted unpickler (`policies.agents.untrusted`): a family of crafted pickles is refused on every path that
 reads SB3 files (model.zip entries, VecNormalize statistics, training checkpoints), at protocols 2 to 5 and
 with both GLOBAL and STACK_GLOBAL, and legitimate data pickled at the same protocols still loads.
 
@@ -21,8 +21,8 @@ from collections import OrderedDict, deque
 import numpy as np
 import pytest
 
-from policies.sb3_files import load_vecnormalize_stats, safe_custom_objects
-from policies.untrusted import ALLOWED_CHECKPOINT, ALLOWED_MODEL, UnsafePickleError, load_pickle
+from policies.agents.sb3_files import load_vecnormalize_stats, safe_custom_objects
+from policies.agents.untrusted import ALLOWED_CHECKPOINT, ALLOWED_MODEL, UnsafePickleError, load_pickle
 
 
 def G(module: str, name: str) -> tuple:
@@ -176,7 +176,7 @@ def _crafted_model_dir(tmp_path, marker):
     """The shipped SAC with the report's pickle in its observation_space entry."""
     import policies
 
-    src = policies.sb3.MODELS_DIR / "sac-circle"
+    src = policies.agents.sb3.MODELS_DIR / "sac-circle"
     d = shutil.copytree(src, tmp_path / "crafted")
     with zipfile.ZipFile(src / "model.zip") as zf:
         entries = {n: zf.read(n) for n in zf.namelist()}

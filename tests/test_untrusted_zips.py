@@ -1,6 +1,6 @@
 """Zip bombs nested in a model.zip: torch saves `policy.pth` as a zip inside the zip, and `torch.load` inflates
 each record to the size the inner archive declares. The cap counts those records, read from the inner central
-directory before any record is inflated (`policies.untrusted.check_nested_zip_sizes`)."""
+directory before any record is inflated (`policies.agents.untrusted.check_nested_zip_sizes`)."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ import zipfile
 import pytest
 
 import policies
-from policies.sb3_files import read_zip_data
-from policies.untrusted import MAX_MODEL_ZIP_BYTES, FileRefused
+from policies.agents.sb3_files import read_zip_data
+from policies.agents.untrusted import MAX_MODEL_ZIP_BYTES, FileRefused
 
 pytest.importorskip("stable_baselines3")
 
@@ -34,7 +34,7 @@ def _declare(archive: bytes, size: int) -> bytes:
 def _bomb_model(tmp_path, compression=zipfile.ZIP_STORED):
     """The shipped SAC's folder, its model.zip's `policy.pth` replaced by an inner archive whose record declares
     2 GiB (as the report's 3.6 MB file did)."""
-    src = policies.sb3.MODELS_DIR / "sac-circle"
+    src = policies.agents.sb3.MODELS_DIR / "sac-circle"
     d = shutil.copytree(src, tmp_path / "bomb")
     inner = io.BytesIO()
     with zipfile.ZipFile(inner, "w") as zf:
@@ -81,7 +81,7 @@ def test_an_entry_that_starts_like_a_zip_but_is_not_one_is_refused(tmp_path):
 
 def test_the_shipped_agents_pass_the_nested_cap():
     for name in ("sac-circle", "ppo-circle", "ppo-circle-physics"):
-        assert "policy_class" in read_zip_data(policies.sb3.MODELS_DIR / name / "model.zip")
+        assert "policy_class" in read_zip_data(policies.agents.sb3.MODELS_DIR / name / "model.zip")
 
 
 def test_mobman_eval_run_refuses_the_nested_bomb_with_exit_2(tmp_path, capsys):

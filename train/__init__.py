@@ -32,11 +32,11 @@ SB3; `run` does.
 * Envs: kinematic training steps `n_envs` = 256 robots of the native vector env (`mobman_env.vector`) in one
   process through `train.vec_env.SB3VecEnv` (autoreset in the same step); physics training steps one PyBullet
   world per process (SB3's `SubprocVecEnv`).
-* Observation and actions: the `agent` wrapper, the robot-independent interface of `policies.agent_interface`:
+* Observation and actions: the `agent` wrapper, the robot-independent interface of `policies.agents.agent_interface`:
   no clock; position and velocity errors and the desired velocity in the heading frame, the joint state padded
   to the Panda's 7 arm joints with a mask, the heading as (cos, sin); 9 action slots (7 arm, 2 wheels), the
   padded ones ignored. Normalised by VecNormalize (`vecnormalize.pkl`). `config.json` records `"wrappers"` and
-  `"obs_keys"`, which `policies.sb3.SB3Policy` reproduces at inference (mapping the 9 slots to the robot's own).
+  `"obs_keys"`, which `policies.agents.sb3.SB3Policy` reproduces at inference (mapping the 9 slots to the robot's own).
 * Actions: the env's normalised speeds. SAC/TD3 start with the actor's output layer scaled by 0.01, so the
   untrained agent commands about zero speed instead of random full-speed motions (PPO's orthogonal init does
   the same); SAC explores with gSDE.

@@ -1,6 +1,6 @@
 """`Agent`: a trained SB3 model plus its observation processing, behind the project's `Policy` contract.
 
-It is the in-process twin of `policies.sb3.SB3Policy` (which rebuilds the same thing from a run folder): the
+It is the in-process twin of `policies.agents.sb3.SB3Policy` (which rebuilds the same thing from a run folder): the
 raw env observation goes through the named observation wrappers, is reduced to `obs_keys`, normalised with
 VecNormalize's statistics (never updated here) and handed to `model.predict`. Used for the periodic
 evaluation while training, where the live model and normaliser are evaluated without a round trip to disk.
@@ -13,8 +13,8 @@ from typing import Any
 
 import numpy as np
 
-from policies.agent_interface import BASE_ACTION, agent_action, env_action, residual_action
-from policies.sb3 import AGENT_WRAPPER
+from policies.agents.agent_interface import BASE_ACTION, agent_action, env_action, residual_action
+from policies.agents.sb3 import AGENT_WRAPPER
 from train.wrappers import transform_observation
 
 

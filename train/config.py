@@ -1,7 +1,7 @@
 """`TrainConfig`: everything one training run needs, frozen, with a JSON round trip.
 
 The CLI parses into it and calls `train.run.run(config)`; the run folder's `config.json` holds `to_dict()` plus
-the resolved hyperparameters and the keys `policies.sb3.SB3Policy` reads ("algo", "env_id", "env_kwargs",
+the resolved hyperparameters and the keys `policies.agents.sb3.SB3Policy` reads ("algo", "env_id", "env_kwargs",
 "obs_keys", "wrappers").
 """
 
@@ -15,8 +15,8 @@ from typing import Any
 
 from eval.metrics import DEFAULT_TOLERANCE
 from mobman_env.validation import integer, number
-from policies import agent_interface
-from policies.agent_interface import AGENT_OBS_KEYS
+from policies.agents import agent_interface
+from policies.agents.agent_interface import AGENT_OBS_KEYS
 from train import algos
 from train.wrappers import check_wrappers
 
@@ -33,7 +33,7 @@ DEV_TRACK_EVAL_ID = "WheeledPuma-Circle-v0"
 #: the evaluation envs
 RESIDUAL_KEYS = (agent_interface.RESIDUAL_BASE, agent_interface.RESIDUAL_SCALE)
 #: Observation the agent sees: every key of the robot-independent, clock-free interface of
-#: `policies.agent_interface` (the "agent" wrapper): position and velocity errors and the desired velocity in
+#: `policies.agents.agent_interface` (the "agent" wrapper): position and velocity errors and the desired velocity in
 #: the heading frame, the joint state padded to the Panda's 7 joints with a mask, the heading. No `time`: a
 #: policy that sees the clock can memorise one path (release 0.3's `sb3:ppo-circle` did).
 DEFAULT_OBS_KEYS = AGENT_OBS_KEYS

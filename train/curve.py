@@ -1,7 +1,7 @@
 """The learning-curve file of a run folder, `learning_curve.csv`: its columns, reading and writing (the
 periodic evaluation appends to it; `mobman-train report` reads it without loading SB3 or torch).
 
-Imports: the standard library, `eval.output.files` and `policies.untrusted`.
+Imports: the standard library, `eval.output.files` and `policies.agents.untrusted`.
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import io
 from pathlib import Path
 
 from eval.output.files import atomic_write_text
-from policies.untrusted import read_regular
+from policies.agents.untrusted import read_regular
 
 #: Columns: env steps, wall-clock seconds since the start of training (all sessions), and the summary of the
 #: periodic evaluation on the development seeds (m; success rate in [0, 1]).
@@ -33,7 +33,7 @@ MAX_CURVE_BYTES = 64 * 2**20
 def read_curve(path: Path, run_columns: tuple[str, ...] = ()) -> list[dict]:
     """The rows (floats; the `run_columns` kept as text); [] when the file does not exist yet. ValueError
     naming the file, the line and the value for a file that is not a regular file of at most
-    `MAX_CURVE_BYTES` (`policies.untrusted.read_regular`), lacks the `timesteps` / `wall_s` columns, or has a
+    `MAX_CURVE_BYTES` (`policies.agents.untrusted.read_regular`), lacks the `timesteps` / `wall_s` columns, or has a
     row with more or fewer fields than the header or a value that is not a number."""
     path = Path(path)
     if not path.exists() and not path.is_symlink():

@@ -22,7 +22,7 @@ families (a random arm's draw and kinematic check cost about 0.2 s per candidate
 a few hundred steps of training) and the conditions that change the control rate (`rate50`: the control period
 is one per vector env) or need physics. The scorecard's rows on those cells measure how an agent generalises.
 
-**Interface.** The agent's (`policies.agent_interface`): observations in the heading frame, padded to the
+**Interface.** The agent's (`policies.agents.agent_interface`): observations in the heading frame, padded to the
 Panda's 7 arm joints with a mask; 9 action slots, the padded ones ignored. The observation is already the
 agent's, so `train`'s `agent` wrapper passes it through, and an agent trained here runs on every registered id
 through `sb3:` (which applies the same interface to the env's raw observation).
@@ -48,7 +48,7 @@ from gymnasium.vector import AutoresetMode
 import policies
 from eval import conditions as C
 from mobman_env.paths import TASK_SPECS
-from policies import agent_interface as interface
+from policies.agents import agent_interface as interface
 
 DEV_TRACK_ID = interface.DEV_TRACK_ID
 #: the robots the training env draws (the dev track's fixed arms), by their conditions-table names

@@ -3,7 +3,7 @@
 * Periodic (`evaluate`): the live agent (`train.agent.Agent`), in this process, on the held-out development
   seeds, without writing files: `eval.rollout.rollout` per episode, `eval.metrics.aggregate` over them.
 * Final (`final_evaluation`): `eval.run` on the saved run folder (`sb3:DIR/model.zip`, loaded by
-  `policies.sb3.SB3Policy` exactly as `mobman-eval run` loads it) and `zero`, with the benchmark's env settings
+  `policies.agents.sb3.SB3Policy` exactly as `mobman-eval run` loads it) and `zero`, with the benchmark's env settings
   (the learning-only env arguments dropped) on the reported seeds; its report goes to `DIR/final_eval/`, so
   the printed `mobman-eval run` command reproduces the same numbers.
 

@@ -108,8 +108,8 @@ def card_markdown(name: str, folder: Path, families: Path | None, scorecards: Se
         + ", ".join(f"{k} {v}" for k, v in sorted(cfg.get("versions", {}).items()))
         + ".",
         "",
-        "What training read: the agent's observation (`policies.agent_interface`), the reward (tracking error and "
-        "effort, an alive bonus, episodes ended at 10 cm), nothing else; at evaluation the agent reads the "
+        "What training read: the agent's observation (`policies.agents.agent_interface`), the reward (tracking "
+        "error and effort, an alive bonus, episodes ended at 10 cm), nothing else; at evaluation the agent reads the "
         "observation only.",
         "",
     ]

@@ -45,8 +45,8 @@ from pathlib import Path
 from eval.metrics import DEFAULT_TOLERANCE
 from eval.output.provenance import code_hash
 from mobman_env.validation import folder_name, integer
-from policies.untrusted import file_sha256
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted import file_sha256
+from policies.agents.untrusted_json import stored_path
 from train.curve import read_curve
 from train.evaluation import eval_command
 from train.report_archive import read_json as _json
@@ -101,7 +101,7 @@ class ReportConfig:
     """Write curves.png (matplotlib)."""
     ship: tuple[tuple[str, str], ...] = ()
     """(alias, family) pairs: copy the family's median-seed model to `models_dir/alias/` with a generated
-    README.md (e.g. ("ppo-circle", "ppo-kinematic")); `policies.sb3.ALIASES` must name it to be `sb3:alias`."""
+    README.md (e.g. ("ppo-circle", "ppo-kinematic")); `policies.agents.sb3.ALIASES` must name it to be `sb3:alias`."""
     models_dir: str = "policies/models"
     """Where `ship` puts the models (the folder of the shipped `sb3:` aliases)."""
     include: tuple[str, ...] = ()

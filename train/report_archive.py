@@ -24,7 +24,7 @@ Run names become folder names (`evals/<name>/`), so each must be one plain path 
 Every file is read as a regular file with a size cap (`read_json`, `train.curve.read_curve`): a curves.csv
 symlinked to /dev/zero or a FIFO is refused, never read.
 
-Imports: the standard library, `mobman_env.validation`, `policies.untrusted`, `train.curve` and
+Imports: the standard library, `mobman_env.validation`, `policies.agents.untrusted`, `train.curve` and
 `train.evaluation`; what it needs of `train.report` (which imports this
 module) is handed in as an `Evaluation`.
 """
@@ -37,9 +37,9 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from mobman_env.validation import folder_name
-from policies.untrusted import FileRefused
-from policies.untrusted_json import read_json as read_json_checked
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted import FileRefused
+from policies.agents.untrusted_json import read_json as read_json_checked
+from policies.agents.untrusted_json import stored_path
 from train.curve import read_curve
 
 #: The schema of the report results this module reads (`train.report.build_report` writes it).
@@ -65,8 +65,8 @@ MAX_JSON_BYTES = 64 * 2**20
 
 def read_json(path: Path) -> dict:
     """The JSON object in `path`; ValueError naming the file when it is not a regular file of at most
-    `MAX_JSON_BYTES`, not UTF-8 JSON or nested too deep (`policies.untrusted_json.read_json`), or not an object."""
-    try:  # the one JSON reader (`policies.untrusted_json`): regular file, cap, UTF-8, bounded nesting
+    `MAX_JSON_BYTES`, not UTF-8 JSON or nested too deep (`policies.agents.untrusted_json.read_json`), or not an object."""
+    try:  # the one JSON reader (`policies.agents.untrusted_json`): regular file, cap, UTF-8, bounded nesting
         data = read_json_checked(path, MAX_JSON_BYTES, "JSON file")
     except FileRefused:
         raise

@@ -354,7 +354,7 @@ def model_readme(results: dict, family: str, alias: str, results_file: str) -> s
         f"median for an even count): `{run['name']}`, seed {run['seed']}. {_median_note(fam['n_seeds'])}",
         "",
         "Files: `model.zip` (the run's final model), `vecnormalize.pkl` (observation statistics), `config.json` "
-        "(the run's resolved `TrainConfig`, which `policies.sb3.SB3Policy` reads: algorithm, observation keys, "
+        "(the run's resolved `TrainConfig`, which `policies.agents.sb3.SB3Policy` reads: algorithm, observation keys, "
         "wrappers).",
         "",
         "```",

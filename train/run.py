@@ -32,7 +32,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from policies.agent_interface import BASE_ACTION
+from policies.agents.agent_interface import BASE_ACTION
 from train import algos
 from train.callbacks import (
     CheckpointSaver,

@@ -11,7 +11,7 @@ from typing import Any
 
 from eval.output.provenance import versions
 from mobman_env.validation import folder_name
-from policies.untrusted_json import read_json
+from policies.agents.untrusted_json import read_json
 from train.callbacks import write_json
 from train.config import TrainConfig
 
@@ -60,7 +60,7 @@ MAX_RUN_JSON_BYTES = 16 * 2**20
 
 def read_json_file(path: Path) -> dict:
     """A JSON object from a run folder's file (config.json, summary.json, checkpoints/latest.json) through the
-    one JSON reader (`policies.untrusted_json.read_json`: a regular file of at most `MAX_RUN_JSON_BYTES`, so a
+    one JSON reader (`policies.agents.untrusted_json.read_json`: a regular file of at most `MAX_RUN_JSON_BYTES`, so a
     FIFO or a symlink to /dev/zero is refused; UTF-8; bounded nesting); ValueError naming the file otherwise."""
     try:
         data = read_json(path, MAX_RUN_JSON_BYTES, "run file")
@@ -114,7 +114,7 @@ CHECKPOINT_PAIRS = frozenset({("train.algos", "LinearSchedule")})
 
 
 def read_checkpoint(ckpt: dict, out: Path) -> dict:
-    """The pickled parts of checkpoint entry `ckpt`, read through `policies.untrusted`'s allow-list (never
+    """The pickled parts of checkpoint entry `ckpt`, read through `policies.agents.untrusted`'s allow-list (never
     plain pickle; SB3 reads the weights with `weights_only=True`): {"custom_objects": every serialized entry
     of the model.zip, "vecnormalize": a VecNormalize without its venv or None, "replay_buffer": a
     ReplayBuffer or None}. ValueError naming the file when one is refused or unreadable; nothing is
@@ -122,8 +122,8 @@ def read_checkpoint(ckpt: dict, out: Path) -> dict:
     from stable_baselines3.common.buffers import ReplayBuffer
     from stable_baselines3.common.vec_env import VecNormalize
 
-    from policies.sb3_files import read_zip_data, safe_custom_objects
-    from policies.untrusted import ALLOWED_CHECKPOINT, UnsafePickleError, load_pickle_file
+    from policies.agents.sb3_files import read_zip_data, safe_custom_objects
+    from policies.agents.untrusted import ALLOWED_CHECKPOINT, UnsafePickleError, load_pickle_file
 
     folder = Path(out) / "checkpoints"
     allowed = ALLOWED_CHECKPOINT | CHECKPOINT_PAIRS

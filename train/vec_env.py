@@ -29,8 +29,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvWrapper
 
-from policies import agent_interface as interface
-from policies.sb3 import AGENT_WRAPPER
+from policies.agents import agent_interface as interface
+from policies.agents.sb3 import AGENT_WRAPPER
 
 
 class SB3VecEnv(VecEnv):
@@ -120,7 +120,7 @@ class SB3VecEnv(VecEnv):
 class AgentVecEnv(VecEnvWrapper):
     """The agent's view of a mobman `VecEnv`: the named observation wrappers (`train.wrappers.OBS_WRAPPERS`),
     then the `obs_keys` subset, applied to the batch and to every `terminal_observation` (so SB3's bootstrap of a
-    truncated episode sees the same layout). With the `"agent"` wrapper (`policies.agent_interface`) the agent
+    truncated episode sees the same layout). With the `"agent"` wrapper (`policies.agents.agent_interface`) the agent
     acts in the interface's `N_ACTIONS` = 9 slots and the robot's own n + 2 are passed on (padded slots
     dropped); otherwise the env's action space is the agent's.
 

@@ -1,6 +1,6 @@
 """Small env wrappers used for training, and the pure observation transform an agent needs at test time.
 
-Observation processing (recorded in the run's `config.json`, so `policies.sb3.SB3Policy` can rebuild it from
+Observation processing (recorded in the run's `config.json`, so `policies.agents.sb3.SB3Policy` can rebuild it from
 the raw env observation):
 
 1. each name in `config["wrappers"]` (in order) adds derived keys to the observation dict — `OBS_WRAPPERS`:
@@ -9,9 +9,9 @@ the raw env observation):
      per-key normalisation a millimetre is 1e-3 of the positions' spread; given explicitly it is learned
      from in a fraction of the steps.
    * `"agent"` (the default of `mobman-train`): the robot-independent, clock-free interface of
-     `policies.agent_interface` (errors in the heading frame, arms padded to 7 joints with a mask; its 9-slot
+     `policies.agents.agent_interface` (errors in the heading frame, arms padded to 7 joints with a mask; its 9-slot
      action is mapped back to the robot's n + 2 by `train.vec_env.AgentVecEnv` in training and by
-     `policies.sb3.SB3Policy` at inference). It replaces the observation: `obs_keys` select among its keys.
+     `policies.agents.sb3.SB3Policy` at inference). It replaces the observation: `obs_keys` select among its keys.
 2. the dict is reduced to `config["obs_keys"]`, in that order;
 3. VecNormalize's running mean / std (`vecnormalize.pkl`) normalise each key.
 
@@ -31,9 +31,9 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from policies import agent_interface
-from policies.sb3 import AGENT_WRAPPER
-from policies.sb3 import OBS_WRAPPERS as AGENT_OBS_TRANSFORMS
+from policies.agents import agent_interface
+from policies.agents.sb3 import AGENT_WRAPPER
+from policies.agents.sb3 import OBS_WRAPPERS as AGENT_OBS_TRANSFORMS
 
 
 def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
@@ -42,7 +42,7 @@ def _pos_error_space(space: spaces.Dict) -> spaces.Dict:
     return spaces.Dict(new)
 
 
-#: name -> (obs transform, observation-space transform). The transforms are `policies.sb3`'s, the one
+#: name -> (obs transform, observation-space transform). The transforms are `policies.agents.sb3`'s, the one
 #: definition that `SB3Policy` also applies at test time.
 OBS_WRAPPERS: dict[str, tuple[Callable[[dict], dict], Callable[[spaces.Dict], spaces.Dict]]] = {
     "pos_error": (AGENT_OBS_TRANSFORMS["pos_error"][0], _pos_error_space),
@@ -81,7 +81,7 @@ def transform_space(space: spaces.Dict, wrappers: Sequence[str], obs_keys: Seque
 
 class AgentObservation(gym.ObservationWrapper):
     """The agent's view of one env: named observation wrappers, then the `obs_keys` subset; with the `"agent"`
-    wrapper also its 9-slot action (`policies.agent_interface`), mapped to the robot's n + 2 in `step`. (Training
+    wrapper also its 9-slot action (`policies.agents.agent_interface`), mapped to the robot's n + 2 in `step`. (Training
     applies the same view to the whole VecEnv, `train.vec_env.AgentVecEnv`; this is the per-env form for
     rl-baselines3-zoo's `env_wrapper` and for checks.)"""
 

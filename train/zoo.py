@@ -66,7 +66,7 @@ def entry_fields(entry: dict, where: str) -> dict[str, Any]:
 
 
 def _normalize(value: Any, where: str) -> dict[str, bool]:
-    from policies.sb3_files import zoo_normalize
+    from policies.agents.sb3_files import zoo_normalize
 
     kw = zoo_normalize(value, where)
     extra = sorted(set(kw) - {"norm_obs", "norm_reward"})

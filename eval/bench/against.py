@@ -65,7 +65,7 @@ def load_against(path: str | Path, typed: Iterable[str] = ()) -> tuple[dict, str
 
     from eval.output.compact import stored_bytes
     from eval.schemas import MAX_SCORECARD_BYTES, check_scorecard_names
-    from policies.untrusted import FileRefused
+    from policies.agents.untrusted import FileRefused
 
     path = Path(path)
     file = path / "scorecard.json" if path.is_dir() else path

@@ -15,7 +15,7 @@ one rollout loop of `eval.rollout`).
   policy would build one object per robot from a view of the vector env (a factory may expect the real env,
   or hand back one shared object) and would not pass a recurrent `state` back. `sb3:` agents batch: one
   predict for the N rows where the agent's deterministic action is computed row by row
-  (`policies.batched.BatchedAgent`, `policies.sb3_actor`: PPO and A2C MLPs), else a loop of the agent per
+  (`policies.batched.BatchedAgent`, `policies.agents.sb3_actor`: PPO and A2C MLPs), else a loop of the agent per
   robot (SAC, TD3: the single path's bits, at its cost).
 * an env whose vector env is native: ids whose `gym.make_vec(..., vectorization_mode="vector_entry_point")` is
   not a `WheeledPumaVectorEnv` (`robot="random"`, which falls back to a `SyncVectorEnv`, or another package's

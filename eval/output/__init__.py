@@ -5,5 +5,6 @@ pages (`readme`: from results files; `layout`: from the source tree; `blocks`: f
 escaping what is copied into them).
 
 May import: `eval.errors`, `eval.config`, `eval.metrics`, `eval.rollout` (video only), `mobman_env`,
-`policies.knowledge` (`styles`), `policies.untrusted` (`readme`: reading pages and sources); never `eval.execution`, `eval.sweep`, `eval.cli` or the runners.
+`policies.knowledge` (`styles`), `policies.agents.untrusted` (`readme`: reading pages and sources); never
+`eval.execution`, `eval.sweep`, `eval.cli` or the runners.
 """

@@ -28,7 +28,7 @@ from typing import Any
 from eval.errors import EvalError
 from eval.output.results import ResultsView
 from eval.output.results import load_results as load_results_dict
-from policies.untrusted_json import stored_path
+from policies.agents.untrusted_json import stored_path
 
 #: List-valued keys split into one column per component: key -> component names.
 COMPONENTS: dict[str, tuple[str, ...]] = {"start": ("x", "y", "z"), "axis_max_error_m": ("x", "y", "z")}

@@ -3,7 +3,7 @@
 A scorecard of a full bench holds about 2,000 aggregate rows of float statistics (8-18 MB of JSON); xz packs
 one to about 14% of that. `compact(path)` writes the twin (deterministic: the same bytes give the same file),
 unpacks it again and compares the bytes before it removes the original, and returns a record of both (sizes,
-the original's SHA-256 and git blob id). `policies.untrusted_json.read_json` reads `NAME.json` from its twin
+the original's SHA-256 and git blob id). `policies.agents.untrusted_json.read_json` reads `NAME.json` from its twin
 when only the twin exists, so `load_scorecard`, `load_results` (a file or its folder), `bench --against DIR`,
 `mobman-eval readme`, `mobman-eval plots` and `mobman-train report --include` take either form, and a compacted
 file's bytes are the original's: nothing is rounded. docs/results/compacted.json records the committed files
@@ -22,7 +22,7 @@ from pathlib import Path
 
 from eval.errors import EvalError
 from eval.output.files import atomic_write_bytes, atomic_write_json
-from policies.untrusted_json import COMPRESSED_SUFFIX, parse_json, read_stored, read_xz
+from policies.agents.untrusted_json import COMPRESSED_SUFFIX, parse_json, read_stored, read_xz
 
 __all__ = ["MAX_JSON_BYTES", "compact", "git_blob_id", "stored_bytes", "update_manifest"]
 
@@ -40,7 +40,7 @@ def git_blob_id(data: bytes) -> str:
 
 def stored_bytes(path: str | Path, max_bytes: int = MAX_JSON_BYTES) -> bytes:
     """The JSON bytes of the file `path` stands for, read from `path` or from its compressed twin (`path.xz`):
-    `policies.untrusted_json.read_stored` with this module's cap."""
+    `policies.agents.untrusted_json.read_stored` with this module's cap."""
     return read_stored(path, max_bytes, "JSON file")[1]
 
 

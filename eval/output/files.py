@@ -260,7 +260,7 @@ def read_folder_record(out: Path, name: str, command: str) -> dict:
     """The record `out/name` (a sweep's config.json, a bench's bench.json) of an existing, non-empty output
     folder of `command`; EvalError telling a missing file, an unreadable one (named with its error: restore
     it, or delete the folder to start over) and one of another command apart."""
-    from policies.untrusted_json import read_json
+    from policies.agents.untrusted_json import read_json
 
     path = Path(out) / name
     if not path.exists():

@@ -59,8 +59,8 @@ class Journal:
         it) is cut off the file (with `repair`; without, it is only left out: a check before the lock is held
         changes nothing); a line that is valid JSON but not an object is skipped with a warning; any
         other unreadable line is an error naming it."""
-        from policies.untrusted import FileRefused, read_regular
-        from policies.untrusted_json import parse_json
+        from policies.agents.untrusted import FileRefused, read_regular
+        from policies.agents.untrusted_json import parse_json
 
         if not self.path.exists():
             return {}, 0

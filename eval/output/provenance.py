@@ -37,7 +37,7 @@ _VERSION_PACKAGES = (
     "torch",
 )
 #: the modules whose compiled kernels define the numbers (`kernels()` hashes their source)
-KERNEL_MODULES = ("mobman_env.engine", "policies.kernels", "policies.nnbc", "policies.model_free_kernels")
+KERNEL_MODULES = ("mobman_env.engine", "policies.kernels.shared", "policies.laws.nnbc", "policies.kernels.model_free")
 
 
 def kernels() -> dict[str, str | None]:

@@ -29,7 +29,7 @@ from pathlib import Path
 
 from eval.errors import EvalError
 from eval.output.blocks import replace_blocks
-from policies.untrusted import FileRefused, read_regular
+from policies.agents.untrusted import FileRefused, read_regular
 
 #: the largest page or source file `mobman-eval readme` reads (the README is about 60 kB)
 MAX_PAGE_BYTES = 16 * 2**20

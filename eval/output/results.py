@@ -235,7 +235,7 @@ def load_arrays(path: str | Path) -> dict[str, dict[str, np.ndarray]]:
     loaded); EvalError naming the file and the entry otherwise."""
     import zipfile
 
-    from policies.untrusted import FileRefused, check_zip_sizes, read_regular
+    from policies.agents.untrusted import FileRefused, check_zip_sizes, read_regular
 
     path = Path(path)
     out: dict[str, dict[str, np.ndarray]] = {}

@@ -76,18 +76,18 @@ Python faces of `mobman_env.engine`, the one implementation of the chain (releas
   `RobotParams.nominal()`), `_make_observation_space` (`box(8, ..)` for joint_pos/joint_vel), `step` (shape
   (8,) check and message), the class docstring's action table.
 * `mobman_env/__init__.py`: `TASKS`/`register_envs` (only `WheeledPuma-*` ids, one entry point).
-* `policies/nnbc_plus.py`: module `N_ACT = 8`, `N_STATE`, `N_PROBE`; `NNBCPlus.__init__` (refuses
+* `policies/laws/nnbc_plus.py`: module `N_ACT = 8`, `N_STATE`, `N_PROBE`; `NNBCPlus.__init__` (refuses
   `len(action_scale) != 8`), `J_hat`, `Jdot_hat`, `_reset` (`q[:6]` posture), `_measure`, `_finish_probe`,
   `_kalman`, `_act` (all `N_ACT`): the model-free law itself is generic; only the constant must come from
   `EnvFacts`.
-* `policies/jmpi.py`: `_ModelPolicy._command` (`joint_pos[:6]`, `RobotParams` kinematics), `JMPI`/`Oracle`
+* `policies/laws/jmpi.py`: `_ModelPolicy._command` (`joint_pos[:6]`, `RobotParams` kinematics), `JMPI`/`Oracle`
   docstrings and errors name `RobotParams`.
-* `policies/nnbc.py`: `NNBC._initial_jacobian` (`joint_pos[:6]`, PUMA kinematics for `j0="nominal"`).
+* `policies/laws/nnbc.py`: `NNBC._initial_jacobian` (`joint_pos[:6]`, PUMA kinematics for `j0="nominal"`).
 * `eval/rollout.py`: `rollout` (`np.empty((n, 8))` actions buffer, `a.shape == (1, 8)` batch-of-one check).
 * `eval/metrics.py`: `peak_speeds(..., n_arm=6)` default.
 * `eval/speed.py`: `env_vs_bare` (random actions of shape (steps, 8)).
 * `train/evaluation.py`: `ZeroPolicy.predict` (`np.zeros(8)`).
-* `policies/simple.py` and `policies/base.py` already size everything from `len(action_scale)`: generic.
+* `policies/laws/simple.py` and `policies/base.py` already size everything from `len(action_scale)`: generic.
 
 May import: numpy, the standard library, `mobman_env.validation`, `mobman_env.paths` and `mobman_env.params`
 (in `starts` and `sources` only: the task paths, the platform's wheel numbers, `RobotParams`; `params` imports

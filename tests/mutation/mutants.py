@@ -89,14 +89,14 @@ MUTANTS = (
     ),
     Mutant(
         "nnbc-plus-lookahead-removed",
-        "policies/model_free_kernels.py",
+        "policies/kernels/model_free.py",
         "        look = ipr[IPR_LOOKAHEAD] != 0 and not probing\n",
         "        look = False\n",
         ("tests/test_mutants_nnbc_plus.py",),
     ),
     Mutant(
         "nnbc-plus-lookahead-default-off",
-        "policies/nnbc_plus.py",
+        "policies/laws/nnbc_plus.py",
         "    lookahead: bool = True\n",
         "    lookahead: bool = False\n",
         ("tests/test_mutants_nnbc_plus.py",),

@@ -6,7 +6,7 @@
 
 Every experiment runs `eval.run` (kinematic episodes batched through the vector env) on the tasks of its robot,
 seeds 0..n-1, and keeps per episode the env, policy, condition, seed, status and max tracking error. The
-figures quoted in `policies/calib_qp.py` and in its tests come from here.
+figures quoted in `policies/laws/calib_qp.py` and in its tests come from here.
 """
 
 from __future__ import annotations

@@ -17,7 +17,7 @@ noisy speeds is an errors-in-variables fit: v4 lost 57 of 64 dev-panel episodes 
 is differentiated in y, so position noise never reaches the estimate. n = len(facts.action_scale): n - 2 arm joints, then the left and right
 wheel (8 on the PUMA and the UR5, 9 on the Panda). Three formulations (`formulation`):
 
-* `"structured"`, the default (`policies.structured`): J is composed from the arm's Jacobian A in the platform's
+* `"structured"`, the default (`policies.laws.structured`): J is composed from the arm's Jacobian A in the platform's
   frame and the constant map M from the two wheel speeds to the platform's velocity, with the measured heading
   `base_yaw` and lever `ee_pos - arm_base_pos`. A is learnt from y minus the platform's measured motion
   (`arm_base_vel` and the heading's rate), M by a small Kalman filter of its own (`q_platform`,
@@ -26,7 +26,7 @@ wheel (8 on the PUMA and the UR5, 9 on the Panda). Three formulations (`formulat
 * `"paper"`: J maps u to r_a_dot - [p_c_dot; 0] (the paper's eq. (6)); the measured p_c_dot is subtracted in
   the law.
 
-The filter (`policies.estimators.KalmanEstimator`, for A or the whole J): each of the three rows of [J | J_dot]
+The filter (`policies.laws.estimators.KalmanEstimator`, for A or the whole J): each of the three rows of [J | J_dot]
 is the state of a linear Kalman filter with a constant-rate model J(t + dt) = J(t) + dt J_dot(t) and random-walk
 process noise (`q_jacobian`, `q_rate`); the rows see the same regressor, so they share one 2n x 2n covariance and
 one gain. An innovation longer than `innov_clip` times the running RMS of the recent ones is shortened. The
@@ -146,11 +146,11 @@ covariance and state.
 One scaffolding, several estimators, one batched law
 ----------------------------------------------------
 The measurement, excitation, control law and probe are the scaffolding; the estimate sits behind the interface
-of `policies.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`, `Jdot`). `nnbc-plus` is the scaffolding with
-the Kalman filter; `broyden` and `rls` (`policies.broyden_rls`) are the same scaffolding with Broyden's secant
+of `policies.laws.estimators` (`reset`, `init(J0)`, `update(x, y)`, `J`, `Jdot`). `nnbc-plus` is the scaffolding with
+the Kalman filter; `broyden` and `rls` (`policies.laws.broyden_rls`) are the same scaffolding with Broyden's secant
 update and recursive least squares, so comparisons between them isolate the estimator. The shared options are
 the fields of `ModelFreeConfig`; `NNBCPlusConfig` adds the Kalman filters'. All of it is written once, as scalar
-per-row numba kernels (`policies.model_free_kernels`) run over N rows by `ModelFreeLaw` (what
+per-row numba kernels (`policies.kernels.model_free`) run over N rows by `ModelFreeLaw` (what
 `policies.make(spec, vector_env)` builds on the native vector env); the single-env classes (`EstimatingController`
 and its subclasses) are its N = 1 case (`policies.batched.LawView`), so row i of a batch is the single controller
 on row i, bit for bit. The dither signs and J_hat(0)'s perturbation are drawn in Python from each row's
@@ -165,10 +165,10 @@ from typing import Any
 import numpy as np
 
 from mobman_env.validation import number
-from policies import model_free_kernels as K
 from policies.base import EnvFacts
 from policies.batched import BatchedController, LawView
-from policies.estimators import ESTIMATOR_CLASSES, JacobianEstimator, estimator_params
+from policies.kernels import model_free as K
+from policies.laws.estimators import ESTIMATOR_CLASSES, JacobianEstimator, estimator_params
 
 FORMULATIONS = ("whole_body", "paper", "structured")
 MEASUREMENTS = ("velocity", "angles", "position")
@@ -227,7 +227,7 @@ class ModelFreeConfig:
     in the paper's eq. (11); "structured" (`nnbc-plus` only, its default: see `NNBCPlusConfig.formulation`): the
     whole-body J composed from an arm Jacobian in the platform's frame, learnt from the end-effector velocity
     minus the platform's measured motion, and a learnt map from the wheel speeds to the platform's motion
-    (`policies.structured`: platform slip is not learnt)."""
+    (`policies.laws.structured`: platform slip is not learnt)."""
     measurement: str = "velocity"
     """"velocity": learn from the measured ee_vel (and arm_base_vel) against joint_vel at t_k; "angles" (v5,
     `nnbc-plus`'s default): the same y against the actuators' speeds at t_k reconstructed from the joint angles'
@@ -476,8 +476,8 @@ class ModelFreeLaw(BatchedController):
     `nnbc-plus`, `broyden` and `rls`; the single-env classes are its N = 1 case).
 
     `ModelFreeLaw(facts, config, n, seed, *, name, estimator)`: `estimator(config, n_act, dt, n_probe)` returns
-    (kind, ep), the estimator's kind (`policies.model_free_kernels.KALMAN`, ...) and constants. The state of every
-    row is the float array `fst` (N, F) and the int array `ist` (N, I_LEN) of `policies.model_free_kernels`; the
+    (kind, ep), the estimator's kind (`policies.kernels.model_free.KALMAN`, ...) and constants. The state of every
+    row is the float array `fst` (N, F) and the int array `ist` (N, I_LEN) of `policies.kernels.model_free`; the
     per-row attributes (`J_hat_row`, `delay_estimate`, ...) are views or copies of them.
     """
 
@@ -569,7 +569,7 @@ class ModelFreeLaw(BatchedController):
 
     def block(self, i: int, name: int, rows: int, cols: int) -> np.ndarray:
         """Row i's float-state block `name` (an index into `lay`: `K.LAY.<the block's name>`, see
-        `policies.model_free_kernels.FloatBlocks`) as a rows x cols view."""
+        `policies.kernels.model_free.FloatBlocks`) as a rows x cols view."""
         o = int(self.lay[name])
         return self.fst[i, o : o + rows * cols].reshape(rows, cols)
 
@@ -584,7 +584,7 @@ class ModelFreeLaw(BatchedController):
         return self.block(i, K.LAY.est, 6, self.n_act)[3:]
 
     def estimator_row(self, i: int) -> Any:
-        """Row i's estimator (`policies.estimators`), a view of its state segment."""
+        """Row i's estimator (`policies.laws.estimators`), a view of its state segment."""
         o = int(self.lay[K.LAY.est])
         e, ie = self.fst[i, o:], self.ist[i, K.I_EST :]
         return ESTIMATOR_CLASSES[self.kind].view(self.n_act, self.ep, e, ie)
@@ -761,7 +761,7 @@ class NNBCPlus(EstimatingController):
     """Model-free Jacobian control with a Kalman-filtered (J, J_dot) estimate; see the module docstring.
 
     After each step: `J_hat` (3 x n) and `Jdot_hat` (3 x n) are the current estimates (with the default
-    "structured" formulation composed from the arm's and the wheel map's filters, `policies.structured`), `P` the
+    "structured" formulation composed from the arm's and the wheel map's filters, `policies.laws.structured`), `P` the
     2n x 2n covariance (in the units of one row of [J | J_dot]), `last_u` the issued command (rad/s).
     """
 

@@ -4,8 +4,8 @@ Why: torch's matrix products choose their kernel by the batch size, so the same 
 differed in the last float32 bit (6e-8 measured on `sb3:ppo-circle`) between a batch of 64 robots and a batch of
 one; an agent's episodes would then depend on how `eval` batched them. Here every layer is a stacked product,
 `(N, 1, k) @ (k, m)`, which numpy evaluates as N products of one row (the same kernel for every N: the model-
-based laws rely on it too, `policies.kernels`), so row i's action is the same bits for any N; the elementwise
-activations and the bias add do not depend on N. `policies.sb3.SB3Policy` uses it for every deterministic
+based laws rely on it too, `policies.kernels.shared`), so row i's action is the same bits for any N; the elementwise
+activations and the bias add do not depend on N. `policies.agents.sb3.SB3Policy` uses it for every deterministic
 predict it can serve (single env and batched alike), SB3's torch `predict` otherwise (SAC, TD3, gSDE, other
 extractors or networks). It equals torch's action to float32 rounding (a test compares them).
 

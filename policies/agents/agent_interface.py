@@ -30,7 +30,7 @@ wheel's angle does not change the kinematics).
 
 `agent_observation` and `env_action` are pure numpy functions of batched (N, k) arrays (or unbatched (k,)),
 the one definition used by training (`train.vec_env.AgentVecEnv`, which `mobman-train` puts on every training
-env) and by running a trained agent (`policies.sb3.SB3Policy`, when the run's config.json lists the `"agent"`
+env) and by running a trained agent (`policies.agents.sb3.SB3Policy`, when the run's config.json lists the `"agent"`
 observation wrapper). It lives in `policies` because inference needs it and `policies` may not import `train`.
 Imports numpy and gymnasium only.
 """
@@ -55,7 +55,7 @@ DEV_TRACK_ID = "MobMan-DevTrack-v0"
 #: a residual agent's extra observation key: its base controller's action this step, in the 9 slots
 BASE_ACTION = "base_action"
 #: the env arguments of a residual training run (`train.dev_env`), recorded in the run's config.json, which
-#: `policies.sb3.SB3Policy` reads to rebuild the base: a built-in spec, and the residual's share of the limits
+#: `policies.agents.sb3.SB3Policy` reads to rebuild the base: a built-in spec, and the residual's share of the limits
 RESIDUAL_BASE, RESIDUAL_SCALE = "residual_base", "residual_scale"
 DEFAULT_RESIDUAL_SCALE = 0.05
 #: the raw env observation keys the agent's observation is computed from
@@ -71,7 +71,7 @@ def observation_space(residual: bool = False) -> spaces.Dict:
 
 def residual_action(base: Any, residual: Any, scale: float) -> np.ndarray:
     """A residual agent's command in the 9 slots: its base's action plus `scale` x its own (the env clips the sum
-    to the limits); the one formula of training (`train.dev_env`) and inference (`policies.sb3`)."""
+    to the limits); the one formula of training (`train.dev_env`) and inference (`policies.agents.sb3`)."""
     return (np.asarray(base, np.float32) + np.float32(scale) * np.asarray(residual, np.float32)).astype(np.float32)
 
 

@@ -1,7 +1,7 @@
-"""Reading a Stable-Baselines3 run folder without running code it names (the files of `policies.sb3`).
+"""Reading a Stable-Baselines3 run folder without running code it names (the files of `policies.agents.sb3`).
 
 Both files of an SB3 agent hold pickles, and `pickle.load` runs whatever callable a pickle names: a crafted
-`vecnormalize.pkl` can call `os.system`. This module reads them with `policies.untrusted`'s restricted
+`vecnormalize.pkl` can call `os.system`. This module reads them with `policies.agents.untrusted`'s restricted
 unpickler, whose `find_class` resolves only an allow-list of exact (module, name) pairs those files
 legitimately contain and refuses every dotted name; anything else is refused with `UnsafePickleError`, naming
 the module and attribute:
@@ -47,7 +47,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.untrusted import (
+from policies.agents.untrusted import (
     ALLOWED_MODEL,
     CONTAINERS,
     MAX_MODEL_DATA_BYTES,

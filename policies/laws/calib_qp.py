@@ -1,9 +1,9 @@
 """`calib-qp`: the whole-body QP of `qp` on a robot model calibrated online from the catalogue: the adaptive baseline.
 
-The law is `qp`'s (`policies.qp.QPLaw`, unchanged: the same QP, bounds, dampers and posture term); what changes is
+The law is `qp`'s (`policies.laws.qp.QPLaw`, unchanged: the same QP, bounds, dampers and posture term); what changes is
 the model whose whole-body Jacobian it solves with. `CalibQPLaw` subclasses `QPLaw`, and before each of its steps
 writes the current estimate of the robot's lengths into the packed model rows of the law's
-`policies.kernels.ModelJacobians` (`ModelJacobians.arm`, `.prm`: a calibrated model is the same chain with other
+`policies.kernels.shared.ModelJacobians` (`ModelJacobians.arm`, `.prm`: a calibrated model is the same chain with other
 numbers in its row). The rows start from the catalogue (`nominal_params`, read at every episode start: for the
 random arm family, the episode's drawn design) and are calibrated from the measured end-effector and mount
 positions and velocities, the heading and the joint readings. May import numpy, numba, `mobman_env` (engine,
@@ -99,7 +99,7 @@ from mobman_env.params import slot_name
 from mobman_env.validation import number
 from policies.base import EnvFacts, reject_extra
 from policies.batched import LawView
-from policies.qp import QPConfig, QPLaw
+from policies.laws.qp import QPConfig, QPLaw
 
 #: The platform numbers `CalibQPLaw.platform` holds, in order: alpha = r / 2 (m), beta = r / (2 b), gamma = d beta (m).
 PLATFORM = ("alpha", "beta", "gamma")
@@ -107,7 +107,7 @@ PLATFORM = ("alpha", "beta", "gamma")
 
 @dataclass(frozen=True)
 class CalibQPConfig(QPConfig):
-    """Options of `calib-qp`: those of `qp` (`policies.qp.QPConfig`: gain, weights, dampers, solver) and of the
+    """Options of `calib-qp`: those of `qp` (`policies.laws.qp.QPConfig`: gain, weights, dampers, solver) and of the
     online calibration. Spec keys: `calib-qp:drift=0.01,pos_std=0.003,...`. Set the three noise stds to your
     sensors' (the env's `obs_noise`, `obs_noise_vel`, `obs_noise_yaw`)."""
 

@@ -33,13 +33,13 @@ column. Nothing about the robot's geometry is assumed: only that it is an arm on
 plane, whose mount position, velocity and heading are measured (the observations every mobman robot has).
 
 
-The arithmetic lives in `policies.model_free_kernels` (`est_observe`, the structured branch of `est_update`,
-`_compose`: scalar numba code); `StructuredEstimator` and `WheelMap` (`policies.estimators`) are its Python face,
+The arithmetic lives in `policies.kernels.model_free` (`est_observe`, the structured branch of `est_update`,
+`_compose`: scalar numba code); `StructuredEstimator` and `WheelMap` (`policies.laws.estimators`) are its Python face,
 re-exported here.
 """
 
 from __future__ import annotations
 
-from policies.estimators import StructuredEstimator, WheelMap
+from policies.laws.estimators import StructuredEstimator, WheelMap
 
 __all__ = ["StructuredEstimator", "WheelMap"]

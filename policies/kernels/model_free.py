@@ -1,13 +1,13 @@
 """The model-free law of `nnbc-plus`, `broyden` and `rls` as scalar per-row kernels, over N rows.
 
-One implementation (STYLE 14, 17): the scaffolding of `policies.nnbc_plus` (probe, measurement, position filter,
+One implementation (STYLE 14, 17): the scaffolding of `policies.laws.nnbc_plus` (probe, measurement, position filter,
 actuator-model bank, joint-stop check and learnt stops, low-passed dither, posture pull, half-step lookahead,
 damped pseudo-inverse) and the
-four estimators of `policies.estimators` (Kalman filter on [J | J_dot], its structured form with the wheel map
+four estimators of `policies.laws.estimators` (Kalman filter on [J | J_dot], its structured form with the wheel map
 and the heading filter, Broyden's secant update, recursive least squares) are plain float code compiled with
 numba (`@njit(cache=True)`), looped over the rows, with no matrix product (no BLAS): every sum is written out in
 a fixed order, so row i of a batch equals the N = 1 call on row i bit for bit. The single-env controllers are
-the N = 1 case (`policies.nnbc_plus.EstimatingController` is a `LawView`). Random numbers stay in Python (each
+the N = 1 case (`policies.laws.nnbc_plus.EstimatingController` is a `LawView`). Random numbers stay in Python (each
 row's Generator): the kernel flags the rows that need new dither signs or the J_hat(0) noise at their next step
 (`I_NEED`), and the law draws them before that step, in the order and shapes the numpy version drew them.
 
@@ -334,7 +334,7 @@ def _symmetrise(e, off, n):
 def _kalman_update(ep, e, ie, base, nk, x, y0, y1, y2, h, ph):
     """One predict-update of the Kalman filter on [J | J_dot] (k = nk columns each) at e[base:]: constant-rate
     prediction, random-walk process noise, the robust gain-shared update of the three rows, R by covariance
-    matching, P re-symmetrised every 64 updates (see `policies.estimators.KalmanEstimator`)."""
+    matching, P re-symmetrised every 64 updates (see `policies.laws.estimators.KalmanEstimator`)."""
     dt = ep[EP_DT]
     ns = 2 * nk
     ie[0] += 1
@@ -540,7 +540,7 @@ def _solve3(a, b, c, d, e, f, g, h, i, p, q, r, damping, eps2, extra):
     """(A + damping I + d I)^-1 rhs for the symmetric 3 x 3 A (its nine entries a..i), by cofactors. damping I is
     added entry by entry (off the diagonal + 0.0); d = 0, unless eps2 > 0 and the damped A's smallest eigenvalue
     (estimated as det(A) / e2(A), e2 the sum of the principal 2 x 2 minors) is below eps2: then d = extra
-    (1 - estimate / eps2), the singularity-robust damping of `policies.nnbc_plus.ModelFreeConfig.sing_damping`."""
+    (1 - estimate / eps2), the singularity-robust damping of `policies.laws.nnbc_plus.ModelFreeConfig.sing_damping`."""
     off = damping * 0.0
     a, b, c = a + damping, b + off, c + off
     d, e, f = d + off, e + damping, f + off
@@ -705,7 +705,7 @@ def _measure(prm, ipr, lay, f, i, probing, ee_pos, ee_vel, abp, abv, jp, jv, x, 
 @njit(cache=True, inline="always")
 def _actuator_model(prm, ipr, lay, f, it, i, k, ring, last_u, jp, x, avg, pred, lagavg):
     """Advance the lag models by the command of step k - 1, choose the actuator model that best matches the
-    measured speeds (`policies.nnbc_plus.LAG_TAUS`), and fill pred with its speeds. `measurement="velocity"`:
+    measured speeds (`policies.laws.nnbc_plus.LAG_TAUS`), and fill pred with its speeds. `measurement="velocity"`:
     the measured joint_vel (x) against each model's speeds at t_k; `"angles"`: the mean speeds over the step from
     the joint angles (avg) against each model's mean, and x is then avg turned into the speeds at t_k under the
     chosen model (a lag: u(t_k) = c + (mean - c) e^{-dt/tau} / (tau (1 - e^{-dt/tau}) / dt), c the command; a
@@ -927,7 +927,7 @@ def _solve_row(prm, lay, f, it, i, k, n, probing, q, jc, jw, z, v0, v1, v2, u):
 def _check_blocked(prm, lay, f, it, n, na, x, cm, q):
     """Mark the actuators that were commanded (cm: the speeds the actuator model predicts) but did not move (x:
     the measured speeds); release those that moved `block_release` away
-    (`policies.nnbc_plus.ModelFreeConfig.block_release`). An arm joint's block is also learnt as a stop (its
+    (`policies.laws.nnbc_plus.ModelFreeConfig.block_release`). An arm joint's block is also learnt as a stop (its
     angle and direction, kept for the episode: `stop_margin`)."""
     obc, obl, obq, ow = lay[LAY.block_count], lay[LAY.blocked], lay[LAY.block_q], lay[LAY.weights]
     if it[I_COUNTING] == 0 and it[I_ANYBLK] == 0:

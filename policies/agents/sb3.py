@@ -8,10 +8,10 @@ written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zi
 * `model.zip` - the agent. Its algorithm comes from `config.json`'s `"algo"`; without it, from the policy class
   recorded in the zip (PPO or A2C for the actor-critic class they share, by PPO's own entries; a file naming
   none is refused: add "algo" to config.json). SB3 loads it with every
-  pickled entry supplied by `policies.sb3_files.safe_custom_objects`, so nothing in it is unpickled by SB3.
+  pickled entry supplied by `policies.agents.sb3_files.safe_custom_objects`, so nothing in it is unpickled by SB3.
 * `vecnormalize.pkl` or `vec_normalize.pkl` (optional; both present: refused, naming both) - the
   `VecNormalize` statistics of training, read without unpickling code
-  (`policies.sb3_files.load_vecnormalize_stats`). Observations are normalised
+  (`policies.agents.sb3_files.load_vecnormalize_stats`). Observations are normalised
   exactly as `VecNormalize.normalize_obs` does: `clip((obs - mean) / sqrt(var + epsilon), -clip_obs,
   clip_obs)` cast to float32, with the saved `obs_rms`, `epsilon` and `clip_obs`, only for the keys in its
   `norm_obs_keys` (and only if `norm_obs` was on). The statistics are frozen: evaluation never updates them.
@@ -23,7 +23,7 @@ written by `mobman-train`, by plain Stable-Baselines3 (`model.save("DIR/model.zi
   in order) and `"wrappers"` (names of observation wrappers, applied in order to the raw observation before
   it is reduced to `obs_keys`, as `mobman-train` applies them per env before `VecNormalize`). Reproduced
   here (`OBS_WRAPPERS`): `"pos_error"` adds `pos_error = target_pos - ee_pos` (3, m, float32); `"agent"` is
-  the robot-independent, clock-free interface of `policies.agent_interface` (mobman-train's default): the
+  the robot-independent, clock-free interface of `policies.agents.agent_interface` (mobman-train's default): the
   observation becomes its keys, and the agent's 9 action slots are mapped to the env's n + 2 actuators in
   `predict` (the padded slots dropped), so one agent acts on arms of up to 7 joints. Names of
   wrappers that do not change what the agent sees at inference (`TimeLimit`, `Monitor`,
@@ -55,7 +55,7 @@ the agent was trained on gives a `UserWarning` (evaluating on another task is le
 generalisation test, but should be deliberate); env kwargs are not compared (the learning-only ones such as
 `reward_weights` and `error_bound` differ from evaluation by design).
 
-**Only load agents you trust.** SB3's files hold pickles, which can run code; `policies.sb3_files` reads
+**Only load agents you trust.** SB3's files hold pickles, which can run code; `policies.agents.sb3_files` reads
 them with a restricted unpickler (numpy data, SB3 policy classes, gymnasium spaces, torch layers only) and
 SB3 reads the weights with `torch.load(weights_only=True)`, which narrows what a crafted file can do, but a
 model file is still a program's input and not a sandboxed one.
@@ -75,8 +75,8 @@ from typing import Any
 
 import numpy as np
 
-from policies import agent_interface
-from policies.sb3_files import (
+from policies.agents import agent_interface
+from policies.agents.sb3_files import (
     STATS_NAMES,
     RunFiles,
     find_run,
@@ -87,19 +87,19 @@ from policies.sb3_files import (
     unused_pickles,
     zoo_normalize,
 )
-from policies.untrusted import file_sha256
-from policies.untrusted_json import read_json
+from policies.agents.untrusted import file_sha256
+from policies.agents.untrusted_json import read_json
 
 #: Cap on an agent's config.json (the shipped ones: 2 kB).
 MAX_CONFIG_BYTES = 16 * 2**20
 
-#: Folder of the models shipped as package data (found through this file's own location, so a user's
-#: `train.py` or `policies.py` beside their script cannot hide it).
-#: The observation wrapper name of `policies.agent_interface`: an agent trained with it outputs the interface's
+#: The observation wrapper name of `policies.agents.agent_interface`: an agent trained with it outputs the interface's
 #: `N_ACTIONS` padded actions, which `predict` maps back to the env's n + 2.
 AGENT_WRAPPER = "agent"
 
-MODELS_DIR = Path(__file__).resolve().parent / "models"
+#: Folder of the models shipped as package data, `policies/models/` (found through this file's own location, so a
+#: user's `train.py` or `policies.py` beside their script cannot hide it).
+MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 
 
 def _shipped_models() -> dict[str, str]:
@@ -128,7 +128,7 @@ def _pos_error(obs: dict) -> dict:
 #: Observation wrappers reproduced at inference: name -> (transform of the raw dict, raw keys it reads).
 #: Same names and semantics as `mobman-train`'s `train.wrappers` (which may not be imported from here: the
 #: dependencies point mobman_env <- policies <- eval <- train). `"agent"` is the robot-independent interface of
-#: `policies.agent_interface` (clock-free observation; its 9-slot action is mapped back to the robot's own).
+#: `policies.agents.agent_interface` (clock-free observation; its 9-slot action is mapped back to the robot's own).
 OBS_WRAPPERS = {
     "pos_error": (_pos_error, ("target_pos", "ee_pos")),
     AGENT_WRAPPER: (agent_interface.agent_observation, agent_interface.ENV_KEYS),
@@ -160,7 +160,8 @@ def resolve_model_path(text: str) -> Path:
 
 
 def resolve_run(text: str) -> RunFiles:
-    """The files of the agent `text` names (an alias, a folder, a model file); see `policies.sb3_files.find_run`."""
+    """The files of the agent `text` names (an alias, a folder, a model file); see
+    `policies.agents.sb3_files.find_run`."""
     return find_run(_model_path(text))
 
 
@@ -331,7 +332,7 @@ class SB3Policy:
 
             torch.set_num_threads(int(torch_threads))
         self.model = self._load_model(device)
-        from policies.sb3_actor import numpy_actor
+        from policies.agents.sb3_actor import numpy_actor
 
         self._actor = numpy_actor(self.model)  # deterministic actions, the same bits for any batch size
         self.wrappers = _wrapper_names(self.config.get("wrappers"), self._config_file)
@@ -634,8 +635,8 @@ class SB3Policy:
         return action, state
 
     def _act(self, obs: Any, state: Any, episode_start: Any, deterministic: bool) -> tuple[Any, Any]:
-        """The model's action for the transformed observation: `policies.sb3_actor` where it serves (deterministic
-        actor-critic MLPs: row i's bits do not depend on the batch), else SB3's `predict`."""
+        """The model's action for the transformed observation: `policies.agents.sb3_actor` where it serves
+        (deterministic actor-critic MLPs: row i's bits do not depend on the batch), else SB3's `predict`."""
         if deterministic and self._actor is not None:
             return self._actor(obs), state
         return self.model.predict(obs, state=state, episode_start=episode_start, deterministic=deterministic)

@@ -45,7 +45,7 @@ backends go through `qpsolvers.solve_qp`. If the solver returns no solution (non
 seeds), the step falls back to the damped pseudo-inverse clipped to the bounds and `qp_failures` counts it.
 
 One law for N robots (`QPLaw`, `policies.make(spec, vector_env)`): the Jacobians of all rows in one batched
-pass (`policies.kernels.ModelJacobians`), the bounds, the posture term and v as whole-array operations, then one
+pass (`policies.kernels.shared.ModelJacobians`), the bounds, the posture term and v as whole-array operations, then one
 QP per row. The single-env `QP` is its N = 1 case (STYLE 14), so row i of a batch equals the single policy bit
 for bit (`tests/test_batched_policies.py`).
 """
@@ -62,8 +62,8 @@ import numpy as np
 from mobman_env.validation import number
 from policies.base import EnvFacts, reject_extra
 from policies.batched import BatchedController, LawView
-from policies.jmpi import DEFAULT_GAMMA
-from policies.kernels import ModelJacobians
+from policies.kernels.shared import ModelJacobians
+from policies.laws.jmpi import DEFAULT_GAMMA
 
 #: QP backends accepted by `QPConfig.solver` (dense ones that `qpsolvers` drives; daqp is the default).
 SOLVERS = ("daqp", "proxqp", "osqp", "clarabel")

@@ -2,8 +2,8 @@
 practitioner's closed loop on the nominal model) and the oracle (the same closed loop on the true model).
 
 Both evaluate a kinematic model at the *measured* joint angles and heading (`joint_pos[:n]`, `base_yaw`), and
-invert it with the same damped pseudo-inverse as NNBC (`policies.kernels.damped_pinv_apply_rows`; the damping is zero
-away from singularities, so these are the plain pseudo-inverse methods on this task).
+invert it with the same damped pseudo-inverse as NNBC (`policies.kernels.shared.damped_pinv_apply_rows`; the
+damping is zero away from singularities, so these are the plain pseudo-inverse methods on this task).
 
 * `jmpi` - the conventional Jacobian pseudo-inverse method the paper compares against:
   u = J_nom^+ (r_d_dot - [p_c_dot; 0]) with J_nom the paper's Jacobian of eq. (6) for the *nominal* robot.
@@ -27,7 +27,7 @@ Units: gamma in 1/s; v in m/s; u in rad/s (the base class clips u to the speed l
 sigma_threshold in m/rad. Default gamma = 20 1/s, the benchmark's one task-space gain for every closed-loop law
 (DESIGN, Release 0.2); the paper's eq. (10) experiments use 10 (`oracle:gamma=10`, as `mobman-eval paper`
 does). None of these laws knows the joint limits: on Circle-v0 joint 1 reaches its stop on many seeds (see
-`policies.qp` for the known-model law that respects them).
+`policies.laws.qp` for the known-model law that respects them).
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ import numpy as np
 from mobman_env.validation import number
 from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
-from policies.kernels import ModelJacobians, damped_pinv_apply_rows
+from policies.kernels.shared import ModelJacobians, damped_pinv_apply_rows
 
 #: The benchmark's task-space feedback gain for every closed-loop law, 1/s (DESIGN, Release 0.2).
 DEFAULT_GAMMA = 20.0
@@ -91,7 +91,7 @@ class OracleConfig(JMPIConfig):
 class ModelLaw(BatchedController):
     """The one law of this module for N robots, u = J^+ (r_d_dot - [p_c_dot; 0] + gamma (r_d - r_a)) (whole
     body: no p_c_dot term), with J row i's model's Jacobian at its measured state (batched,
-    `policies.kernels.ModelJacobians`). `params(i)` returns row i's `RobotParams` (nominal or true); it is read
+    `policies.kernels.shared.ModelJacobians`). `params(i)` returns row i's `RobotParams` (nominal or true); it is read
     at each of the row's episode starts. The single-env classes below are its N = 1 case."""
 
     _keys = ("joint_pos", "base_yaw", "target_vel", "arm_base_vel")

@@ -1,8 +1,8 @@
-"""Online Jacobian estimators behind one interface, for the model-free controllers of `policies.nnbc_plus`.
+"""Online Jacobian estimators behind one interface, for the model-free controllers of `policies.laws.nnbc_plus`.
 
 Each estimator learns the 3 x n matrix J of the linear measurement y = J x, with x the measured actuator speeds
 (rad/s) and y the measured task velocity (m/s), from one (x, y) pair per control step. The controller around it
-(`policies.nnbc_plus.EstimatingController`: probe, excitation, control law) is the same for all of them, so a
+(`policies.laws.nnbc_plus.EstimatingController`: probe, excitation, control law) is the same for all of them, so a
 comparison between `nnbc-plus`, `broyden` and `rls` compares estimators and nothing else.
 
 Interface (`JacobianEstimator`):
@@ -17,7 +17,7 @@ The three estimators (units as above; "per step" means per control step dt):
 
 * `KalmanEstimator` (`nnbc-plus`): each row of [J | J_dot] is the state of a linear Kalman filter with a
   constant-rate model J(t + dt) = J(t) + dt J_dot(t) and random-walk process noise; the rows share one 2n x 2n
-  covariance and one gain. See `policies.nnbc_plus` for its parameters.
+  covariance and one gain. See `policies.laws.nnbc_plus` for its parameters.
 * `BroydenEstimator` (`broyden`): Broyden's "good" secant update, J <- J + step (y - J x) x^T / (x^T x), which
   makes J reproduce the newest pair along x and changes nothing orthogonal to it; skipped (step gating) when
   ||x|| < min_speed, where the pair carries more noise than information.
@@ -25,12 +25,12 @@ The three estimators (units as above; "per step" means per control step dt):
   optional random-walk covariance q: K = P x / (lambda + x^T P x), J <- J + (y - J x) K^T,
   P <- (P - K x^T P) / lambda + q I, the trace of P bounded by p_max n (no wind-up when the excitation is poor).
 
-The arithmetic is written once, in `policies.model_free_kernels` (`est_reset`, `est_init`, `est_update`,
+The arithmetic is written once, in `policies.kernels.model_free` (`est_reset`, `est_init`, `est_update`,
 `est_observe`: scalar numba code over one row's state); these classes are its Python face for one estimator:
 each owns a state segment (`est_layout`) or, for the estimator of a controller's row, views that row's segment
 of the batched law (`view`), so `policy.estimator` is the estimate the law runs, not a copy.
 
-Imports numpy and `policies.model_free_kernels` only.
+Imports numpy and `policies.kernels.model_free` only.
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from policies import model_free_kernels as K
+from policies.kernels import model_free as K
 
 #: (m/s)^2: initial running mean square of the Kalman filter's innovations (10 mm/s RMS: permissive).
 INNOV_MS0 = K.INNOV_MS0
@@ -62,7 +62,7 @@ class JacobianEstimator(Protocol):
 
 
 def estimator_params(dt: float = 0.0, **kw: float) -> np.ndarray:
-    """The estimator's constants `ep` (`policies.model_free_kernels.EP_*`) from keyword values (missing: 0)."""
+    """The estimator's constants `ep` (`policies.kernels.model_free.EP_*`) from keyword values (missing: 0)."""
     ep = np.zeros(K.EP_LEN)
     names = {
         "q_jacobian": K.EP_QJ,
@@ -214,7 +214,7 @@ class WheelMap:
 
 class StructuredEstimator(KalmanEstimator):
     """The whole-body J of an arm on a platform, from an arm Jacobian in the platform's frame and a learnt
-    wheel map (`policies.structured`'s docstring). n actuators: n - 2 arm joints, then the two wheels.
+    wheel map (`policies.laws.structured`'s docstring). n actuators: n - 2 arm joints, then the two wheels.
 
     `observe(obs)` must be called at every control step before `update` (and during the probe, so the wheel
     map learns from it); `arm_kw` are the `KalmanEstimator` options of the arm's filter. X and `arm_P` are the arm

@@ -105,10 +105,10 @@ import numpy as np
 from mobman_env.numba_cache import njit
 from policies.base import EnvFacts, current_model, reject_extra
 from policies.batched import BatchedController, LawView
-from policies.kernels import ModelJacobians, damped_pinv_apply_rows
-from policies.kernels import damped_pinv as damped_pinv  # re-exported: the pseudo-inverse of the module docstring
-from policies.kernels import damped_pinv_apply as damped_pinv_apply
-from policies.kernels import sigma_min_3 as sigma_min_3
+from policies.kernels.shared import ModelJacobians, damped_pinv_apply_rows
+from policies.kernels.shared import damped_pinv as damped_pinv  # re-exported: the module docstring's pseudo-inverse
+from policies.kernels.shared import damped_pinv_apply as damped_pinv_apply
+from policies.kernels.shared import sigma_min_3 as sigma_min_3
 
 #: Observation keys NNBC reads.
 NNBC_OBS_KEYS = ("ee_pos", "ee_vel", "arm_base_vel", "target_pos", "target_vel")

@@ -5,12 +5,12 @@ Why: the reactive laws (`qp-oracle` included) see only r_d(t) and r_d_dot(t) and
 speed: on fast paths they meet the actuator limits late, and under actuator lag they lag behind. This law plans
 the next `horizon` x `step` control periods (60 ms by default) against the path ahead, through the lag, so it
 starts the motions early and commands through the lag. It may import `mobman_env` (engine, validation),
-`policies.base`, `policies.batched`, `policies.kernels`, `policies.qp` (the dampers, the QP backends) and
-`policies.mpc_model` (the prediction model and its kernels, with their docstring).
+`policies.base`, `policies.batched`, `policies.kernels.shared`, `policies.laws.qp` (the dampers, the QP backends) and
+`policies.kernels.mpc_model` (the prediction model and its kernels, with their docstring).
 
 The law (per control step, at the measured joint angles and heading)
 --------------------------------------------------------------------
-Decision variable: B blocked commands x = [u_0; ...; u_{B-1}] (B (n + 2) rad/s; `policies.mpc_model`: the first
+Decision variable: B blocked commands x = [u_0; ...; u_{B-1}] (B (n + 2) rad/s; `policies.kernels.mpc_model`: the first
 block is the move applied now). With the predicted end-effector r_k = r_0 + J D_k (D_k the actuators' angle
 changes through the exact lag from the realised speeds w_0, J the whole-body Jacobian of the model at the
 measured state, r_0 the measured `ee_pos`):
@@ -21,7 +21,7 @@ measured state, r_0 the measured `ee_pos`):
     subject to  -scale <= u_b <= scale,  u_0 within qp's joint-limit dampers
 
 omega_k = 1, and `terminal_weight` at k = H; W = 1 for the arm joints, `wheel_weight` for the wheels; z the
-posture pull of `policies.qp` (arm: posture_gain (q_0 - q)); u_prev the previous command. The realised speeds are
+posture pull of `policies.laws.qp` (arm: posture_gain (q_0 - q)); u_prev the previous command. The realised speeds are
 convex combinations of w_0 and the commands, so the speed bounds on u bound w too. u_0 is sent.
 
 w_0 is the law's own lag state: the measured `joint_vel` at the episode start, then propagated through the
@@ -39,11 +39,11 @@ Models: `mpc-oracle` solves with the true robot (`params_provider`) and the true
 catalogue robot, which lists no lag, so it identifies the one parameter online from its own commands and the
 measured speeds (observations only): per control period (w_{k+1} - u_k) = a (w_k - u_k) for every actuator,
 a = exp(-dt/tau), least squares over the episode (speeds normalised by their limits), used once the accumulated
-excitation passes 1e-6 (`policies.mpc_model.lag_fit_rows`), a decay below 1e-3 per period read as no lag (the
+excitation passes 1e-6 (`policies.kernels.mpc_model.lag_fit_rows`), a decay below 1e-3 per period read as no lag (the
 float32 speeds' rounding reads as a lag of about 0.5 ms, and fitting it made `mpc` chaotic: see
 `eval.output.precision`); it finds 0 without lag and 0.1 s within 1e-8 s after 10 steps.
 
-Preview: the path of `info["task"]` (`policies.mpc_model`); a row started without it extrapolates the target.
+Preview: the path of `info["task"]` (`policies.kernels.mpc_model`); a row started without it extrapolates the target.
 
 Measured (kinematic, PUMA, development seeds; max tracking error per episode; IQM over episodes)
 -------------------------------------------------------------------------------------------------
@@ -79,7 +79,7 @@ Measured (kinematic, PUMA, development seeds; max tracking error per episode; IQ
 * Cost (interleaved with `qp-oracle` in one process, on a shared machine: ratios only): a single env's
   `predict` takes 1.2 times `qp-oracle`'s, a robot-step of 64 batched rows 1.03 times.
 
-Solver: DAQP on the dense QP (box bounds only: `daqp.solve` directly, as `policies.qp.daqp_solve_qp`), other
+Solver: DAQP on the dense QP (box bounds only: `daqp.solve` directly, as `policies.laws.qp.daqp_solve_qp`), other
 backends through `qpsolvers.solve_qp`. If it returns no solution the row falls back to the unconstrained
 minimiser clipped to the bounds and `qp_failures` counts it (none seen on the development seeds above).
 
@@ -99,8 +99,7 @@ from mobman_env import engine as E
 from mobman_env.validation import integer, number
 from policies.base import EnvFacts, reject_extra
 from policies.batched import BatchedController, LawView
-from policies.kernels import ModelJacobians
-from policies.mpc_model import (
+from policies.kernels.mpc_model import (
     block_lengths,
     condensed_qp,
     lag_coefficients,
@@ -108,7 +107,8 @@ from policies.mpc_model import (
     preview_rows,
     task_coefficients,
 )
-from policies.qp import SOLVERS, damper_bounds
+from policies.kernels.shared import ModelJacobians
+from policies.laws.qp import SOLVERS, damper_bounds
 
 
 @dataclass(frozen=True)
@@ -328,7 +328,7 @@ class MPCLaw(BatchedController):
         lb, ub = damper_bounds(q, self._lower, self._upper, self._scale, c.influence, c.stop, c.damper_gain)
         u = np.empty((n, m))
         P, f, lbx, ubx = self._P, self._f, self._lbx, self._ubx
-        # a row with a non-finite observation gets NaN (that row's problem, as in `policies.qp`: the env refuses it
+        # a row with a non-finite observation gets NaN (that row's problem, as in `policies.laws.qp`: the env refuses it
         # naming the robot), never the solver or LAPACK's least squares, whose error would fail every row
         finite = (
             np.isfinite(J).all(axis=(1, 2))

@@ -3,7 +3,7 @@
 A results file, a scorecard or a run's `config.json` may come from a stranger. Before any work is done with
 one, `read_json(path, max_bytes, what, schema)`:
 
-1. opens it only if it is a regular file after following symlinks (`policies.untrusted.open_regular`: a FIFO
+1. opens it only if it is a regular file after following symlinks (`policies.agents.untrusted.open_regular`: a FIFO
    is never opened, so it cannot hang the reader; a symlink to `/dev/zero` is a device and is refused);
 2. refuses it if it holds more than `max_bytes` (checked on the size before reading, and again on what was read);
 3. decodes it as UTF-8, naming the byte offset of a bad byte;
@@ -17,7 +17,7 @@ A large file may be stored compressed (xz, `eval.output.compact`): `NAME.json.xz
 compressed bytes and what they unpack to, checked while unpacking: a small xz file of a gigabyte of zeros is
 refused after `max_bytes + 1` bytes, not after a gigabyte.
 
-Every failure is a `policies.untrusted.FileRefused` (a ValueError) naming the file; callers turn it into
+Every failure is a `policies.agents.untrusted.FileRefused` (a ValueError) naming the file; callers turn it into
 their own error type (`eval.errors.EvalError`, exit 2 on the command line).
 
 The schema language is a handful of classes, written once, with no dependency: `Int`, `Num`, `Str`, `Bool`,
@@ -25,7 +25,7 @@ The schema language is a handful of classes, written once, with no dependency: `
 (an object whose named keys are checked; other keys are allowed: newer writers may add fields), `AnyJSON`.
 A field path reads like Python: `rows[0].n`, `protocol.conditions.default.envs[2]`.
 
-May import the standard library and `policies.untrusted` only.
+May import the standard library and `policies.agents.untrusted` only.
 """
 
 from __future__ import annotations
@@ -36,7 +36,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from policies.untrusted import FileRefused, read_regular
+from policies.agents.untrusted import FileRefused, read_regular
 
 __all__ = [
     "COMPRESSED_SUFFIX",

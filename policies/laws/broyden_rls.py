@@ -3,10 +3,10 @@
 Uncalibrated visual servoing and model-free resolved-rate control have estimated the Jacobian online for
 decades with two textbook estimators (Jagersand, Fuentes & Nelson, ICRA 1997; Hosoda & Asada, IROS 1994;
 Piepmeier, McMurray & Lipkin, T-RA 2004). They are built here into the *same* controller as `nnbc-plus`
-(`policies.nnbc_plus.EstimatingController`: the 2n-step probe for J_hat(0) while tracking, the measurement y = J x of the
-measured task velocity against the measured actuator speeds, the null-space and task-space dither, the posture
-pull, the damped pseudo-inverse control law with gain gamma = 20 1/s), so that a comparison with `nnbc-plus`
-(a Kalman filter over J and its rate) isolates the estimator. They model no rate: J_dot_hat = 0, so the
+(`policies.laws.nnbc_plus.EstimatingController`: the 2n-step probe for J_hat(0) while tracking, the measurement
+y = J x of the measured task velocity against the measured actuator speeds, the null-space and task-space dither,
+the posture pull, the damped pseudo-inverse control law with gain gamma = 20 1/s), so that a comparison with
+`nnbc-plus` (a Kalman filter over J and its rate) isolates the estimator. They model no rate: J_dot_hat = 0, so the
 half-step lookahead extrapolates only r_d_dot.
 
 With x the measured actuator speeds (rad/s, n = 8 on the PUMA) and y the measured task velocity (m/s, 3) at step k:
@@ -27,7 +27,7 @@ With x the measured actuator speeds (rad/s, n = 8 on the PUMA) and y the measure
   J_k minimises sum_j lambda^(k-j) ||y_j - J x_j||^2 (plus a prior that fades): a window of about
   1 / (1 - lambda) steps. The trace bound stops the covariance from winding up when the excitation is poor.
 
-Parameters and units: the scaffolding's (see `policies.nnbc_plus.ModelFreeConfig`) plus the estimator's fields
+Parameters and units: the scaffolding's (see `policies.laws.nnbc_plus.ModelFreeConfig`) plus the estimator's fields
 below. Both controllers are model-free: built from `EnvFacts`, they read observations only.
 """
 
@@ -39,9 +39,9 @@ from typing import Any
 import numpy as np
 
 from mobman_env.validation import number
-from policies import model_free_kernels as K
-from policies.estimators import estimator_params, rls_params
-from policies.nnbc_plus import EstimatingController, ModelFreeConfig
+from policies.kernels import model_free as K
+from policies.laws.estimators import estimator_params, rls_params
+from policies.laws.nnbc_plus import EstimatingController, ModelFreeConfig
 
 
 @dataclass(frozen=True)

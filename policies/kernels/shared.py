@@ -91,7 +91,7 @@ def _dpinv_rows(J, v, damping, sigma_threshold, u):
 def damped_pinv_apply_rows(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
     """u_i = J_i^T (J_i J_i^T + lambda_i^2 I)^{-1} v_i for J (N, 3, m) and v (N, 3) -> u (N, m).
 
-    lambda as in `policies.nnbc` (zero unless J_i's smallest singular value is below sigma_threshold:
+    lambda as in `policies.laws.nnbc` (zero unless J_i's smallest singular value is below sigma_threshold:
     lambda^2 = damping^2 (1 - sigma_min^2 / threshold^2)). A row whose damped J J^T is exactly singular
     (damping = 0 and a rank-deficient J) gets the least-squares solution; a row holding NaN or inf (a non-finite
     observation) gets NaN: that row's problem, which the env refuses naming the robot, never a LAPACK error that
@@ -118,7 +118,7 @@ def sigma_min_3(A: Any) -> float:
 
 
 def damped_pinv_apply(J: np.ndarray, v: np.ndarray, damping: float, sigma_threshold: float) -> np.ndarray:
-    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in `policies.nnbc`'s module docstring: the
+    """u = J^T (J J^T + lambda^2 I)^{-1} v for a 3 x n J, lambda as in `policies.laws.nnbc`'s module docstring: the
     one-row case of `damped_pinv_apply_rows` (what the laws run)."""
     J1, v1 = np.asarray(J, dtype=float)[None], np.asarray(v, dtype=float)[None]
     return damped_pinv_apply_rows(J1, v1, damping, sigma_threshold)[0]
@@ -170,7 +170,7 @@ class ModelJacobians:
     @property
     def arm(self) -> np.ndarray:
         """The packed `arm` rows (N, 8, n + 2) of the models (`mobman_env.engine`'s layout). A law that calibrates its
-        model (`policies.calib_qp`) writes its estimates into them in place; the next `__call__` uses them."""
+        model (`policies.laws.calib_qp`) writes its estimates into them in place; the next `__call__` uses them."""
         return self._arm
 
     @property
