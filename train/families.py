@@ -45,6 +45,11 @@ def families(records: Sequence[dict], members: Mapping[str, Sequence[str]]) -> d
     return out
 
 
+def _label(spec: str) -> str:
+    """A member as the tables show it: an `sb3:` run folder by its name (families.json keeps the whole spec)."""
+    return Path(spec[4:]).name if spec.startswith("sb3:") else spec
+
+
 def _pct(x: float) -> str:
     return f"{x * 100:.0f}%"
 
@@ -66,12 +71,12 @@ def markdown(fams: Mapping[str, Any]) -> str:
         iqm = f"{me['iqm'] * 1e3:.2f}" + (f" [{mci[0] * 1e3:.2f}-{mci[1] * 1e3:.2f}]" if mci else "")
         n_eps = f["n_episodes"] // f["n_seeds"]
         lines.append(
-            f"| {name} | {f['n_seeds']} x {n_eps} | {f['n_failed']} | {rate} | {iqm} | `{f['median_seed_member']}` |"
+            f"| {name} | {f['n_seeds']} x {n_eps} | {f['n_failed']} | {rate} | {iqm} | `{_label(f['median_seed_member'])}` |"
         )
     lines += ["", "## Seeds", "", "Per seed (success, max err IQM in mm):", ""]
     for name, f in fams.items():
         per = zip(f["seeds"], f["per_seed_success_rate"], f["max_error_m"]["per_seed_iqm"], strict=True)
-        lines.append(f"* {name}: " + "; ".join(f"`{s}` {_pct(r)}, {i * 1e3:.2f}" for s, r, i in per))
+        lines.append(f"* {name}: " + "; ".join(f"`{_label(s)}` {_pct(r)}, {i * 1e3:.2f}" for s, r, i in per))
     return "\n".join(lines) + "\n"
 
 

@@ -6,7 +6,8 @@ mobman-train ship runs/ppo-dev-s1 --name ppo-dev --train-commit b7e840f \
     --scorecard docs/results/bench-v3-heldout-0.4-agents --models-dir policies/models
 ```
 
-Copies the run's `model.zip`, `vecnormalize.pkl` and `config.json` into `MODELS_DIR/NAME/`, its `summary.json`'s
+Copies the run's `model.zip` (without the optimiser's state: `strip_optimiser`), `vecnormalize.pkl` and
+`config.json` into `MODELS_DIR/NAME/`, its `summary.json`'s
 budget into `training.json`, and writes `README.md`, the model card, from those files and committed results only
 (`card_markdown`; a test regenerates every shipped card and finds it equal): what the agent is and what it
 reads (its knowledge class at evaluation; what its training read), the training command, data and budget, its
@@ -138,7 +139,10 @@ def ship(
         raise ValueError(f"{run} is not a finished mobman-train run folder: {missing} missing")
     folder.mkdir(parents=True, exist_ok=True)
     for f in RUN_FILES:
-        shutil.copyfile(run / f, folder / f)
+        if f == "model.zip":
+            strip_optimiser(run / f, folder / f)
+        else:
+            shutil.copyfile(run / f, folder / f)
     summary = _read_json(run / "summary.json")
     keys = ("timesteps", "wall_s", "steps_per_s_this_session", "status")
     (folder / "training.json").write_text(json.dumps({k: summary[k] for k in keys}, indent=1) + "\n", encoding="utf-8")
@@ -147,6 +151,26 @@ def ship(
     (folder / "card.json").write_text(json.dumps(meta, indent=1) + "\n", encoding="utf-8")
     write_card(folder)
     return folder
+
+
+def strip_optimiser(src: Path, dst: Path) -> None:
+    """Copy an SB3 model.zip without its optimiser's state (Adam's moments, only of use to further training: a
+    third of a small model's file), every other entry as trained; the entries keep their names and dates."""
+    import io
+    import zipfile
+
+    import torch
+
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w", zipfile.ZIP_DEFLATED) as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename.endswith("optimizer.pth"):
+                state = torch.load(io.BytesIO(data), weights_only=True)
+                state["state"] = {}
+                buf = io.BytesIO()
+                torch.save(state, buf)
+                data = buf.getvalue()
+            zout.writestr(info, data)
 
 
 def write_card(folder: Path, write: bool = True) -> str:
