@@ -65,7 +65,7 @@ def _scorecard_tables(path: Path) -> list[str]:
     lines: list[str] = []
     for track in _tracks(sc):
         lines += [
-            f"### The {track} track ([{path.parent.name}](../../../docs/results/{path.parent.name}/scorecard.md))",
+            f"### The {track} track (`{path.parent.as_posix()}/scorecard.md`)",
             "",
         ]
         lines += track_table(sc, track)
