@@ -78,3 +78,16 @@ def test_the_nnbc_plus_v5_experiment_tables_are_what_the_panel_makes_of_its_csvs
     assert len(tables) >= 2
     for md in tables:
         assert md.read_text() == panel.markdown(str(md.with_suffix(".csv"))), md.name
+
+
+def test_nnbc_plus_v4_targets_script_reproduces_its_committed_table():
+    """docs/results/nnbc-plus-v4/targets.py, run as its docstring says on the (compacted) v2 dev scorecard, writes
+    the committed targets.md (it read the scorecard as plain JSON before, which fails on the compacted file)."""
+    import runpy
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    folder = root / "docs" / "results" / "nnbc-plus-v4"
+    script = runpy.run_path(str(folder / "targets.py"))
+    text = script["main"](str(root / "docs" / "results" / "bench-v2-dev" / "scorecard.json"))
+    assert text.rstrip("\n") == (folder / "targets.md").read_text(encoding="utf-8").rstrip("\n")

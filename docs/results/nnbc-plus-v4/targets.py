@@ -10,14 +10,14 @@ over the condition's episodes (the scorecard's `pooled` rows).
 
 from __future__ import annotations
 
-import json
 import sys
 from collections import defaultdict
-from pathlib import Path
+
+from eval.bench.scorecard import load_scorecard
 
 
 def main(path: str, policy: str = "nnbc-plus") -> str:
-    s = json.loads(Path(path).read_text())
+    s = load_scorecard(path)  # the one reader: a compacted scorecard.json.xz is read as its scorecard.json
     rows = [r for r in s["rows"] if r["track"] == "dev" and not r["condition"].startswith("ladder")]
     cells: dict[tuple[str, str], list[int]] = defaultdict(lambda: [0, 0, 0])
     for r in rows:
