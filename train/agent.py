@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from policies.agents.agent_interface import BASE_ACTION, agent_action, env_action, residual_action
+from policies.agents.agent_interface import BASE_ACTION, base_action, env_action, residual_action
 from policies.agents.sb3 import AGENT_WRAPPER
 from train.wrappers import transform_observation
 
@@ -54,7 +54,7 @@ class Agent:
         if self.residual is not None:
             if self.base is None:
                 raise RuntimeError("a residual agent needs bind(env) before predict (its base controller)")
-            base_slots = agent_action(self.base.predict(observation, None, episode_start, True)[0])
+            base_slots = base_action(self.base, observation, episode_start)
             observation = {**observation, BASE_ACTION: base_slots}
         obs = transform_observation(observation, self.wrappers, self.obs_keys)
         batched = np.asarray(obs[self.obs_keys[0]]).ndim == 2

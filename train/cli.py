@@ -212,7 +212,10 @@ def _speed(args: Any) -> int:
     from train import speed
 
     if args.steps < 1 or args.repeats < 1:
-        print(f"mobman-train speed: error: --steps and --repeats must be >= 1, got {args.steps}, {args.repeats}")
+        print(
+            f"mobman-train speed: error: --steps and --repeats must be >= 1, got {args.steps}, {args.repeats}",
+            file=sys.stderr,
+        )
         return 2
     try:
         require_rl()

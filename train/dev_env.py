@@ -67,6 +67,10 @@ class Draw:
     task: str
     options: Mapping[str, Any]
 
+    def reset_options(self) -> dict:
+        """The options as a fresh dict (a reset may keep what it is given; the draw stays as it was)."""
+        return {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in self.options.items()}
+
 
 def robot_draws(robot: str, track: str = "dev") -> list[list[Draw]]:
     """The draws open to `robot` on `track`, grouped by condition (a list of its tasks' draws per condition): the
@@ -107,7 +111,7 @@ class EpisodeSampler:
         return self.last
 
     def __call__(self, rng: np.random.Generator) -> dict:
-        return {k: (dict(v) if isinstance(v, Mapping) else v) for k, v in self.draw(rng).options.items()}
+        return self.draw(rng).reset_options()
 
 
 def residual_settings(kwargs: dict) -> tuple[str | None, float]:
@@ -213,8 +217,7 @@ class DevTrackVectorEnv(gym.vector.VectorEnv):
         obs = _stack([interface.agent_observation(o) for o in raw])
         if self.bases:
             self._base_actions = [
-                interface.agent_action(base.predict(o, episode_start=s)[0])
-                for base, o, s in zip(self.bases, raw, starts, strict=True)
+                interface.base_action(base, o, s) for base, o, s in zip(self.bases, raw, starts, strict=True)
             ]
             obs[interface.BASE_ACTION] = np.concatenate(self._base_actions, axis=0)
         return obs
@@ -290,7 +293,7 @@ class DevTrackEnv(gym.Env):
     def _observe(self, obs: Any, start: bool) -> dict:
         view = interface.agent_observation(obs)
         if self._base is not None:
-            self._base_slots = interface.agent_action(self._base.predict(obs, None, np.array([start]), True)[0])
+            self._base_slots = interface.base_action(self._base, obs, np.array([start]))
             view[interface.BASE_ACTION] = self._base_slots
         return view
 
@@ -304,9 +307,8 @@ class DevTrackEnv(gym.Env):
         self._env = env = self._robot_env(ROBOTS[k])
         self._base = self._bases.get(ROBOTS[k])
         self._m = int(env.action_space.shape[0])
-        options = {key: (dict(v) if isinstance(v, Mapping) else v) for key, v in draw.options.items()}
         episode_seed = int(rng.integers(2**31))
-        obs, info = env.reset(seed=episode_seed, options=options)
+        obs, info = env.reset(seed=episode_seed, options=draw.reset_options())
         if self._base is not None:
             self._base.reset(obs, info, seed=episode_seed)
         info = {**info, "robot": ROBOTS[k], "condition": draw.condition, "task_name": draw.task}

@@ -41,12 +41,12 @@ class SpeedConfig:
 
 
 def _mobman_model(env_id: str) -> Any:
+    from stable_baselines3.common.vec_env import VecMonitor
+
     from train.config import TrainConfig
     from train.run import _build_model, _wrap_normalize, make_vec_env
 
     config = TrainConfig(env_id=env_id, eval_freq=0, progress_bar=False)
-    from stable_baselines3.common.vec_env import VecMonitor
-
     return config, _build_model(config, _wrap_normalize(config, VecMonitor(make_vec_env(config))), None)
 
 

@@ -69,6 +69,13 @@ def observation_space(residual: bool = False) -> spaces.Dict:
     return spaces.Dict({k: spaces.Box(-big, big, (_SIZES[k],), np.float32) for k in keys})
 
 
+def base_action(base: Any, observation: Any, episode_start: Any = None) -> np.ndarray:
+    """A residual agent's base controller's action on `observation` (batched or not), in the 9 slots: what the
+    agent sees as `BASE_ACTION` and adds its residual to (`residual_action`); the one call of training
+    (`train.dev_env`, `train.agent`) and inference (`policies.agents.sb3`)."""
+    return agent_action(base.predict(observation, None, episode_start, True)[0])
+
+
 def residual_action(base: Any, residual: Any, scale: float) -> np.ndarray:
     """A residual agent's command in the 9 slots: its base's action plus `scale` x its own (the env clips the sum
     to the limits); the one formula of training (`train.dev_env`) and inference (`policies.agents.sb3`)."""

@@ -589,7 +589,12 @@ class SB3Policy:
         if self.residual_base is not None:  # the base's action of this step (zeros before any: the space check)
             lead = np.shape(obs["pos_error"])[:-1]
             slots = self._base_slots
-            obs = {**obs, agent_interface.BASE_ACTION: np.zeros((*lead, 9), np.float32) if slots is None else slots}
+            obs = {
+                **obs,
+                agent_interface.BASE_ACTION: np.zeros((*lead, agent_interface.N_ACTIONS), np.float32)
+                if slots is None
+                else slots,
+            }
         keys = self.obs_keys if self.obs_keys is not None else tuple(obs)
         space = self.model.observation_space
         if self.flattens:
@@ -647,8 +652,7 @@ class SB3Policy:
             raise RuntimeError(
                 f"the residual agent {self.path} has no base controller: build it with policies.make('sb3:...', env)"
             )
-        base_action, _ = self.base.predict(observation, None, episode_start, True)
-        self._base_slots = agent_interface.agent_action(base_action)
+        self._base_slots = agent_interface.base_action(self.base, observation, episode_start)
         residual, _ = self._act(self.transform(observation), None, None, deterministic)
         combined = agent_interface.residual_action(self._base_slots, residual, self.residual_scale)
         return agent_interface.env_action(combined, np.shape(observation["joint_pos"])[-1])
